@@ -1,0 +1,32 @@
+# rtlab: two commands — `make demo` and `make test`. Both install missing Debian
+# packages first (scripts/install-deps.sh), then configure + build Release.
+.PHONY: deps configure build demo test bench test-asan clean
+
+deps:
+	@bash scripts/install-deps.sh
+
+configure: deps
+	@cmake --preset release >/dev/null
+
+build: configure
+	@cmake --build --preset release
+
+demo: build
+	./build/release/apps/rtlab render --scene builtin:showcase --frames 3 --out out/demo
+	@echo "demo: wrote out/demo/frame_0000.png .. frame_0002.png, EXR and stats.json"
+
+test: build
+	ctest --preset release
+
+bench: build
+	@mkdir -p out/bench
+	@bash perf/run-benchmarks.sh build/release out/bench
+
+# The sanitizer configuration (ASan + UBSan) over the whole suite.
+test-asan: deps
+	@cmake --preset asan >/dev/null
+	@cmake --build --preset asan
+	ctest --preset asan
+
+clean:
+	rm -rf build out

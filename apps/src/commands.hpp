@@ -1,0 +1,40 @@
+#pragma once
+// The rtlab subcommands. Each returns the process exit code; bad input is
+// thrown as rtlab::InputError and turned into exit 2 by main().
+#include <CLI/CLI.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace rtlab::app {
+
+struct RenderOptions {
+    std::string scene = "builtin:showcase";
+    int width = 640;
+    int height = 360;
+    int spp = 1;
+    int frames = 1;
+    std::string backend = "embree";
+    int threads = 0;
+    std::uint32_t seed = 0;
+    std::string out = "out";
+};
+void addRenderCommand(CLI::App& app, RenderOptions& options);
+int runRender(const RenderOptions& options);
+
+struct InfoOptions {
+    std::string scene;
+};
+void addInfoCommand(CLI::App& app, InfoOptions& options);
+int runInfo(const InfoOptions& options);
+
+struct CompareOptions {
+    std::string a, b;
+};
+void addCompareCommand(CLI::App& app, CompareOptions& options);
+int runCompare(const CompareOptions& options);
+
+// Progress line on stderr, only when stderr is a terminal.
+void progress(const std::string& line);
+
+}  // namespace rtlab::app

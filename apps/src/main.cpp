@@ -1,0 +1,53 @@
+// rtlab command line. Exit codes (DESIGN.md): 0 success, 2 bad input or
+// usage (one line on stderr naming the file and the problem), 1 internal error.
+#include "commands.hpp"
+
+#include <rtlab/core/error.hpp>
+
+#include <iostream>
+#include <unistd.h>
+
+namespace rtlab::app {
+
+void progress(const std::string& line) {
+    static const bool terminal = isatty(STDERR_FILENO) != 0;
+    if (terminal) std::cerr << "\r\033[K" << line << std::flush;
+}
+
+}  // namespace rtlab::app
+
+int main(int argc, char** argv) {
+    using namespace rtlab;
+    CLI::App app{"rtlab: a deterministic ray-tracing laboratory"};
+    app.require_subcommand(1);
+    app::RenderOptions render;
+    app::InfoOptions info;
+    app::CompareOptions compare;
+    app::addRenderCommand(app, render);
+    app::addInfoCommand(app, info);
+    app::addCompareCommand(app, compare);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        std::cerr << "rtlab: " << e.what() << " (see rtlab --help)\n";
+        return static_cast<int>(ExitCode::BadInput);
+    }
+
+    try {
+        if (app.got_subcommand("render")) return app::runRender(render);
+        if (app.got_subcommand("info")) return app::runInfo(info);
+        if (app.got_subcommand("compare")) return app::runCompare(compare);
+    } catch (const InputError& e) {
+        std::cerr << "rtlab: " << e.what() << "\n";
+        return static_cast<int>(ExitCode::BadInput);
+    } catch (const std::exception& e) {
+        std::cerr << "rtlab: internal error: " << e.what() << "\n";
+        return static_cast<int>(ExitCode::Internal);
+    }
+    return static_cast<int>(ExitCode::Internal);
+}

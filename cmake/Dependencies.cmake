@@ -1,0 +1,32 @@
+# Every third-party dependency, found once. All come from Debian packages
+# installed by scripts/install-deps.sh.
+find_package(Threads REQUIRED)
+find_package(TBB REQUIRED)
+find_package(embree 3 REQUIRED)
+find_package(glm REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(OpenEXR REQUIRED)
+find_package(TinyGLTF REQUIRED)
+find_package(CLI11 REQUIRED)
+list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
+find_package(OpenVDB REQUIRED)
+if(RTLAB_BUILD_TESTS)
+  find_package(GTest REQUIRED)
+endif()
+if(RTLAB_BUILD_BENCH)
+  find_package(benchmark REQUIRED)
+endif()
+if(NOT EXISTS /usr/include/stb/stb_image_write.h)
+  message(FATAL_ERROR "stb headers missing: run scripts/install-deps.sh (libstb-dev)")
+endif()
+
+# rtlab_add_module(NAME DEPS ...): one library per top-level folder, sources
+# globbed from NAME/src, public headers in NAME/include/rtlab/NAME.
+function(rtlab_add_module name)
+  cmake_parse_arguments(M "" "" "PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  file(GLOB_RECURSE srcs CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp)
+  add_library(rtlab_${name} STATIC ${srcs})
+  add_library(rtlab::${name} ALIAS rtlab_${name})
+  target_include_directories(rtlab_${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
+  target_link_libraries(rtlab_${name} PUBLIC ${M_PUBLIC_DEPS} PRIVATE ${M_PRIVATE_DEPS})
+endfunction()

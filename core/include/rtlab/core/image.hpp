@@ -1,0 +1,87 @@
+#pragma once
+// Float images with named channels, and their files: multi-channel OpenEXR
+// (beauty + AOVs), PNG previews, and image comparison metrics.
+//
+// Channel naming follows OpenEXR: the beauty image is "R", "G", "B" (and
+// optionally "A"); an AOV layer is "layer.R"/"layer.G"/"layer.B" (or any
+// "layer.X" single channel, e.g. "depth.Z").
+#include <rtlab/core/math.hpp>
+
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace rtlab {
+
+class Image {
+public:
+    Image() = default;
+    Image(int width, int height);
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    std::size_t pixelCount() const { return static_cast<std::size_t>(width_) * height_; }
+
+    // Adds a channel filled with `fill`; throws std::logic_error if it exists.
+    float* addChannel(const std::string& name, float fill = 0.f);
+    // nullptr when absent.
+    float* channel(const std::string& name);
+    const float* channel(const std::string& name) const;
+    bool hasChannel(const std::string& name) const { return channel(name) != nullptr; }
+    // Channel names in insertion order.
+    std::vector<std::string> channelNames() const;
+
+    // Adds "layer.R", "layer.G", "layer.B" (plain "R", "G", "B" when layer is
+    // empty) from one vec3 per pixel, row-major, top row first.
+    void addRgbLayer(const std::string& layer, const std::vector<vec3>& pixels);
+    // Reads "layer.R/G/B" (or "R/G/B") back; throws std::out_of_range if absent.
+    std::vector<vec3> rgbLayer(const std::string& layer) const;
+
+private:
+    struct Channel {
+        std::string name;
+        std::vector<float> data;
+    };
+    int width_ = 0;
+    int height_ = 0;
+    std::vector<Channel> channels_;
+};
+
+enum class ExrPixelType { Half, Float };
+
+// Writes every channel of `image` to an OpenEXR file (ZIP compression),
+// through writeFileAtomically. Throws InputError naming the file on failure.
+void writeExr(const std::filesystem::path& path, const Image& image, ExrPixelType type = ExrPixelType::Float);
+
+// Reads every channel of an OpenEXR file. Throws InputError naming the file
+// when it is missing, unreadable or not an EXR.
+Image readExr(const std::filesystem::path& path);
+
+// 8-bit sRGB PNG preview of the "R","G","B" channels of `layer` ("" = beauty),
+// scaled by 2^exposure, clamped, sRGB-encoded. Non-finite values become 0.
+void writePng(const std::filesystem::path& path, const Image& image, const std::string& layer = "",
+              float exposure = 0.f);
+
+// Writes `path` by calling write(tmpPath) for a temporary sibling file, then
+// renaming it over `path`; the temporary file is removed if write throws. So a
+// reader never sees a half-written output.
+void writeFileAtomically(const std::filesystem::path& path,
+                         const std::function<void(const std::filesystem::path& tmpPath)>& write);
+void writeTextFileAtomically(const std::filesystem::path& path, const std::string& text);
+
+// Difference of `test` against `reference` over the channels both share
+// (by name). Throws InputError when sizes differ or no channel is shared.
+struct ImageDifference {
+    double maxAbsDiff = 0.0;
+    double rmse = 0.0;
+    double psnr = 0.0;    // 10 log10(peak^2 / MSE), peak = max(1, max |reference|); +inf when identical
+    double relMse = 0.0;  // mean of (t - r)^2 / (r^2 + 1e-2)
+    bool identical = false;          // every shared channel bit-identical and channel sets equal
+    std::size_t channelsCompared = 0;
+    std::size_t nonFiniteValues = 0;  // NaN/Inf found in either image (excluded from the sums)
+};
+ImageDifference compareImages(const Image& test, const Image& reference);
+
+}  // namespace rtlab

@@ -1,0 +1,53 @@
+#pragma once
+// Deterministic parallelism: work is split into fixed tiles whose layout does
+// not depend on the thread count; per-tile results are reduced in tile order.
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace rtlab {
+
+struct Tile {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // half-open pixel rectangle
+    int index = 0;                       // position in row-major tile order
+};
+
+// Row-major tiles of tileSize x tileSize (edge tiles are smaller).
+inline std::vector<Tile> makeTiles(int width, int height, int tileSize = 16) {
+    std::vector<Tile> tiles;
+    for (int y = 0; y < height; y += tileSize)
+        for (int x = 0; x < width; x += tileSize)
+            tiles.push_back({x, y, std::min(x + tileSize, width), std::min(y + tileSize, height),
+                             static_cast<int>(tiles.size())});
+    return tiles;
+}
+
+// Runs body(i) for i in [0, count), in parallel, one task per index.
+template <class Body>
+void parallelForEach(std::size_t count, Body&& body) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
+                      },
+                      tbb::simple_partitioner{});
+}
+
+// Limits TBB to `threads` worker threads for the lifetime of this object
+// (0 = TBB's default: all cores).
+class ThreadLimit {
+public:
+    explicit ThreadLimit(int threads) {
+        if (threads > 0)
+            control_ = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                             static_cast<std::size_t>(threads));
+    }
+
+private:
+    std::unique_ptr<tbb::global_control> control_;
+};
+
+}  // namespace rtlab

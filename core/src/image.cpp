@@ -1,0 +1,195 @@
+// Image storage, atomic file writes and image comparison metrics.
+#include <rtlab/core/error.hpp>
+#include <rtlab/core/image.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+namespace rtlab {
+
+namespace {
+
+// "layer.X", or plain "X" for the beauty layer.
+std::string layerChannelName(const std::string& layer, const char* component) {
+    return layer.empty() ? std::string(component) : layer + "." + component;
+}
+
+// A sibling of `path` that no other writer (thread or process) uses at the same time.
+std::filesystem::path uniqueTemporarySibling(const std::filesystem::path& path) {
+    static std::atomic<std::uint64_t> counter{0};
+    const std::uint64_t serial = counter.fetch_add(1, std::memory_order_relaxed);
+    std::filesystem::path tmp = path;
+    tmp += ".tmp" + std::to_string(static_cast<long long>(::getpid())) + "." + std::to_string(serial);
+    return tmp;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Image
+
+Image::Image(int width, int height) : width_(width), height_(height) {
+    if (width < 0 || height < 0)
+        throw std::invalid_argument("Image: negative size " + std::to_string(width) + "x" + std::to_string(height));
+}
+
+float* Image::addChannel(const std::string& name, float fill) {
+    if (channel(name) != nullptr) throw std::logic_error("Image: channel '" + name + "' already exists");
+    // At least one element, so that channel() is never null for an existing
+    // channel of an empty image; only the first pixelCount() values are pixels.
+    channels_.push_back(Channel{name, std::vector<float>(std::max<std::size_t>(pixelCount(), 1), fill)});
+    return channels_.back().data.data();
+}
+
+float* Image::channel(const std::string& name) {
+    return const_cast<float*>(static_cast<const Image&>(*this).channel(name));
+}
+
+const float* Image::channel(const std::string& name) const {
+    for (const Channel& c : channels_)
+        if (c.name == name) return c.data.data();
+    return nullptr;
+}
+
+std::vector<std::string> Image::channelNames() const {
+    std::vector<std::string> names;
+    names.reserve(channels_.size());
+    for (const Channel& c : channels_) names.push_back(c.name);
+    return names;
+}
+
+void Image::addRgbLayer(const std::string& layer, const std::vector<vec3>& pixels) {
+    if (pixels.size() != pixelCount())
+        throw std::invalid_argument("Image: layer '" + layer + "' has " + std::to_string(pixels.size()) +
+                                    " pixels, image has " + std::to_string(pixelCount()));
+    const std::string names[3] = {layerChannelName(layer, "R"), layerChannelName(layer, "G"),
+                                  layerChannelName(layer, "B")};
+    // Check all three first so a clash leaves the image unchanged.
+    for (const std::string& name : names)
+        if (hasChannel(name)) throw std::logic_error("Image: channel '" + name + "' already exists");
+    for (int c = 0; c < 3; ++c) {
+        float* out = addChannel(names[c]);
+        for (std::size_t i = 0; i < pixels.size(); ++i) out[i] = pixels[i][c];
+    }
+}
+
+std::vector<vec3> Image::rgbLayer(const std::string& layer) const {
+    const float* planes[3];
+    const char* components[3] = {"R", "G", "B"};
+    for (int c = 0; c < 3; ++c) {
+        const std::string name = layerChannelName(layer, components[c]);
+        planes[c] = channel(name);
+        if (planes[c] == nullptr) throw std::out_of_range("Image: no channel '" + name + "'");
+    }
+    std::vector<vec3> pixels(pixelCount());
+    for (std::size_t i = 0; i < pixels.size(); ++i) pixels[i] = vec3(planes[0][i], planes[1][i], planes[2][i]);
+    return pixels;
+}
+
+// ---------------------------------------------------------------------------
+// Atomic writes
+
+void writeFileAtomically(const std::filesystem::path& path,
+                         const std::function<void(const std::filesystem::path& tmpPath)>& write) {
+    // The directory must already exist: creating it is the caller's decision.
+    const std::filesystem::path directory = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+    std::error_code ec;
+    if (!std::filesystem::is_directory(directory, ec))
+        throw InputError(path.string(), "directory '" + directory.string() + "' does not exist");
+
+    // Write the temporary sibling; on any failure leave nothing behind.
+    const std::filesystem::path tmp = uniqueTemporarySibling(path);
+    try {
+        write(tmp);
+    } catch (...) {
+        std::filesystem::remove(tmp, ec);
+        throw;
+    }
+
+    // Publish it in one step.
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        std::error_code ignored;
+        std::filesystem::remove(tmp, ignored);
+        throw InputError(path.string(), "cannot write: " + ec.message());
+    }
+}
+
+void writeTextFileAtomically(const std::filesystem::path& path, const std::string& text) {
+    writeFileAtomically(path, [&](const std::filesystem::path& tmp) {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        if (!out) throw InputError(path.string(), "cannot create file");
+        out.write(text.data(), static_cast<std::streamsize>(text.size()));
+        out.close();
+        if (out.fail()) throw InputError(path.string(), "write failed");
+    });
+}
+
+// ---------------------------------------------------------------------------
+// Comparison
+
+ImageDifference compareImages(const Image& test, const Image& reference) {
+    if (test.width() != reference.width() || test.height() != reference.height())
+        throw InputError("image sizes differ: " + std::to_string(test.width()) + "x" + std::to_string(test.height()) +
+                         " vs reference " + std::to_string(reference.width()) + "x" +
+                         std::to_string(reference.height()));
+
+    // Shared channels, in the test image's order.
+    const std::vector<std::string> testNames = test.channelNames();
+    const std::vector<std::string> referenceNames = reference.channelNames();
+    std::vector<std::string> shared;
+    for (const std::string& name : testNames)
+        if (reference.hasChannel(name)) shared.push_back(name);
+    if (shared.empty()) throw InputError("images share no channel");
+
+    ImageDifference diff;
+    diff.channelsCompared = shared.size();
+    diff.identical = testNames.size() == referenceNames.size() && shared.size() == testNames.size();
+
+    const std::size_t n = test.pixelCount();
+    double peak = 1.0;
+    double sumSquared = 0.0;
+    double sumRelative = 0.0;
+    std::size_t finitePairs = 0;
+    for (const std::string& name : shared) {
+        const float* t = test.channel(name);
+        const float* r = reference.channel(name);
+        if (diff.identical && n > 0 && std::memcmp(t, r, n * sizeof(float)) != 0) diff.identical = false;
+        for (std::size_t i = 0; i < n; ++i) {
+            // Non-finite values are counted, never summed.
+            const bool testFinite = std::isfinite(t[i]);
+            const bool referenceFinite = std::isfinite(r[i]);
+            if (referenceFinite) peak = std::max(peak, std::abs(static_cast<double>(r[i])));
+            if (!testFinite || !referenceFinite) {
+                diff.nonFiniteValues += (testFinite ? 0 : 1) + (referenceFinite ? 0 : 1);
+                continue;
+            }
+            const double ref = r[i];
+            const double delta = static_cast<double>(t[i]) - ref;
+            const double squared = delta * delta;
+            diff.maxAbsDiff = std::max(diff.maxAbsDiff, std::abs(delta));
+            sumSquared += squared;
+            sumRelative += squared / (ref * ref + 1e-2);
+            ++finitePairs;
+        }
+    }
+
+    // Means over the finite pairs; PSNR against the reference's peak.
+    const double mse = finitePairs > 0 ? sumSquared / static_cast<double>(finitePairs) : 0.0;
+    diff.rmse = std::sqrt(mse);
+    diff.relMse = finitePairs > 0 ? sumRelative / static_cast<double>(finitePairs) : 0.0;
+    diff.psnr = mse == 0.0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(peak * peak / mse);
+    return diff;
+}
+
+}  // namespace rtlab

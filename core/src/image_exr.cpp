@@ -1,0 +1,172 @@
+// OpenEXR files: every Image channel as one EXR channel (ZIP compression).
+//
+// An EXR channel list is sorted by name, so the Image's channel order is kept
+// in an extra string-vector header attribute and restored when reading.
+#include <rtlab/core/error.hpp>
+#include <rtlab/core/image.hpp>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfCompression.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfStringVectorAttribute.h>
+#include <Imath/half.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <exception>
+#include <fstream>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace rtlab {
+
+namespace {
+
+// Header attribute holding the channel names in Image order.
+constexpr const char* kChannelOrderAttribute = "rtlabChannelOrder";
+
+// First four bytes of every OpenEXR file (20000630, little-endian).
+constexpr std::array<unsigned char, 4> kExrMagic = {0x76, 0x2f, 0x31, 0x01};
+
+// Largest image readExr accepts: 2^30 floats (4 GiB), so that a corrupt
+// header cannot make us allocate without bound.
+constexpr std::int64_t kMaxReadValues = std::int64_t{1} << 30;
+
+// The channel order stored by writeExr when it names exactly the file's
+// channels; otherwise the file's own (alphabetical) order.
+std::vector<std::string> channelOrder(const Imf::Header& header) {
+    std::vector<std::string> fileOrder;
+    for (auto it = header.channels().begin(); it != header.channels().end(); ++it) fileOrder.emplace_back(it.name());
+
+    const auto* stored = header.findTypedAttribute<Imf::StringVectorAttribute>(kChannelOrderAttribute);
+    if (stored == nullptr) return fileOrder;
+    const std::vector<std::string>& order = stored->value();
+    const std::set<std::string> unique(order.begin(), order.end());
+    const bool samePermutation =
+        order.size() == fileOrder.size() && unique.size() == order.size() &&
+        std::all_of(order.begin(), order.end(), [&](const std::string& n) { return header.channels().findChannel(n); });
+    return samePermutation ? order : fileOrder;
+}
+
+}  // namespace
+
+void writeExr(const std::filesystem::path& path, const Image& image, ExrPixelType type) {
+    // Validate what OpenEXR cannot represent.
+    const std::vector<std::string> names = image.channelNames();
+    if (names.empty()) throw InputError(path.string(), "cannot write an OpenEXR file without channels");
+    if (image.width() <= 0 || image.height() <= 0)
+        throw InputError(path.string(), "cannot write an empty " + std::to_string(image.width()) + "x" +
+                                            std::to_string(image.height()) + " OpenEXR image");
+
+    // Header: full data window, ZIP, one channel per Image channel.
+    const Imf::PixelType pixelType = type == ExrPixelType::Half ? Imf::HALF : Imf::FLOAT;
+    Imf::Header header(image.width(), image.height());
+    header.compression() = Imf::ZIP_COMPRESSION;
+    try {
+        for (const std::string& name : names) header.channels().insert(name, Imf::Channel(pixelType));
+    } catch (const std::exception& e) {
+        throw InputError(path.string(), std::string("invalid OpenEXR channel: ") + e.what());
+    }
+    header.insert(kChannelOrderAttribute, Imf::StringVectorAttribute(names));
+
+    // Frame buffer: float channels point at the image; half ones at converted copies.
+    const std::size_t pixelCount = image.pixelCount();
+    const std::size_t rowPixels = static_cast<std::size_t>(image.width());
+    std::vector<std::vector<half>> halfPlanes;
+    Imf::FrameBuffer frameBuffer;
+    for (const std::string& name : names) {
+        const float* data = image.channel(name);
+        if (type == ExrPixelType::Half) {
+            std::vector<half>& plane = halfPlanes.emplace_back(pixelCount);
+            std::transform(data, data + pixelCount, plane.begin(), [](float v) { return half(v); });
+            frameBuffer.insert(name, Imf::Slice(Imf::HALF, reinterpret_cast<char*>(plane.data()), sizeof(half),
+                                                sizeof(half) * rowPixels));
+        } else {
+            // OutputFile only reads from its slices.
+            frameBuffer.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(data)),
+                                                sizeof(float), sizeof(float) * rowPixels));
+        }
+    }
+
+    writeFileAtomically(path, [&](const std::filesystem::path& tmp) {
+        std::ofstream stream(tmp, std::ios::binary | std::ios::trunc);
+        if (!stream) throw InputError(path.string(), "cannot create file");
+        try {
+            // Scope the OutputFile so its line offset table is written before we check the stream.
+            Imf::StdOFStream exrStream(stream, tmp.c_str());
+            Imf::OutputFile file(exrStream, header);
+            file.setFrameBuffer(frameBuffer);
+            file.writePixels(image.height());
+        } catch (const InputError&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw InputError(path.string(), std::string("cannot write OpenEXR file: ") + e.what());
+        }
+        stream.close();
+        if (stream.fail()) throw InputError(path.string(), "write failed");
+    });
+}
+
+Image readExr(const std::filesystem::path& path) {
+    // Open it ourselves, so a missing file reads as such.
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw InputError(path.string(), "cannot open: is a directory");
+    std::ifstream stream(path, std::ios::binary);
+    if (!stream) throw InputError(path.string(), "cannot open: no such file or not readable");
+
+    // The magic number tells an EXR from anything else.
+    std::array<unsigned char, 4> magic{};
+    stream.read(reinterpret_cast<char*>(magic.data()), magic.size());
+    if (stream.gcount() != static_cast<std::streamsize>(magic.size()) || magic != kExrMagic)
+        throw InputError(path.string(), "not an OpenEXR file");
+    stream.seekg(0);
+
+    try {
+        Imf::StdIFStream exrStream(stream, path.c_str());
+        Imf::InputFile file(exrStream);
+        const Imf::Header& header = file.header();
+
+        // Size of the data window, bounded before allocating anything.
+        const Imath::Box2i dataWindow = header.dataWindow();
+        const std::int64_t width = std::int64_t{dataWindow.max.x} - dataWindow.min.x + 1;
+        const std::int64_t height = std::int64_t{dataWindow.max.y} - dataWindow.min.y + 1;
+        if (width <= 0 || height <= 0) throw InputError(path.string(), "OpenEXR file has an empty data window");
+        const std::vector<std::string> names = channelOrder(header);
+        if (names.empty()) throw InputError(path.string(), "OpenEXR file has no channels");
+        if (width > kMaxReadValues || height > kMaxReadValues ||
+            width * height > kMaxReadValues / static_cast<std::int64_t>(names.size()))
+            throw InputError(path.string(), "OpenEXR image is too large (" + std::to_string(width) + "x" +
+                                                std::to_string(height) + ", " + std::to_string(names.size()) +
+                                                " channels)");
+        if (!file.isComplete()) throw InputError(path.string(), "OpenEXR file is truncated or incomplete");
+
+        // One float slice per channel, addressed by data-window coordinates.
+        Image image(static_cast<int>(width), static_cast<int>(height));
+        Imf::FrameBuffer frameBuffer;
+        for (const std::string& name : names) {
+            const Imf::Channel* channel = header.channels().findChannel(name);
+            if (channel->xSampling != 1 || channel->ySampling != 1)
+                throw InputError(path.string(), "subsampled channel '" + name + "' is not supported");
+            float* data = image.addChannel(name);
+            frameBuffer.insert(name, Imf::Slice::Make(Imf::FLOAT, data, dataWindow, sizeof(float),
+                                                      sizeof(float) * static_cast<std::size_t>(width)));
+        }
+        file.setFrameBuffer(frameBuffer);
+        file.readPixels(dataWindow.min.y, dataWindow.max.y);
+        return image;
+    } catch (const InputError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw InputError(path.string(), std::string("corrupt or unreadable OpenEXR file: ") + e.what());
+    } catch (...) {
+        throw InputError(path.string(), "corrupt or unreadable OpenEXR file");
+    }
+}
+
+}  // namespace rtlab

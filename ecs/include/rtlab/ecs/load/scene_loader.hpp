@@ -1,0 +1,43 @@
+#pragma once
+// Scene sources (DESIGN.md): "builtin:NAME", a .gltf/.glb file, or a scene
+// .json that references glTF and VDB files. Every loader throws
+// rtlab::InputError naming the file and the problem on bad input; it never
+// crashes, hangs or leaves a half-built World behind a successful return.
+#include <rtlab/ecs/world.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace rtlab::ecs::load {
+
+// Dispatches on the source string. Adds a default camera and light when the
+// source has none, so every scene renders.
+void loadScene(World& world, const std::string& source);
+
+// glTF 2.0 (.gltf or .glb) through tinygltf: node hierarchy, triangle meshes
+// (strips/fans converted; points/lines rejected), all index widths, normals
+// (generated when missing), UV0, materials, cameras, KHR_lights_punctual,
+// animations, skins, morph targets. New root entities are parented to
+// `parent` when it is valid. Returns the entities created for the glTF scene's
+// root nodes.
+std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
+
+// Scene description JSON (docs/scene-format.md).
+void loadSceneJson(World& world, const std::filesystem::path& path);
+
+// Built-in scenes: "showcase" (default; exercises every effect) and "cornell".
+void loadBuiltinScene(World& world, const std::string& name);
+std::vector<std::string> builtinSceneNames();
+
+// Adds a camera looking at the scene bounds from +Z when the world has no
+// active camera, and a directional light when it has no light at all.
+void addDefaultCameraAndLight(World& world);
+
+// Geometry helpers shared by the loaders and builtin scenes.
+// Area-weighted vertex normals; degenerate ones become (0, 0, 1).
+std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, const std::vector<std::uint32_t>& indices);
+// World-space bounds of every mesh instance.
+Aabb worldBounds(const World& world);
+
+}  // namespace rtlab::ecs::load

@@ -1,0 +1,40 @@
+#pragma once
+// A density grid for participating media. OpenVDB stays behind this opaque
+// type: it is included by exactly one translation unit
+// (ecs/src/load/vdb_volume.cpp), because its headers are slow to compile.
+#include <rtlab/core/math.hpp>
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace rtlab::ecs {
+
+class VolumeGrid {
+public:
+    ~VolumeGrid();
+    VolumeGrid(const VolumeGrid&) = delete;
+    VolumeGrid& operator=(const VolumeGrid&) = delete;
+
+    // Procedural fog: a soft noisy blob of density filling `bounds`
+    // (peak density `peakDensity`), `voxelSize` world units per voxel.
+    static std::shared_ptr<VolumeGrid> makeProceduralFog(const Aabb& bounds, float voxelSize, float peakDensity,
+                                                         std::uint32_t seed);
+    // Loads the float grid `gridName` ("" = the first float grid) of a .vdb
+    // file. Throws InputError naming the file on any problem.
+    static std::shared_ptr<VolumeGrid> loadVdb(const std::filesystem::path& path, const std::string& gridName = "");
+
+    const std::string& name() const;
+    Aabb worldBounds() const;        // bounds of the active voxels, world space
+    float maxDensity() const;        // majorant for delta tracking
+    std::size_t activeVoxelCount() const;
+    // Trilinearly interpolated density at a world-space position (0 outside).
+    float density(const vec3& worldPosition) const;
+
+private:
+    struct Impl;
+    explicit VolumeGrid(std::unique_ptr<Impl> impl);
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rtlab::ecs

@@ -1,0 +1,98 @@
+// Scene-source dispatch and the geometry helpers the loaders share.
+#include <rtlab/core/error.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
+
+#include <algorithm>
+#include <cctype>
+
+namespace rtlab::ecs::load {
+namespace {
+
+std::string lowercaseExtension(const std::filesystem::path& p) {
+    std::string ext = p.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    return ext;
+}
+
+}  // namespace
+
+void loadScene(World& world, const std::string& source) {
+    constexpr std::string_view kBuiltinPrefix = "builtin:";
+    if (source.rfind(kBuiltinPrefix, 0) == 0) {
+        loadBuiltinScene(world, source.substr(kBuiltinPrefix.size()));
+    } else {
+        const std::filesystem::path path(source);
+        std::error_code ec;
+        if (!std::filesystem::exists(path, ec)) throw InputError(source, "no such file");
+        if (std::filesystem::is_directory(path, ec)) throw InputError(source, "is a directory, not a scene file");
+        const std::string ext = lowercaseExtension(path);
+        if (ext == ".gltf" || ext == ".glb")
+            loadGltf(world, path);
+        else if (ext == ".json")
+            loadSceneJson(world, path);
+        else
+            throw InputError(source, "unknown scene type '" + ext +
+                                         "' (expected builtin:NAME, .gltf, .glb or a scene .json)");
+    }
+    addDefaultCameraAndLight(world);
+}
+
+std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, const std::vector<std::uint32_t>& indices) {
+    std::vector<vec3> normals(positions.size(), vec3(0.f));
+    for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
+        const std::uint32_t a = indices[t], b = indices[t + 1], c = indices[t + 2];
+        if (a >= positions.size() || b >= positions.size() || c >= positions.size()) continue;
+        // The cross product's length is twice the area: area weighting for free.
+        const vec3 n = glm::cross(positions[b] - positions[a], positions[c] - positions[a]);
+        if (!isFinite(n)) continue;
+        normals[a] += n;
+        normals[b] += n;
+        normals[c] += n;
+    }
+    for (vec3& n : normals) {
+        const float len = glm::length(n);
+        n = (len > 0.f && std::isfinite(len)) ? n / len : vec3(0.f, 0.f, 1.f);
+    }
+    return normals;
+}
+
+Aabb worldBounds(const World& world) {
+    Aabb bounds;
+    world.each<MeshInstance>([&](Entity e, const MeshInstance& inst) {
+        if (inst.mesh < world.meshes().size())
+            bounds.extend(world.mesh(inst.mesh).bounds().transformed(world.computeInstanceWorldFromObject(e)));
+    });
+    return bounds;
+}
+
+void addDefaultCameraAndLight(World& world) {
+    Aabb bounds = worldBounds(world);
+    if (bounds.empty()) bounds = Aabb{vec3(-1.f), vec3(1.f)};
+    const vec3 center = bounds.center();
+    const float radius = std::max(0.5f * glm::length(bounds.extent()), 1e-6f);
+
+    if (!world.alive(world.activeCamera())) {
+        // Prefer an existing camera entity; otherwise frame the bounds from +Z.
+        Entity found = kNullEntity;
+        world.each<Camera>([&](Entity e, const Camera&) {
+            if (!found.valid()) found = e;
+        });
+        if (!found.valid()) {
+            const Camera cam{};
+            const float distance = radius / std::tan(0.5f * cam.yfov) * 1.1f;
+            found = world.create("default camera");
+            world.emplace(found, LocalTransform{center + vec3(0.f, 0.f, distance), quat(1.f, 0.f, 0.f, 0.f), vec3(1.f)});
+            world.emplace(found, Camera{cam.yfov, distance * 1e-3f, distance + 4.f * radius, 0.f});
+        }
+        world.setActiveCamera(found);
+    }
+    if (world.count<Light>() == 0) {
+        const Entity sun = world.create("default light");
+        // Directional light shining down -Z of a frame rotated to point along (-1,-2,-1).
+        const vec3 dir = glm::normalize(vec3(-0.4f, -1.f, -0.6f));
+        world.emplace(sun, LocalTransform{vec3(0.f), orientationLookingAlong(dir), vec3(1.f)});
+        world.emplace(sun, Light{LightType::Directional, vec3(1.f), 3.f});
+    }
+}
+
+}  // namespace rtlab::ecs::load

@@ -1,0 +1,77 @@
+#pragma once
+// Retained acceleration structures over Embree: one BLAS per mesh asset,
+// instanced into a TLAS. Work is driven only by the frame's FrameUpdate:
+//   moved instance  -> TLAS update only
+//   deformed mesh   -> BLAS refit (same topology)
+//   new/topology    -> BLAS rebuild
+//   untouched       -> no work
+#include <rtlab/ecs/snapshot.hpp>
+
+#include <embree3/rtcore.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace rtlab::tracer {
+
+struct AccelOptions {
+    bool robust = true;  // RTC_SCENE_FLAG_ROBUST: watertight-leaning traversal and intersection
+    int threads = 0;     // Embree build threads (0 = all)
+};
+
+// What one update() did.
+struct AccelUpdateStats {
+    std::uint32_t blasRebuilt = 0;
+    std::uint32_t blasRefit = 0;
+    std::uint32_t blasReused = 0;
+    std::uint32_t tlasBuilds = 0;         // full TLAS rebuilds (instance set changed)
+    std::uint32_t tlasUpdates = 0;        // TLAS recommits for moved instances only
+    std::uint32_t instancesMoved = 0;
+    double buildMs = 0.0;
+};
+
+// Owns the Embree device.
+class EmbreeDevice {
+public:
+    explicit EmbreeDevice(int threads = 0);
+    ~EmbreeDevice();
+    EmbreeDevice(const EmbreeDevice&) = delete;
+    EmbreeDevice& operator=(const EmbreeDevice&) = delete;
+    RTCDevice get() const { return device_; }
+
+private:
+    RTCDevice device_ = nullptr;
+};
+
+class AccelManager {
+public:
+    explicit AccelManager(AccelOptions options = {});
+    ~AccelManager();
+    AccelManager(const AccelManager&) = delete;
+    AccelManager& operator=(const AccelManager&) = delete;
+
+    // Brings the BLASes and the TLAS up to date with `scene`.
+    AccelUpdateStats update(const ecs::SceneSnapshot& scene);
+
+    RTCScene tlas() const { return tlas_; }
+    RTCDevice device() const { return device_.get(); }
+    // TLAS instance id (Embree instID) -> the snapshot instance it came from.
+    const ecs::InstanceSnapshot& instance(std::uint32_t instId) const { return instances_.at(instId); }
+    std::size_t instanceCount() const { return instances_.size(); }
+
+private:
+    struct Blas;
+    void buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id);
+    void refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id);
+    void rebuildTlas(const ecs::SceneSnapshot& scene);
+
+    AccelOptions options_;
+    EmbreeDevice device_;
+    std::vector<std::unique_ptr<Blas>> blases_;  // indexed by MeshId
+    RTCScene tlas_ = nullptr;
+    std::vector<ecs::InstanceSnapshot> instances_;
+    std::vector<std::uint32_t> instIdByEntityIndex_;
+};
+
+}  // namespace rtlab::tracer

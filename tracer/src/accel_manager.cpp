@@ -1,0 +1,158 @@
+#include <rtlab/core/timer.hpp>
+#include <rtlab/tracer/accel_manager.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace rtlab::tracer {
+namespace {
+
+void embreeErrorHandler(void*, RTCError code, const char* message) {
+    // Embree reports API misuse and out-of-memory here; surface them loudly.
+    throw std::runtime_error("embree error " + std::to_string(static_cast<int>(code)) + ": " +
+                             (message ? message : "(no message)"));
+}
+
+void uploadVertices(RTCGeometry geom, const ecs::Geometry& g, bool allocate) {
+    float* v = allocate ? static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                                      RTC_FORMAT_FLOAT3, sizeof(float) * 3,
+                                                                      g.positions.size()))
+                        : static_cast<float*>(rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_VERTEX, 0));
+    std::memcpy(v, g.positions.data(), g.positions.size() * sizeof(vec3));
+    if (!allocate) rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
+}
+
+}  // namespace
+
+EmbreeDevice::EmbreeDevice(int threads) {
+    const std::string config = threads > 0 ? "threads=" + std::to_string(threads) : std::string();
+    device_ = rtcNewDevice(config.c_str());
+    if (!device_) throw std::runtime_error("cannot create Embree device");
+    rtcSetDeviceErrorFunction(device_, embreeErrorHandler, nullptr);
+}
+
+EmbreeDevice::~EmbreeDevice() { rtcReleaseDevice(device_); }
+
+struct AccelManager::Blas {
+    RTCScene scene = nullptr;
+    std::vector<RTCGeometry> geometries;
+    ~Blas() { if (scene) rtcReleaseScene(scene); }
+};
+
+AccelManager::AccelManager(AccelOptions options) : options_(options), device_(options.threads) {}
+
+AccelManager::~AccelManager() {
+    if (tlas_) rtcReleaseScene(tlas_);
+}
+
+void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
+    if (blases_.size() <= id) blases_.resize(id + 1);
+    auto blas = std::make_unique<Blas>();
+    blas->scene = rtcNewScene(device_.get());
+    rtcSetSceneFlags(blas->scene, options_.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    for (const ecs::Geometry& g : mesh.geometries) {
+        RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
+        // Deformable geometry keeps a refittable BVH.
+        rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
+        uploadVertices(geom, g, true);
+        auto* idx = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(
+            geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, sizeof(std::uint32_t) * 3, g.triangleCount()));
+        std::memcpy(idx, g.indices.data(), g.triangleCount() * 3 * sizeof(std::uint32_t));
+        rtcCommitGeometry(geom);
+        rtcAttachGeometry(blas->scene, geom);  // geomID = geometry index in the mesh
+        blas->geometries.push_back(geom);
+        rtcReleaseGeometry(geom);  // the scene holds the reference
+    }
+    rtcCommitScene(blas->scene);
+    blases_[id] = std::move(blas);
+}
+
+void AccelManager::refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
+    Blas& blas = *blases_.at(id);
+    for (std::size_t i = 0; i < mesh.geometries.size(); ++i) {
+        uploadVertices(blas.geometries[i], mesh.geometries[i], false);
+        rtcCommitGeometry(blas.geometries[i]);
+    }
+    rtcCommitScene(blas.scene);
+}
+
+void AccelManager::rebuildTlas(const ecs::SceneSnapshot& scene) {
+    if (tlas_) rtcReleaseScene(tlas_);
+    tlas_ = rtcNewScene(device_.get());
+    rtcSetSceneFlags(tlas_, options_.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    instances_ = scene.instances;
+    instIdByEntityIndex_.clear();
+    for (std::uint32_t i = 0; i < instances_.size(); ++i) {
+        const ecs::InstanceSnapshot& inst = instances_[i];
+        RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(geom, blases_.at(inst.mesh)->scene);
+        rtcSetGeometryTransform(geom, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &inst.worldFromObject[0][0]);
+        rtcSetGeometryMask(geom, inst.mask);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometryByID(tlas_, geom, i);
+        rtcReleaseGeometry(geom);
+        if (instIdByEntityIndex_.size() <= inst.entity.index) instIdByEntityIndex_.resize(inst.entity.index + 1, ~0u);
+        instIdByEntityIndex_[inst.entity.index] = i;
+    }
+    rtcCommitScene(tlas_);
+}
+
+AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
+    AccelUpdateStats stats;
+    const Stopwatch clock;
+    const ecs::FrameUpdate& u = scene.update;
+    const auto& meshes = *scene.meshes;
+
+    // Step: BLAS work, exactly what the FrameUpdate lists.
+    std::vector<std::uint8_t> touched(meshes.size(), 0);
+    for (ecs::MeshId id : u.rebuiltMeshes) {
+        buildBlas(meshes.at(id), id);
+        touched[id] = 1;
+        ++stats.blasRebuilt;
+    }
+    for (ecs::MeshId id : u.refitMeshes) {
+        if (id >= blases_.size() || !blases_[id]) {  // never built: build instead
+            buildBlas(meshes.at(id), id);
+            ++stats.blasRebuilt;
+        } else {
+            refitBlas(meshes.at(id), id);
+            ++stats.blasRefit;
+        }
+        touched[id] = 1;
+    }
+    for (std::size_t id = 0; id < meshes.size(); ++id)
+        if (!touched[id] && id < blases_.size() && blases_[id]) ++stats.blasReused;
+
+    // Step: TLAS. A rebuilt BLAS is a new RTCScene, so instances of it need re-pointing: rebuild.
+    if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty()) {
+        rebuildTlas(scene);
+        ++stats.tlasBuilds;
+    } else if (!u.movedInstances.empty() || !u.refitMeshes.empty()) {
+        for (const ecs::Entity e : u.movedInstances) {
+            if (e.index >= instIdByEntityIndex_.size() || instIdByEntityIndex_[e.index] == ~0u) continue;
+            const std::uint32_t id = instIdByEntityIndex_[e.index];
+            // Snapshot instances are sorted by entity index.
+            const auto it = std::lower_bound(
+                scene.instances.begin(), scene.instances.end(), e.index,
+                [](const ecs::InstanceSnapshot& inst, std::uint32_t index) { return inst.entity.index < index; });
+            if (it == scene.instances.end() || it->entity != e) continue;
+            instances_[id] = *it;
+            RTCGeometry geom = rtcGetGeometry(tlas_, id);
+            rtcSetGeometryTransform(geom, 0, RTC_FORMAT_FLOAT4X4_COLUMN_MAJOR, &instances_[id].worldFromObject[0][0]);
+            rtcCommitGeometry(geom);
+            ++stats.instancesMoved;
+        }
+        // Instances of refit meshes: their bounds changed with the BLAS.
+        if (!u.refitMeshes.empty())
+            for (std::uint32_t id = 0; id < instances_.size(); ++id)
+                if (touched[instances_[id].mesh]) rtcCommitGeometry(rtcGetGeometry(tlas_, id));
+        rtcCommitScene(tlas_);
+        ++stats.tlasUpdates;
+    }
+    stats.buildMs = clock.elapsedMs();
+    return stats;
+}
+
+}  // namespace rtlab::tracer
