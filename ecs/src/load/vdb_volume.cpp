@@ -270,11 +270,21 @@ std::shared_ptr<VolumeGrid> VolumeGrid::loadVdb(const std::filesystem::path& pat
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(where, "cannot open: " + std::string(std::strerror(errno)));
     {
-        // OpenVDB files start with the 64-bit magic number 0x56444220 ("VDB ").
+        // OpenVDB files start with the 64-bit magic number 0x56444220 ("VDB ")
+        // and the 32-bit file format version. Checking the version here keeps
+        // OpenVDB from logging its own warning on stderr before it throws.
         std::int64_t magic = 0;
         in.read(reinterpret_cast<char*>(&magic), sizeof magic);
         if (in.gcount() != static_cast<std::streamsize>(sizeof magic) || magic != openvdb::OPENVDB_MAGIC)
             throw InputError(where, "not a VDB file (bad magic number)");
+        std::uint32_t version = 0;
+        in.read(reinterpret_cast<char*>(&version), sizeof version);
+        if (in.gcount() != static_cast<std::streamsize>(sizeof version))
+            throw InputError(where, "truncated or corrupt VDB file (unexpected end of data)");
+        if (version > openvdb::OPENVDB_FILE_VERSION)
+            throw InputError(where, "unsupported VDB file format version " + std::to_string(version) +
+                                        " (this build reads up to " + std::to_string(openvdb::OPENVDB_FILE_VERSION) +
+                                        "), or a corrupt file");
         in.seekg(0);
     }
 

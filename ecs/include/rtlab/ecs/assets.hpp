@@ -100,7 +100,7 @@ struct AnimationChannel {
     Entity target;
     AnimationPath path = AnimationPath::Translation;
     Interpolation interpolation = Interpolation::Linear;
-    std::vector<float> times;   // strictly increasing, seconds
+    std::vector<float> times;   // non-decreasing, seconds
     std::vector<float> values;
     std::uint32_t componentsPerKey = 3;  // 3 (T,S), 4 (R, quaternion xyzw), N (morph weights)
 };

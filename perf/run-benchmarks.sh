@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Runs every benchmark executable built from perf/*.cpp and writes one JSON
+# file per benchmark into OUT_DIR. Usage: perf/run-benchmarks.sh BUILD_DIR OUT_DIR
+set -euo pipefail
+build=${1:-build/release}
+out=${2:-out/bench}
+mkdir -p "$out"
+shopt -s nullglob
+ran=0
+for src in perf/*.cpp; do
+  name=$(basename "$src" .cpp)
+  exe="$build/perf/$name"
+  [ -x "$exe" ] || { echo "run-benchmarks: $exe not built" >&2; exit 1; }
+  echo "== $name"
+  "$exe" --benchmark_out="$out/$name.json" --benchmark_out_format=json
+  ran=$((ran + 1))
+done
+echo "run-benchmarks: $ran benchmark programs, JSON in $out/"

@@ -1,0 +1,166 @@
+// End-to-end: the rtlab executable's contract (DESIGN.md command line).
+#include <rtlab/core/image.hpp>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CliRun {
+    int exitCode = -1;
+    std::string out;  // stdout + stderr
+};
+
+CliRun runCli(const std::string& args) {
+    CliRun r;
+    const std::string cmd = std::string(RTLAB_CLI) + " " + args + " 2>&1";
+    FILE* pipe = popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    std::array<char, 4096> buf{};
+    while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
+    const int status = pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+fs::path freshDir(const std::string& name) {
+    const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + name);
+    fs::remove_all(d);
+    return d;
+}
+
+const fs::path kAssimp = "/usr/share/assimp/models/glTF2";
+
+}  // namespace
+
+TEST(Cli, RenderShowcaseThreeFramesWritesOutputsAndUpdateCounts) {
+    const fs::path out = freshDir("showcase");
+    const CliRun r = runCli("render --scene builtin:showcase --frames 3 --width 96 --height 54 --out " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    for (int f = 0; f < 3; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%04d", f);
+        EXPECT_TRUE(fs::exists(out / (std::string(name) + ".exr")));
+        EXPECT_TRUE(fs::exists(out / (std::string(name) + ".png")));
+    }
+    std::ifstream in(out / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    ASSERT_EQ(stats["frames"].size(), 3u);
+    EXPECT_GT(stats["frames"][0]["update"]["rebuilt"].get<int>(), 0);
+    EXPECT_EQ(stats["frames"][0]["accel"]["tlasBuilds"].get<int>(), 1);
+    for (int f = 1; f < 3; ++f) {
+        const auto& fr = stats["frames"][f];
+        EXPECT_EQ(fr["update"]["moved"].get<int>(), 1) << f;
+        EXPECT_EQ(fr["update"]["refit"].get<int>(), 1) << f;
+        EXPECT_EQ(fr["update"]["rebuilt"].get<int>(), 0) << f;
+        EXPECT_EQ(fr["accel"]["blasRefit"].get<int>(), 1) << f;
+        EXPECT_EQ(fr["accel"]["blasRebuilt"].get<int>(), 0) << f;
+        EXPECT_EQ(fr["accel"]["tlasBuilds"].get<int>(), 0) << f;
+        EXPECT_EQ(fr["accel"]["tlasUpdates"].get<int>(), 1) << f;
+        EXPECT_GT(fr["rays"]["primary"]["hits"].get<int>(), 0) << f;
+    }
+    // The image is not empty: most pixels of a closed room hit something.
+    const rtlab::Image img = rtlab::readExr(out / "frame_0002.exr");
+    EXPECT_TRUE(img.hasChannel("albedo.R"));
+    EXPECT_TRUE(img.hasChannel("depth.Z"));
+    EXPECT_EQ(stats["frames"][2]["rays"]["primary"]["misses"].get<int>(), 0);
+}
+
+TEST(Cli, OneAndTwoThreadsAreBitIdentical) {
+    const fs::path a = freshDir("t1"), b = freshDir("t2");
+    ASSERT_EQ(runCli("render --scene builtin:showcase --frames 2 --width 80 --height 45 --threads 1 --out " + a.string()).exitCode, 0);
+    ASSERT_EQ(runCli("render --scene builtin:showcase --frames 2 --width 80 --height 45 --threads 2 --out " + b.string()).exitCode, 0);
+    const CliRun cmp = runCli("compare " + (a / "frame_0001.exr").string() + " " + (b / "frame_0001.exr").string());
+    EXPECT_EQ(cmp.exitCode, 0);
+    EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
+    // Stats match too, apart from the timing entries.
+    auto load = [](const fs::path& p) {
+        std::ifstream in(p / "stats.json");
+        nlohmann::json j = nlohmann::json::parse(in);
+        j.erase("timing");
+        for (auto& f : j["frames"]) f.erase("timing");
+        return j;
+    };
+    EXPECT_EQ(load(a), load(b));
+}
+
+TEST(Cli, CompareReportsDifferences) {
+    const fs::path a = freshDir("cmpa"), b = freshDir("cmpb");
+    ASSERT_EQ(runCli("render --scene builtin:showcase --width 40 --height 30 --out " + a.string()).exitCode, 0);
+    ASSERT_EQ(runCli("render --scene builtin:cornell --width 40 --height 30 --out " + b.string()).exitCode, 0);
+    const CliRun cmp = runCli("compare " + (a / "frame_0000.exr").string() + " " + (b / "frame_0000.exr").string());
+    EXPECT_EQ(cmp.exitCode, 0);
+    EXPECT_NE(cmp.out.find("identical: false"), std::string::npos) << cmp.out;
+    EXPECT_NE(cmp.out.find("rmse:"), std::string::npos);
+    EXPECT_NE(cmp.out.find("psnr:"), std::string::npos);
+    EXPECT_NE(cmp.out.find("relmse:"), std::string::npos);
+}
+
+TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
+    const fs::path out = freshDir("bad");
+    const std::vector<std::string> cases = {
+        "render --scene builtin:nope --out " + out.string(),
+        "render --scene /no/such/file.gltf --out " + out.string(),
+        "render --scene builtin:cornell --width 0 --out " + out.string(),
+        "render --scene builtin:cornell --backend warp --out " + out.string(),
+        "render --bogus-flag",
+        "frobnicate",
+        "compare /no/a.exr /no/b.exr",
+        "info --scene " + std::string(RTLAB_SOURCE_DIR) + "/CMakeLists.txt",
+    };
+    for (const std::string& args : cases) {
+        const CliRun r = runCli(args);
+        EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.out;
+        EXPECT_FALSE(r.out.empty()) << args;
+        EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << args << "\n" << r.out;
+    }
+    EXPECT_FALSE(fs::exists(out / "frame_0000.exr"));
+    EXPECT_FALSE(fs::exists(out / "stats.json"));
+}
+
+TEST(Cli, InfoOnThirdPartyGltf) {
+    if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    const CliRun engine = runCli("info --scene " + (kAssimp / "2CylinderEngine-glTF-Binary/2CylinderEngine.glb").string());
+    ASSERT_EQ(engine.exitCode, 0) << engine.out;
+    EXPECT_NE(engine.out.find("triangles:"), std::string::npos);
+    const CliRun morph = runCli("info --scene " +
+                            (kAssimp / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf").string());
+    ASSERT_EQ(morph.exitCode, 0) << morph.out;
+    EXPECT_EQ(morph.out.find("animations: 0"), std::string::npos) << morph.out;
+    const CliRun skin = runCli("info --scene " + (kAssimp / "simple_skin/simple_skin.gltf").string());
+    ASSERT_EQ(skin.exitCode, 0) << skin.out;
+    EXPECT_NE(skin.out.find("skins: 1"), std::string::npos) << skin.out;
+}
+
+TEST(Cli, MalformedThirdPartyGltfExitsTwo) {
+    if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    for (const char* file : {"IndexOutOfRange/IndexOutOfRange.gltf", "BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
+                             "MissingBin/BoxTextured.gltf", "RecursiveNodes/RecursiveNodes.gltf",
+                             "wrongTypes/badArray.gltf"}) {
+        const fs::path out = freshDir("malformed");
+        const CliRun r = runCli("render --width 16 --height 16 --scene " + (kAssimp / file).string() + " --out " + out.string());
+        EXPECT_EQ(r.exitCode, 2) << file << "\n" << r.out;
+        EXPECT_NE(r.out.find(fs::path(file).filename().string()), std::string::npos) << r.out;
+        EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << file;
+    }
+}
+
+TEST(Cli, RenderThirdPartyGltf) {
+    if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    const fs::path out = freshDir("engine");
+    const CliRun r = runCli("render --width 64 --height 48 --scene " +
+                        (kAssimp / "2CylinderEngine-glTF-Binary/2CylinderEngine.glb").string() + " --out " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    std::ifstream in(out / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    EXPECT_GT(stats["frames"][0]["rays"]["primary"]["hits"].get<int>(), 0);
+}
