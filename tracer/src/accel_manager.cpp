@@ -38,6 +38,8 @@ EmbreeDevice::~EmbreeDevice() { rtcReleaseDevice(device_); }
 struct AccelManager::Blas {
     RTCScene scene = nullptr;
     std::vector<RTCGeometry> geometries;
+    std::vector<GeometryInfo> info;
+    std::vector<std::vector<Aabb>> boxes;  // procedural AABBs (user data of the geometry)
     ~Blas() { if (scene) rtcReleaseScene(scene); }
 };
 
@@ -47,12 +49,37 @@ AccelManager::~AccelManager() {
     if (tlas_) rtcReleaseScene(tlas_);
 }
 
-void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
+RTCSceneFlags AccelManager::sceneFlags() const {
+    // The context filter is how the pipeline runs any-hit logic and DXR culling.
+    return static_cast<RTCSceneFlags>((options_.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE) |
+                                      RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+}
+
+void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const std::vector<ecs::Material>& materials) {
     if (blases_.size() <= id) blases_.resize(id + 1);
     auto blas = std::make_unique<Blas>();
     blas->scene = rtcNewScene(device_.get());
-    rtcSetSceneFlags(blas->scene, options_.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneFlags(blas->scene, sceneFlags());
+    blas->boxes.reserve(mesh.geometries.size());
     for (const ecs::Geometry& g : mesh.geometries) {
+        GeometryInfo info;
+        info.procedural = g.procedural();
+        info.opaque = g.material >= materials.size() || materials[g.material].alphaMode == ecs::AlphaMode::Opaque;
+        blas->info.push_back(info);
+        blas->boxes.push_back(g.proceduralBoxes);
+        if (info.procedural) {
+            RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER);
+            rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(g.proceduralBoxes.size()));
+            rtcSetGeometryUserData(geom, blas->boxes.back().data());
+            rtcSetGeometryBoundsFunction(geom, proceduralBoundsCallback, nullptr);
+            rtcSetGeometryIntersectFunction(geom, proceduralIntersectCallback);
+            rtcSetGeometryOccludedFunction(geom, proceduralOccludedCallback);
+            rtcCommitGeometry(geom);
+            rtcAttachGeometry(blas->scene, geom);
+            blas->geometries.push_back(geom);
+            rtcReleaseGeometry(geom);
+            continue;
+        }
         RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
         // Deformable geometry keeps a refittable BVH.
         rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
@@ -72,6 +99,7 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
 void AccelManager::refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
     Blas& blas = *blases_.at(id);
     for (std::size_t i = 0; i < mesh.geometries.size(); ++i) {
+        if (blas.info[i].procedural) continue;
         uploadVertices(blas.geometries[i], mesh.geometries[i], false);
         rtcCommitGeometry(blas.geometries[i]);
     }
@@ -81,7 +109,7 @@ void AccelManager::refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
 void AccelManager::rebuildTlas(const ecs::SceneSnapshot& scene) {
     if (tlas_) rtcReleaseScene(tlas_);
     tlas_ = rtcNewScene(device_.get());
-    rtcSetSceneFlags(tlas_, options_.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneFlags(tlas_, sceneFlags());
     instances_ = scene.instances;
     instIdByEntityIndex_.clear();
     for (std::uint32_t i = 0; i < instances_.size(); ++i) {
@@ -99,6 +127,14 @@ void AccelManager::rebuildTlas(const ecs::SceneSnapshot& scene) {
     rtcCommitScene(tlas_);
 }
 
+const GeometryInfo& AccelManager::geometryInfo(ecs::MeshId mesh, std::uint32_t geometryIndex) const {
+    return blases_.at(mesh)->info.at(geometryIndex);
+}
+
+std::uint32_t AccelManager::geometryCount(ecs::MeshId mesh) const {
+    return mesh < blases_.size() && blases_[mesh] ? static_cast<std::uint32_t>(blases_[mesh]->info.size()) : 0;
+}
+
 AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     AccelUpdateStats stats;
     const Stopwatch clock;
@@ -107,14 +143,15 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
 
     // Step: BLAS work, exactly what the FrameUpdate lists.
     std::vector<std::uint8_t> touched(meshes.size(), 0);
+    const std::vector<ecs::Material>& materials = *scene.materials;
     for (ecs::MeshId id : u.rebuiltMeshes) {
-        buildBlas(meshes.at(id), id);
+        buildBlas(meshes.at(id), id, materials);
         touched[id] = 1;
         ++stats.blasRebuilt;
     }
     for (ecs::MeshId id : u.refitMeshes) {
         if (id >= blases_.size() || !blases_[id]) {  // never built: build instead
-            buildBlas(meshes.at(id), id);
+            buildBlas(meshes.at(id), id, materials);
             ++stats.blasRebuilt;
         } else {
             refitBlas(meshes.at(id), id);
@@ -124,6 +161,23 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     }
     for (std::size_t id = 0; id < meshes.size(); ++id)
         if (!touched[id] && id < blases_.size() && blases_[id]) ++stats.blasReused;
+
+    // Step: opacity follows material edits (alpha mode) without a rebuild.
+    if (u.materialsChanged)
+        for (std::size_t id = 0; id < blases_.size() && id < meshes.size(); ++id)
+            if (blases_[id])
+                for (std::size_t g = 0; g < blases_[id]->info.size(); ++g) {
+                    const ecs::MaterialId m = meshes[id].geometries[g].material;
+                    blases_[id]->info[g].opaque = m >= materials.size() || materials[m].alphaMode == ecs::AlphaMode::Opaque;
+                }
+
+    // Step: shader-table slots, one per geometry, meshes in id order.
+    slotBase_.resize(meshes.size());
+    slotCount_ = 0;
+    for (std::size_t id = 0; id < meshes.size(); ++id) {
+        slotBase_[id] = slotCount_;
+        slotCount_ += static_cast<std::uint32_t>(meshes[id].geometries.size());
+    }
 
     // Step: TLAS. A rebuilt BLAS is a new RTCScene, so instances of it need re-pointing: rebuild.
     if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty()) {

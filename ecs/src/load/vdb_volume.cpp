@@ -192,6 +192,74 @@ std::string openVdbReason(const std::exception& e) {
     return msg;
 }
 
+// Walks the container layout of a seekable .vdb file (format >= 222, i.e.
+// OpenVDB 3 and later, written by io::File): header, file metadata and the
+// chain of grid descriptors with their byte offsets, never allocating more
+// than a few bytes. Returns "" when every grid lies inside the file, else the
+// problem. Catching truncation here matters: OpenVDB's tree readers are not
+// exception-safe and leak the nodes read so far when a read fails midway.
+// Older or stream-written files (no offsets) are left to OpenVDB.
+std::string checkVdbLayout(std::istream& in, std::uint64_t fileSize) {
+    in.clear();
+    in.seekg(0);
+    std::uint64_t pos = 0;
+    const auto read = [&](void* dst, std::uint64_t n) {
+        if (n > fileSize - pos) return false;
+        in.read(static_cast<char*>(dst), static_cast<std::streamsize>(n));
+        if (in.gcount() != static_cast<std::streamsize>(n)) return false;
+        pos += n;
+        return true;
+    };
+    const auto skip = [&](std::uint64_t n) {
+        if (n > fileSize - pos) return false;
+        pos += n;
+        in.seekg(static_cast<std::streamoff>(pos));
+        return static_cast<bool>(in);
+    };
+    const auto skipString = [&] {
+        std::uint32_t length = 0;
+        return read(&length, sizeof length) && skip(length);
+    };
+    const std::string truncatedHeader = "truncated or corrupt VDB file (the header ends early)";
+
+    std::int64_t magic = 0;
+    std::uint32_t version = 0;
+    if (!read(&magic, sizeof magic) || !read(&version, sizeof version)) return truncatedHeader;
+    if (version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) return "";
+    char hasGridOffsets = 0;
+    // Library major + minor version, the offsets flag, the 36-character UUID.
+    if (!skip(8) || !read(&hasGridOffsets, 1)) return truncatedHeader;
+    if (!hasGridOffsets) return "";
+    if (!skip(36)) return truncatedHeader;
+
+    std::uint32_t metaCount = 0;
+    if (!read(&metaCount, sizeof metaCount)) return truncatedHeader;
+    for (std::uint32_t i = 0; i < metaCount; ++i) {
+        std::uint32_t valueBytes = 0;
+        // name, type name, value size, value
+        if (!skipString() || !skipString() || !read(&valueBytes, sizeof valueBytes) || !skip(valueBytes))
+            return "truncated or corrupt VDB file (the file metadata ends early)";
+    }
+    std::int32_t gridCount = 0;
+    if (!read(&gridCount, sizeof gridCount) || gridCount < 0) return truncatedHeader;
+    for (std::int32_t g = 0; g < gridCount; ++g) {
+        const std::string which = "grid #" + std::to_string(g + 1) + " of " + std::to_string(gridCount);
+        std::int64_t offsets[3] = {0, 0, 0};  // grid, blocks, end
+        // unique name, type name, instance parent name, offsets
+        if (!skipString() || !skipString() || !skipString() || !read(offsets, sizeof offsets))
+            return "truncated or corrupt VDB file (the descriptor of " + which + " ends early)";
+        if (offsets[0] < static_cast<std::int64_t>(pos) || offsets[1] < offsets[0] || offsets[2] < offsets[1])
+            return "corrupt VDB file (inconsistent offsets in the descriptor of " + which + ")";
+        if (static_cast<std::uint64_t>(offsets[2]) > fileSize)
+            return "truncated VDB file (" + which + " ends at byte " + std::to_string(offsets[2]) +
+                   ", the file has " + std::to_string(fileSize) + " bytes)";
+        pos = static_cast<std::uint64_t>(offsets[2]);
+        in.seekg(static_cast<std::streamoff>(pos));
+        if (!in) return "truncated or corrupt VDB file";
+    }
+    return "";
+}
+
 }  // namespace
 
 VolumeGrid::VolumeGrid(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -285,6 +353,11 @@ std::shared_ptr<VolumeGrid> VolumeGrid::loadVdb(const std::filesystem::path& pat
             throw InputError(where, "unsupported VDB file format version " + std::to_string(version) +
                                         " (this build reads up to " + std::to_string(openvdb::OPENVDB_FILE_VERSION) +
                                         "), or a corrupt file");
+        const std::uint64_t fileSize = std::filesystem::file_size(path, ec);
+        if (ec) throw InputError(where, "cannot open: " + ec.message());
+        const std::string problem = checkVdbLayout(in, fileSize);
+        if (!problem.empty()) throw InputError(where, problem);
+        in.clear();
         in.seekg(0);
     }
 

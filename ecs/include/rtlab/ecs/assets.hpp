@@ -40,7 +40,12 @@ struct Geometry {
     std::vector<glm::uvec4> joints;  // skin joint indices (into Skin::joints)
     std::vector<vec4> weights;       // skin weights, summing to 1
 
+    // Procedural geometry (DXR AABBs + intersection shader) when non-empty;
+    // positions/indices are then unused.
+    std::vector<Aabb> proceduralBoxes;
+
     std::size_t triangleCount() const { return indices.size() / 3; }
+    bool procedural() const { return !proceduralBoxes.empty(); }
     bool deformable() const { return !morphTargets.empty() || !joints.empty(); }
 };
 
@@ -56,8 +61,10 @@ struct MeshAsset {
     }
     Aabb bounds() const {
         Aabb b;
-        for (const Geometry& g : geometries)
+        for (const Geometry& g : geometries) {
             for (const vec3& p : g.positions) b.extend(p);
+            for (const Aabb& box : g.proceduralBoxes) b.extend(box);
+        }
         return b;
     }
 };

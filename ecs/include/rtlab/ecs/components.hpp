@@ -35,8 +35,12 @@ struct WorldTransform {
 
 // Places a mesh asset in the world (one TLAS instance).
 struct MeshInstance {
+    static constexpr std::uint32_t kAutomatic = 0xffffffffu;
     MeshId mesh = 0;
-    std::uint8_t mask = 0xff;  // DXR InstanceMask
+    std::uint8_t mask = 0xff;        // DXR InstanceMask
+    std::uint8_t flags = 0;          // DXR instance flags (tracer::InstanceFlag)
+    std::uint32_t instanceId = kAutomatic;      // DXR InstanceID() (24 bit); automatic = entity index
+    std::uint32_t hitGroupOffset = kAutomatic;  // InstanceContributionToHitGroupIndex; automatic = from the SBT layout
 };
 
 // Current morph-target weights of the instance's mesh.

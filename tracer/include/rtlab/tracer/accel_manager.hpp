@@ -20,6 +20,12 @@ struct AccelOptions {
     int threads = 0;     // Embree build threads (0 = all)
 };
 
+// Per-geometry facts the pipeline needs during traversal.
+struct GeometryInfo {
+    bool opaque = true;      // D3D12_RAYTRACING_GEOMETRY_FLAG_OPAQUE (material is not alpha-masked/blended)
+    bool procedural = false; // AABBs + intersection shader
+};
+
 // What one update() did.
 struct AccelUpdateStats {
     std::uint32_t blasRebuilt = 0;
@@ -59,10 +65,18 @@ public:
     // TLAS instance id (Embree instID) -> the snapshot instance it came from.
     const ecs::InstanceSnapshot& instance(std::uint32_t instId) const { return instances_.at(instId); }
     std::size_t instanceCount() const { return instances_.size(); }
+    const GeometryInfo& geometryInfo(ecs::MeshId mesh, std::uint32_t geometryIndex) const;
+    std::uint32_t geometryCount(ecs::MeshId mesh) const;
+    // Shader-table slot of geometry 0 of `mesh`: meshes are laid out in id
+    // order, one slot per geometry (the automatic instance contribution is
+    // slot * ray-type count).
+    std::uint32_t geometrySlotBase(ecs::MeshId mesh) const { return slotBase_.at(mesh); }
+    std::uint32_t geometrySlotCount() const { return slotCount_; }
 
 private:
     struct Blas;
-    void buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id);
+    RTCSceneFlags sceneFlags() const;
+    void buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const std::vector<ecs::Material>& materials);
     void refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id);
     void rebuildTlas(const ecs::SceneSnapshot& scene);
 
@@ -72,6 +86,14 @@ private:
     RTCScene tlas_ = nullptr;
     std::vector<ecs::InstanceSnapshot> instances_;
     std::vector<std::uint32_t> instIdByEntityIndex_;
+    std::vector<std::uint32_t> slotBase_;
+    std::uint32_t slotCount_ = 0;
 };
+
+// Embree callbacks for procedural geometry, implemented by the trace engine
+// (they call the pipeline's intersection shaders).
+void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args);
+void proceduralIntersectCallback(const RTCIntersectFunctionNArguments* args);
+void proceduralOccludedCallback(const RTCOccludedFunctionNArguments* args);
 
 }  // namespace rtlab::tracer

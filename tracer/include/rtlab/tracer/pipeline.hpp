@@ -1,0 +1,319 @@
+#pragma once
+// A DXR-semantic ray-tracing pipeline over Embree.
+//
+// Shader stages are C++ callables. A Pipeline<Payload> owns a shader binding
+// table (hit groups {closest-hit, any-hit, intersection} and miss shaders)
+// and implements TraceRay with DXR meaning for every ray flag, instance flag,
+// the instance mask, TMin/TMax, any-hit outcomes and recursion limits:
+//
+//   hit-group record = (RayContributionToHitGroupIndex & 0xf)
+//                    + (MultiplierForGeometryContributionToHitGroupIndex & 0xf) * GeometryIndex
+//                    + InstanceContributionToHitGroupIndex
+//   miss record      = MissShaderIndex
+//
+// Out-of-range records, missing intersection shaders and recursion past the
+// limit raise PipelineError. The traversal itself lives in a type-erased
+// TraceEngine (tracer/src/trace_engine.cpp); this header only adapts types.
+#include <rtlab/core/parallel.hpp>
+#include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/dxr.hpp>
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace rtlab::tracer {
+
+// TraceRay's arguments besides the acceleration structure, ray and payload.
+struct TraceArgs {
+    std::uint32_t rayFlags = RayFlag::None;
+    std::uint32_t instanceInclusionMask = 0xff;
+    std::uint32_t rayContribution = 0;  // RayContributionToHitGroupIndex; also the ray type for statistics
+    std::uint32_t multiplier = 1;       // MultiplierForGeometryContributionToHitGroupIndex
+    std::uint32_t missIndex = 0;
+};
+
+// DXR system values visible to hit-group shaders.
+struct HitContext {
+    vec3 worldRayOrigin{0.f};
+    vec3 worldRayDirection{0.f};
+    float rayTMin = 0.f;
+    float rayTCurrent = 0.f;  // the candidate's t in any-hit, the committed t in closest-hit
+    std::uint32_t rayFlags = 0;
+    std::uint32_t instanceIndex = 0;  // InstanceIndex(): position in the TLAS
+    std::uint32_t instanceId = 0;     // InstanceID(): the instance's user value
+    std::uint32_t geometryIndex = 0;
+    std::uint32_t primitiveIndex = 0;
+    std::uint32_t hitKind = 0;
+    std::uint32_t recursionDepth = 0;  // 1 for rays traced by ray generation
+    const ecs::InstanceSnapshot* instance = nullptr;
+
+    const mat4& objectToWorld() const { return instance->worldFromObject; }
+    mat4 worldToObject() const { return glm::inverse(instance->worldFromObject); }
+    vec3 objectRayOrigin() const { return vec3(worldToObject() * vec4(worldRayOrigin, 1.f)); }
+    vec3 objectRayDirection() const { return mat3(worldToObject()) * worldRayDirection; }
+    vec3 worldHitPosition() const { return worldRayOrigin + rayTCurrent * worldRayDirection; }
+};
+
+struct MissContext {
+    vec3 worldRayOrigin{0.f};
+    vec3 worldRayDirection{0.f};
+    float rayTMin = 0.f;
+    float rayTCurrent = 0.f;  // TMax
+    std::uint32_t rayFlags = 0;
+    std::uint32_t recursionDepth = 0;
+};
+
+// Intersection shaders see the hit context of the candidate primitive
+// (hitKind unused, rayTCurrent = current closest t) and report hits.
+class IntersectionContext : public HitContext {
+public:
+    // ReportHit(): ignored (returns false) unless RayTMin < t < RayTCurrent;
+    // otherwise the any-hit shader decides (non-opaque), and an accepted hit
+    // shrinks RayTCurrent. hitKind must be < 128 (DXR).
+    bool reportHit(float t, std::uint32_t hitKind, const HitAttributes& attributes) const {
+        return report_(state_, t, hitKind, attributes);
+    }
+    using ReportFn = bool (*)(void* state, float t, std::uint32_t hitKind, const HitAttributes& attributes);
+    void bind(void* state, ReportFn fn) { state_ = state; report_ = fn; }
+
+private:
+    void* state_ = nullptr;
+    ReportFn report_ = nullptr;
+};
+
+// The hit that traversal committed, if any.
+struct CommittedHit {
+    bool hit = false;
+    float t = kInfinity;
+    std::uint32_t instanceIndex = 0;
+    std::uint32_t geometryIndex = 0;
+    std::uint32_t primitiveIndex = 0;
+    std::uint32_t hitKind = 0;
+    std::uint32_t hitGroupRecord = 0;
+    HitAttributes attributes;
+};
+
+// Counters per ray type (RayContributionToHitGroupIndex & 0xf); summed per
+// tile and reduced in tile order, so totals are deterministic.
+struct TraceCounters {
+    static constexpr std::size_t kRayTypes = 16;
+    std::array<std::uint64_t, kRayTypes> rays{};
+    std::array<std::uint64_t, kRayTypes> hits{};
+    std::array<std::uint64_t, kRayTypes> misses{};
+    std::uint64_t anyHitInvocations = 0;
+    std::uint64_t intersectionInvocations = 0;
+    std::uint64_t closestHitInvocations = 0;
+    std::uint64_t missInvocations = 0;
+    std::uint64_t packetsTraced = 0;
+    void add(const TraceCounters& o);
+    std::uint64_t totalRays() const;
+};
+
+// Type-erased access to the shader table, implemented by Pipeline<Payload>.
+class ShaderTableView {
+public:
+    virtual ~ShaderTableView() = default;
+    virtual std::size_t hitGroupCount() const = 0;
+    virtual bool hasAnyHit(std::uint32_t record) const = 0;
+    virtual AnyHitResult anyHit(std::uint32_t record, const HitContext& ctx, void* payload,
+                                const HitAttributes& attributes) const = 0;
+    virtual bool hasIntersection(std::uint32_t record) const = 0;
+    virtual void intersection(std::uint32_t record, const IntersectionContext& ctx, void* payload) const = 0;
+};
+
+// Traversal with DXR semantics over an AccelManager's TLAS.
+class TraceEngine {
+public:
+    TraceEngine(const AccelManager& accel, const ShaderTableView& shaders, std::uint32_t rayTypeCount);
+
+    // One ray; runs any-hit and intersection shaders, not closest-hit/miss.
+    CommittedHit trace(const TraceArgs& args, const RayDesc& ray, void* payload, std::uint32_t depth,
+                       TraceCounters& counters) const;
+    // Eight rays as one Embree packet (rtcIntersect8 / rtcOccluded8); lanes
+    // with active[i] == false are left alone.
+    void trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
+                std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const;
+
+    // The hit-group record for a hit; throws PipelineError when out of range.
+    std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex, std::uint32_t geometryIndex) const;
+    HitContext hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit, std::uint32_t depth) const;
+
+    const AccelManager& accel() const { return accel_; }
+    const ShaderTableView& shaders() const { return shaders_; }
+    std::uint32_t rayTypeCount() const { return rayTypeCount_; }
+
+private:
+    const AccelManager& accel_;
+    const ShaderTableView& shaders_;
+    std::uint32_t rayTypeCount_;
+};
+
+// Per-thread state of the ray-tracing call stack (recursion depth and the
+// counters of the tile being worked on).
+struct TraceScope {
+    std::uint32_t depth = 0;
+    TraceCounters* counters = nullptr;
+};
+TraceScope& currentTraceScope();
+
+template <class Payload>
+class Pipeline final : private ShaderTableView {
+public:
+    using ClosestHit = std::function<void(const HitContext&, Payload&, const HitAttributes&)>;
+    using AnyHit = std::function<AnyHitResult(const HitContext&, Payload&, const HitAttributes&)>;
+    using Intersection = std::function<void(const IntersectionContext&, Payload&)>;
+    using Miss = std::function<void(const MissContext&, Payload&)>;
+
+    struct HitGroup {
+        ClosestHit closestHit;      // optional
+        AnyHit anyHit;              // optional: absent means "accept"
+        Intersection intersection;  // required for procedural geometry
+    };
+    struct Desc {
+        std::vector<HitGroup> hitGroups;  // the hit-group shader table
+        std::vector<Miss> missShaders;
+        std::uint32_t maxRecursionDepth = 1;  // raygen's TraceRay is depth 1
+        std::uint32_t rayTypeCount = 1;       // used for automatic InstanceContributionToHitGroupIndex
+    };
+
+    Pipeline(const AccelManager& accel, Desc desc)
+        : desc_(std::move(desc)), engine_(accel, *this, desc_.rayTypeCount) {
+        if (desc_.rayTypeCount == 0 || desc_.rayTypeCount > 16)
+            throw PipelineError("rayTypeCount must be in [1, 16]");
+        if (desc_.maxRecursionDepth == 0 || desc_.maxRecursionDepth > 31)
+            throw PipelineError("maxRecursionDepth must be in [1, 31] (DXR limit)");
+    }
+
+    // TraceRay(): closest-hit for the committed hit (unless
+    // SKIP_CLOSEST_HIT_SHADER), the miss shader otherwise.
+    void traceRay(const TraceArgs& args, const RayDesc& ray, Payload& payload) const {
+        TraceScope& scope = currentTraceScope();
+        const std::uint32_t depth = scope.depth + 1;
+        if (depth > desc_.maxRecursionDepth)
+            throw PipelineError("TraceRay recursion depth " + std::to_string(depth) + " exceeds the pipeline's maximum of " +
+                                std::to_string(desc_.maxRecursionDepth));
+        if (args.missIndex >= desc_.missShaders.size())
+            throw PipelineError("miss shader index " + std::to_string(args.missIndex) + " out of range (table has " +
+                                std::to_string(desc_.missShaders.size()) + ")");
+        TraceCounters local;
+        TraceCounters& counters = scope.counters ? *scope.counters : local;
+        const CommittedHit hit = engine_.trace(args, ray, &payload, depth, counters);
+        const DepthGuard guard(scope, depth);
+        finish(args, ray, hit, payload, depth, counters);
+    }
+
+    // Ray generation over a width x height grid: raygen(x, y) runs once per
+    // pixel, in parallel over fixed 16x16 tiles; returns the summed counters.
+    template <class RayGen>
+    TraceCounters dispatchRays(int width, int height, RayGen&& raygen) const {
+        return forEachTile(width, height, [&](const Tile& tile) {
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x = tile.x0; x < tile.x1; ++x) raygen(x, y);
+        });
+    }
+
+    // Coherent ray generation through 8-wide packets: makeRay(x, y, payload)
+    // returns the ray of pixel (x, y) and initialises its payload; 8
+    // horizontally adjacent pixels are traced as one packet; closest-hit/miss
+    // then run per lane; done(x, y, payload) receives the result.
+    template <class MakeRay, class Done>
+    TraceCounters dispatchCoherent(int width, int height, const TraceArgs& args, MakeRay&& makeRay, Done&& done) const {
+        if (args.missIndex >= desc_.missShaders.size())
+            throw PipelineError("miss shader index " + std::to_string(args.missIndex) + " out of range");
+        return forEachTile(width, height, [&](const Tile& tile) {
+            TraceScope& scope = currentTraceScope();
+            TraceCounters& counters = *scope.counters;
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x0 = tile.x0; x0 < tile.x1; x0 += 8) {
+                    std::array<Payload, 8> payloads{};
+                    std::array<RayDesc, 8> rays{};
+                    std::array<void*, 8> payloadPtrs{};
+                    std::array<bool, 8> active{};
+                    std::array<CommittedHit, 8> hits{};
+                    for (int lane = 0; lane < 8; ++lane) {
+                        active[lane] = x0 + lane < tile.x1;
+                        payloadPtrs[lane] = &payloads[lane];
+                        if (active[lane]) rays[lane] = makeRay(x0 + lane, y, payloads[lane]);
+                    }
+                    engine_.trace8(args, rays.data(), payloadPtrs.data(), active.data(), 1, hits.data(), counters);
+                    const DepthGuard guard(scope, 1);
+                    for (int lane = 0; lane < 8; ++lane) {
+                        if (!active[lane]) continue;
+                        finish(args, rays[lane], hits[lane], payloads[lane], 1, counters);
+                        done(x0 + lane, y, payloads[lane]);
+                    }
+                }
+        });
+    }
+
+    const Desc& desc() const { return desc_; }
+    const TraceEngine& engine() const { return engine_; }
+
+private:
+    // Restores the depth on scope exit (closest-hit/miss may recurse).
+    struct DepthGuard {
+        DepthGuard(TraceScope& s, std::uint32_t depth) : scope(s), saved(s.depth) { s.depth = depth; }
+        ~DepthGuard() { scope.depth = saved; }
+        TraceScope& scope;
+        std::uint32_t saved;
+    };
+
+    void finish(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit, Payload& payload,
+                std::uint32_t depth, TraceCounters& counters) const {
+        if (hit.hit) {
+            if (args.rayFlags & RayFlag::SkipClosestHitShader) return;
+            const ClosestHit& ch = desc_.hitGroups[hit.hitGroupRecord].closestHit;
+            if (!ch) return;
+            ++counters.closestHitInvocations;
+            ch(engine_.hitContext(args, ray, hit, depth), payload, hit.attributes);
+        } else {
+            const Miss& miss = desc_.missShaders[args.missIndex];
+            if (!miss) return;
+            ++counters.missInvocations;
+            miss(MissContext{ray.origin, ray.direction, ray.tMin, ray.tMax, args.rayFlags, depth}, payload);
+        }
+    }
+
+    template <class TileFn>
+    TraceCounters forEachTile(int width, int height, TileFn&& fn) const {
+        const std::vector<Tile> tiles = makeTiles(width, height, 16);
+        std::vector<TraceCounters> perTile(tiles.size());
+        parallelForEach(tiles.size(), [&](std::size_t i) {
+            TraceScope& scope = currentTraceScope();
+            const TraceScope saved = scope;
+            scope = TraceScope{0, &perTile[i]};
+            try {
+                fn(tiles[i]);
+            } catch (...) {
+                scope = saved;
+                throw;
+            }
+            scope = saved;
+        });
+        TraceCounters total;
+        for (const TraceCounters& c : perTile) total.add(c);
+        return total;
+    }
+
+    // ShaderTableView
+    std::size_t hitGroupCount() const override { return desc_.hitGroups.size(); }
+    bool hasAnyHit(std::uint32_t record) const override { return static_cast<bool>(desc_.hitGroups[record].anyHit); }
+    AnyHitResult anyHit(std::uint32_t record, const HitContext& ctx, void* payload,
+                        const HitAttributes& attributes) const override {
+        return desc_.hitGroups[record].anyHit(ctx, *static_cast<Payload*>(payload), attributes);
+    }
+    bool hasIntersection(std::uint32_t record) const override {
+        return static_cast<bool>(desc_.hitGroups[record].intersection);
+    }
+    void intersection(std::uint32_t record, const IntersectionContext& ctx, void* payload) const override {
+        desc_.hitGroups[record].intersection(ctx, *static_cast<Payload*>(payload));
+    }
+
+    Desc desc_;
+    TraceEngine engine_;
+};
+
+}  // namespace rtlab::tracer
