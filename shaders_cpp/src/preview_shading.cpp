@@ -1,7 +1,7 @@
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/shaders_cpp/preview_shading.hpp>
 
-#include <embree3/rtcore.h>
+#include <rtlab/tracer/pipeline.hpp>
 
 #include <algorithm>
 #include <array>
@@ -10,17 +10,17 @@
 namespace rtlab::shaders {
 namespace {
 
-constexpr int kPacketWidth = 8;
-constexpr int kTileSize = 16;
+struct PreviewPayload {
+    vec3 color{0.f};
+    vec3 albedo{0.f};
+    vec3 normal{0.f};
+    float depth = 0.f;
+};
 
 float srgbToLinear(std::uint8_t v) {
     const float c = v / 255.f;
     return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
 }
-
-struct TileCounters {
-    std::uint64_t rays = 0, hits = 0;
-};
 
 }  // namespace
 
@@ -57,71 +57,60 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     const int w = settings.width, h = settings.height;
     std::vector<vec3> beauty(static_cast<std::size_t>(w) * h), albedo(beauty.size()), normal(beauty.size());
     std::vector<float> depth(beauty.size(), 0.f);
-    const std::vector<Tile> tiles = makeTiles(w, h, kTileSize);
-    std::vector<TileCounters> counters(tiles.size());
     const vec3 cameraForward = -glm::normalize(vec3(scene.camera.worldFromCamera[2]));
+    const auto& materials = *scene.materials;
+    const auto& textures = *scene.textures;
 
-    parallelForEach(tiles.size(), [&](std::size_t tileIndex) {
-        const Tile& tile = tiles[tileIndex];
-        RTCIntersectContext context;
-        for (int y = tile.y0; y < tile.y1; ++y)
-            for (int x0 = tile.x0; x0 < tile.x1; x0 += kPacketWidth) {
-                // Step: fill an 8-wide SoA packet; lanes past the tile edge are masked off.
-                alignas(32) std::array<int, kPacketWidth> valid{};
-                alignas(32) RTCRayHit8 packet{};
-                for (int lane = 0; lane < kPacketWidth; ++lane) {
-                    const int x = x0 + lane;
-                    valid[lane] = x < tile.x1 ? -1 : 0;
-                    const CameraRay ray = cameraRay(scene.camera, w, h, x + 0.5f, y + 0.5f);
-                    packet.ray.org_x[lane] = ray.origin.x;
-                    packet.ray.org_y[lane] = ray.origin.y;
-                    packet.ray.org_z[lane] = ray.origin.z;
-                    packet.ray.dir_x[lane] = ray.direction.x;
-                    packet.ray.dir_y[lane] = ray.direction.y;
-                    packet.ray.dir_z[lane] = ray.direction.z;
-                    packet.ray.tnear[lane] = 0.f;
-                    packet.ray.tfar[lane] = kInfinity;
-                    packet.ray.mask[lane] = ~0u;
-                    packet.ray.flags[lane] = 0;
-                    packet.ray.time[lane] = 0.f;
-                    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
-                    packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
-                }
-                rtcInitIntersectContext(&context);
-                rtcIntersect8(valid.data(), accel.tlas(), &context, &packet);
+    // Step: shader table — one hit group per geometry slot (one ray type).
+    // Alpha-masked materials get an any-hit shader that ignores cut-out texels.
+    using Pipeline = tracer::Pipeline<PreviewPayload>;
+    Pipeline::Desc desc;
+    const auto materialOf = [&](const tracer::HitContext& ctx) -> const ecs::Material& {
+        const ecs::Geometry& g = (*scene.meshes)[ctx.instance->mesh].geometries[ctx.geometryIndex];
+        return materials[g.material < materials.size() ? g.material : 0];
+    };
+    const auto closestHit = [&](const tracer::HitContext& ctx, PreviewPayload& p, const tracer::HitAttributes& attr) {
+        const SurfacePoint sp = surfacePoint(scene, ctx, attr);
+        const ecs::Material& m = materialOf(ctx);
+        vec3 n = sp.shadingNormal;
+        if (glm::dot(n, ctx.worldRayDirection) > 0.f) n = -n;  // face the viewer
+        p.albedo = vec3(baseColorAt(m, textures, sp.uv));
+        p.normal = n;
+        p.depth = ctx.rayTCurrent * glm::dot(ctx.worldRayDirection, cameraForward);
+        p.color = p.albedo * (0.2f + 0.8f * std::abs(glm::dot(n, ctx.worldRayDirection))) + m.emissive;
+    };
+    const auto alphaTest = [&](const tracer::HitContext& ctx, PreviewPayload&, const tracer::HitAttributes& attr) {
+        const ecs::Material& m = materialOf(ctx);
+        const SurfacePoint sp = surfacePoint(scene, ctx, attr);
+        return baseColorAt(m, textures, sp.uv).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
+                                                                 : tracer::AnyHitResult::Accept;
+    };
+    desc.hitGroups.resize(accel.geometrySlotCount());
+    for (std::size_t mesh = 0; mesh < scene.meshes->size(); ++mesh)
+        for (std::uint32_t g = 0; g < accel.geometryCount(static_cast<ecs::MeshId>(mesh)); ++g) {
+            const ecs::Geometry& geo = (*scene.meshes)[mesh].geometries[g];
+            Pipeline::HitGroup& group = desc.hitGroups[accel.geometrySlotBase(static_cast<ecs::MeshId>(mesh)) + g];
+            group.closestHit = closestHit;
+            if (geo.material < materials.size() && materials[geo.material].alphaMode == ecs::AlphaMode::Mask)
+                group.anyHit = alphaTest;
+        }
+    desc.missShaders.push_back([](const tracer::MissContext&, PreviewPayload& p) { p = PreviewPayload{}; });
+    const Pipeline pipeline(accel, std::move(desc));
 
-                // Step: shade each active lane.
-                for (int lane = 0; lane < kPacketWidth; ++lane) {
-                    if (!valid[lane]) continue;
-                    const std::size_t pixel = static_cast<std::size_t>(y) * w + x0 + lane;
-                    ++counters[tileIndex].rays;
-                    const vec3 dir(packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]);
-                    if (packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) continue;  // black background
-                    ++counters[tileIndex].hits;
-                    const ecs::InstanceSnapshot& inst = accel.instance(packet.hit.instID[0][lane]);
-                    const ecs::Geometry& g = (*scene.meshes)[inst.mesh].geometries[packet.hit.geomID[lane]];
-                    const std::uint32_t prim = packet.hit.primID[lane];
-                    const float u = packet.hit.u[lane], v = packet.hit.v[lane];
-                    const std::uint32_t i0 = g.indices[3 * prim], i1 = g.indices[3 * prim + 1], i2 = g.indices[3 * prim + 2];
-                    // Shading normal in object space, to world with the inverse transpose.
-                    vec3 nObject = (1.f - u - v) * g.normals[i0] + u * g.normals[i1] + v * g.normals[i2];
-                    const mat3 normalFromObject = glm::transpose(glm::inverse(mat3(inst.worldFromObject)));
-                    vec3 n = normalFromObject * nObject;
-                    const float len = glm::length(n);
-                    n = len > 0.f && std::isfinite(len) ? n / len : -dir;
-                    if (glm::dot(n, dir) > 0.f) n = -n;  // face the viewer
-                    vec2 uv(0.f);
-                    if (!g.uv0.empty()) uv = (1.f - u - v) * g.uv0[i0] + u * g.uv0[i1] + v * g.uv0[i2];
-                    const ecs::Material& m = (*scene.materials)[g.material < scene.materials->size() ? g.material : 0];
-                    const vec3 a = vec3(baseColorAt(m, *scene.textures, uv));
-                    albedo[pixel] = a;
-                    normal[pixel] = n;
-                    const float t = packet.ray.tfar[lane];
-                    depth[pixel] = t * glm::dot(dir, cameraForward);
-                    beauty[pixel] = a * (0.2f + 0.8f * std::abs(glm::dot(n, dir))) + m.emissive;
-                }
-            }
-    });
+    // Step: coherent primary rays through 8-wide packets.
+    const tracer::TraceCounters counters = pipeline.dispatchCoherent(
+        w, h, tracer::TraceArgs{},
+        [&](int x, int y, PreviewPayload&) {
+            const CameraRay ray = cameraRay(scene.camera, w, h, x + 0.5f, y + 0.5f);
+            return tracer::RayDesc{ray.origin, 0.f, ray.direction, kInfinity};
+        },
+        [&](int x, int y, const PreviewPayload& p) {
+            const std::size_t pixel = static_cast<std::size_t>(y) * w + x;
+            beauty[pixel] = p.color;
+            albedo[pixel] = p.albedo;
+            normal[pixel] = p.normal;
+            depth[pixel] = p.depth;
+        });
 
     PreviewResult result;
     result.image = Image(w, h);
@@ -130,13 +119,38 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     result.image.addRgbLayer("normal", normal);
     float* z = result.image.addChannel("depth.Z");
     std::copy(depth.begin(), depth.end(), z);
-    // Fixed-order reduction over tiles.
-    for (const TileCounters& c : counters) {
-        result.primaryRays += c.rays;
-        result.hits += c.hits;
-    }
-    result.misses = result.primaryRays - result.hits;
+    result.counters = counters;
+    result.primaryRays = counters.rays[0];
+    result.hits = counters.hits[0];
+    result.misses = counters.misses[0];
     return result;
+}
+
+SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const tracer::HitContext& ctx, const tracer::HitAttributes& attr) {
+    const ecs::Geometry& g = (*scene.meshes)[ctx.instance->mesh].geometries[ctx.geometryIndex];
+    SurfacePoint sp;
+    sp.position = ctx.worldHitPosition();
+    if (g.procedural()) {
+        sp.shadingNormal = sp.geometricNormal = -ctx.worldRayDirection;
+        return sp;
+    }
+    const vec2 b = attr.barycentrics();
+    const std::uint32_t i0 = g.indices[3 * ctx.primitiveIndex], i1 = g.indices[3 * ctx.primitiveIndex + 1],
+                        i2 = g.indices[3 * ctx.primitiveIndex + 2];
+    const float w0 = 1.f - b.x - b.y;
+    // Normals go to world space with the inverse transpose of worldFromObject.
+    const mat3 normalFromObject = glm::transpose(glm::inverse(mat3(ctx.objectToWorld())));
+    const auto toWorld = [&](const vec3& n) {
+        const vec3 v = normalFromObject * n;
+        const float len = glm::length(v);
+        return len > 0.f && std::isfinite(len) ? v / len : -ctx.worldRayDirection;
+    };
+    sp.geometricNormal = toWorld(glm::cross(g.positions[i1] - g.positions[i0], g.positions[i2] - g.positions[i0]));
+    sp.shadingNormal = g.normals.size() == g.positions.size()
+                           ? toWorld(w0 * g.normals[i0] + b.x * g.normals[i1] + b.y * g.normals[i2])
+                           : sp.geometricNormal;
+    if (g.uv0.size() == g.positions.size()) sp.uv = w0 * g.uv0[i0] + b.x * g.uv0[i1] + b.y * g.uv0[i2];
+    return sp;
 }
 
 }  // namespace rtlab::shaders

@@ -1,11 +1,13 @@
 #pragma once
-// Preview shading: primary rays only, traced as 8-wide Embree packets over
-// fixed tiles; shades albedo x (ambient + view-facing term) and writes the
-// guide AOVs (albedo, world normal, view depth). This is the renderer until
-// the effect shaders land; its output is deterministic for any thread count.
+// Preview shading: primary rays only, through the DXR pipeline's coherent
+// 8-wide packet path; alpha-masked materials run an any-hit alpha test.
+// Shades albedo x (ambient + view-facing term) and writes the guide AOVs
+// (albedo, world normal, view depth). This is the renderer until the effect
+// shaders land; its output is deterministic for any thread count.
 #include <rtlab/core/image.hpp>
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/pipeline.hpp>
 
 #include <cstdint>
 
@@ -21,6 +23,7 @@ struct PreviewResult {
     std::uint64_t primaryRays = 0;
     std::uint64_t hits = 0;
     std::uint64_t misses = 0;
+    tracer::TraceCounters counters;
 };
 
 PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene,
@@ -32,6 +35,15 @@ struct CameraRay {
     vec3 direction;  // unit length
 };
 CameraRay cameraRay(const ecs::CameraSnapshot& camera, int width, int height, float px, float py);
+
+// Surface attributes at a committed triangle hit, in world space.
+struct SurfacePoint {
+    vec3 position{0.f};
+    vec3 geometricNormal{0.f, 0.f, 1.f};
+    vec3 shadingNormal{0.f, 0.f, 1.f};  // interpolated vertex normal (unit)
+    vec2 uv{0.f};
+};
+SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const tracer::HitContext& ctx, const tracer::HitAttributes& attr);
 
 // Base colour of a material at a surface UV (texture sampled nearest, sRGB decoded).
 vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>& textures, const vec2& uv);
