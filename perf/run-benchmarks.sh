@@ -16,3 +16,4 @@ for src in perf/*.cpp; do
   ran=$((ran + 1))
 done
 echo "run-benchmarks: $ran benchmark programs, JSON in $out/"
+python3 perf/summarize.py "$out"

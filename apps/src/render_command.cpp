@@ -80,10 +80,21 @@ int runRender(const RenderOptions& o) {
                         {"refit", update.refitMeshes.size()},
                         {"rebuilt", update.rebuiltMeshes.size()},
                         {"instanceSetChanged", update.instanceSetChanged}};
-        fj["accel"] = {{"blasRebuilt", accelStats.blasRebuilt}, {"blasRefit", accelStats.blasRefit},
-                       {"blasReused", accelStats.blasReused},   {"tlasBuilds", accelStats.tlasBuilds},
-                       {"tlasUpdates", accelStats.tlasUpdates}, {"instancesMoved", accelStats.instancesMoved}};
-        fj["rays"] = {{"primary", {{"traced", frame.primaryRays}, {"hits", frame.hits}, {"misses", frame.misses}}}};
+        fj["accel"] = {{"blasRebuilt", accelStats.blasRebuilt},
+                       {"blasRebuiltForQuality", accelStats.blasRebuiltForQuality},
+                       {"blasRefit", accelStats.blasRefit},
+                       {"blasReused", accelStats.blasReused},
+                       {"worstRefitDegradation", accelStats.worstRefitDegradation},
+                       {"tlasBuilds", accelStats.tlasBuilds},
+                       {"tlasUpdates", accelStats.tlasUpdates},
+                       {"instancesMoved", accelStats.instancesMoved}};
+        const tracer::TraceCounters& c = frame.counters;
+        fj["rays"] = {{"primary", {{"traced", c.rays[0]}, {"hits", c.hits[0]}, {"misses", c.misses[0]}}}};
+        fj["shaders"] = {{"anyHit", c.anyHitInvocations},
+                         {"intersection", c.intersectionInvocations},
+                         {"closestHit", c.closestHitInvocations},
+                         {"miss", c.missInvocations},
+                         {"packets", c.packetsTraced}};
         // Timings vary run to run; everything outside "timing" is deterministic.
         fj["timing"] = {{"accelBuildMs", accelStats.buildMs}, {"renderMs", renderMs}};
         stats["frames"].push_back(fj);

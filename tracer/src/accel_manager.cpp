@@ -1,5 +1,6 @@
 #include <rtlab/core/timer.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/dxr.hpp>
 
 #include <algorithm>
 #include <cstring>
@@ -24,6 +25,57 @@ void uploadVertices(RTCGeometry geom, const ecs::Geometry& g, bool allocate) {
     if (!allocate) rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
 }
 
+// Refit quality estimate. At build time the triangles of a deformable
+// geometry are ordered along a Morton curve and cut into fixed clusters of
+// kClusterSize: spatially tight groups, like the BVH's lower nodes. A refit
+// keeps the BVH topology, i.e. keeps these groups, so the SAH-style cost
+//   sum over clusters (area(cluster bounds) * triangles) / area(all bounds)
+// measures how much the refit hierarchy has loosened. Uniform scaling leaves
+// it unchanged; vertices wandering away from their build-time neighbours
+// raise it.
+constexpr std::size_t kClusterSize = 32;
+
+std::uint32_t spreadBits10(std::uint32_t v) {
+    v &= 0x3ffu;
+    v = (v | (v << 16)) & 0x030000ffu;
+    v = (v | (v << 8)) & 0x0300f00fu;
+    v = (v | (v << 4)) & 0x030c30c3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+}
+
+std::vector<std::uint32_t> mortonTriangleOrder(const ecs::Geometry& g) {
+    const std::size_t n = g.triangleCount();
+    Aabb bounds;
+    for (const vec3& p : g.positions) bounds.extend(p);
+    const vec3 scale = 1023.f / glm::max(bounds.extent(), vec3(1e-30f));
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> keyed(n);
+    for (std::size_t t = 0; t < n; ++t) {
+        const vec3 c = (g.positions[g.indices[3 * t]] + g.positions[g.indices[3 * t + 1]] + g.positions[g.indices[3 * t + 2]]) / 3.f;
+        const glm::uvec3 q = glm::uvec3(glm::clamp((c - bounds.lo) * scale, vec3(0.f), vec3(1023.f)));
+        keyed[t] = {spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2), static_cast<std::uint32_t>(t)};
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<std::uint32_t> order(n);
+    for (std::size_t i = 0; i < n; ++i) order[i] = keyed[i].second;
+    return order;
+}
+
+double clusterCost(const ecs::Geometry& g, const std::vector<std::uint32_t>& order) {
+    Aabb all;
+    double sum = 0.0;
+    for (std::size_t c = 0; c < order.size(); c += kClusterSize) {
+        Aabb box;
+        const std::size_t end = std::min(order.size(), c + kClusterSize);
+        for (std::size_t k = c; k < end; ++k)
+            for (int v = 0; v < 3; ++v) box.extend(g.positions[g.indices[3 * order[k] + v]]);
+        sum += double(box.surfaceArea()) * double(end - c);
+        all.extend(box);
+    }
+    const double rootArea = all.surfaceArea();
+    return rootArea > 0.0 ? sum / rootArea : 0.0;
+}
+
 }  // namespace
 
 EmbreeDevice::EmbreeDevice(int threads) {
@@ -40,6 +92,15 @@ struct AccelManager::Blas {
     std::vector<RTCGeometry> geometries;
     std::vector<GeometryInfo> info;
     std::vector<std::vector<Aabb>> boxes;  // procedural AABBs (user data of the geometry)
+    std::vector<std::vector<std::uint32_t>> clusterOrder;  // per deformable geometry (refit quality)
+    double buildCost = 0.0;  // clusterCost summed over deformable geometries, at build time
+
+    double currentCost(const ecs::MeshAsset& mesh) const {
+        double cost = 0.0;
+        for (std::size_t i = 0; i < clusterOrder.size() && i < mesh.geometries.size(); ++i)
+            if (!clusterOrder[i].empty()) cost += clusterCost(mesh.geometries[i], clusterOrder[i]);
+        return cost;
+    }
     ~Blas() { if (scene) rtcReleaseScene(scene); }
 };
 
@@ -80,6 +141,8 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
             rtcReleaseGeometry(geom);
             continue;
         }
+        blas->clusterOrder.push_back(g.deformable() && options_.refitRebuildThreshold > 0.f ? mortonTriangleOrder(g)
+                                                                                            : std::vector<std::uint32_t>{});
         RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
         // Deformable geometry keeps a refittable BVH.
         rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
@@ -93,6 +156,7 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
         rtcReleaseGeometry(geom);  // the scene holds the reference
     }
     rtcCommitScene(blas->scene);
+    blas->buildCost = blas->currentCost(mesh);
     blases_[id] = std::move(blas);
 }
 
@@ -144,6 +208,7 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     // Step: BLAS work, exactly what the FrameUpdate lists.
     std::vector<std::uint8_t> touched(meshes.size(), 0);
     const std::vector<ecs::Material>& materials = *scene.materials;
+    bool rebuiltForQuality = false;
     for (ecs::MeshId id : u.rebuiltMeshes) {
         buildBlas(meshes.at(id), id, materials);
         touched[id] = 1;
@@ -154,8 +219,19 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
             buildBlas(meshes.at(id), id, materials);
             ++stats.blasRebuilt;
         } else {
-            refitBlas(meshes.at(id), id);
-            ++stats.blasRefit;
+            // Quality policy: rebuild instead when the refit hierarchy has loosened too much.
+            const Blas& blas = *blases_[id];
+            const double degradation = blas.buildCost > 0.0 ? blas.currentCost(meshes.at(id)) / blas.buildCost : 1.0;
+            stats.worstRefitDegradation = std::max(stats.worstRefitDegradation, static_cast<float>(degradation));
+            if (options_.refitRebuildThreshold > 0.f && degradation > options_.refitRebuildThreshold) {
+                buildBlas(meshes.at(id), id, materials);
+                ++stats.blasRebuilt;
+                ++stats.blasRebuiltForQuality;
+                rebuiltForQuality = true;
+            } else {
+                refitBlas(meshes.at(id), id);
+                ++stats.blasRefit;
+            }
         }
         touched[id] = 1;
     }
@@ -180,7 +256,7 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     }
 
     // Step: TLAS. A rebuilt BLAS is a new RTCScene, so instances of it need re-pointing: rebuild.
-    if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty()) {
+    if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty() || rebuiltForQuality) {
         rebuildTlas(scene);
         ++stats.tlasBuilds;
     } else if (!u.movedInstances.empty() || !u.refitMeshes.empty()) {
@@ -205,8 +281,27 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
         rtcCommitScene(tlas_);
         ++stats.tlasUpdates;
     }
+    refreshInstanceFacts();
     stats.buildMs = clock.elapsedMs();
     return stats;
+}
+
+void AccelManager::refreshInstanceFacts() {
+    instanceFacts_.resize(instances_.size());
+    allOpaqueTriangles_ = true;
+    for (std::size_t i = 0; i < instances_.size(); ++i) {
+        const ecs::InstanceSnapshot& inst = instances_[i];
+        InstanceFacts& f = instanceFacts_[i];
+        f = InstanceFacts{};
+        f.normalFromObject = glm::transpose(glm::inverse(mat3(inst.worldFromObject)));
+        for (const GeometryInfo& g : blases_.at(inst.mesh)->info) {
+            f.hasProcedural = f.hasProcedural || g.procedural;
+            f.mayBeNonOpaque = f.mayBeNonOpaque || !g.opaque;
+        }
+        if (inst.flags & InstanceFlag::ForceOpaque) f.mayBeNonOpaque = false;
+        if (inst.flags & InstanceFlag::ForceNonOpaque) f.mayBeNonOpaque = true;
+        allOpaqueTriangles_ = allOpaqueTriangles_ && !f.mayBeNonOpaque && !f.hasProcedural;
+    }
 }
 
 }  // namespace rtlab::tracer

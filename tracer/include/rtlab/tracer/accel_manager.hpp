@@ -18,6 +18,11 @@ namespace rtlab::tracer {
 struct AccelOptions {
     bool robust = true;  // RTC_SCENE_FLAG_ROBUST: watertight-leaning traversal and intersection
     int threads = 0;     // Embree build threads (0 = all)
+    // Refit quality policy: a refit BLAS keeps its build-time topology, so its
+    // quality decays as vertices move. When the refit cost estimate exceeds
+    // this multiple of its value at the last build, the BLAS is rebuilt
+    // instead (docs/acceleration-structures.md). <= 0 disables the policy.
+    float refitRebuildThreshold = 2.0f;
 };
 
 // Per-geometry facts the pipeline needs during traversal.
@@ -34,7 +39,16 @@ struct AccelUpdateStats {
     std::uint32_t tlasBuilds = 0;         // full TLAS rebuilds (instance set changed)
     std::uint32_t tlasUpdates = 0;        // TLAS recommits for moved instances only
     std::uint32_t instancesMoved = 0;
+    std::uint32_t blasRebuiltForQuality = 0;  // refits turned into rebuilds by the quality policy
+    float worstRefitDegradation = 1.f;        // max over refit BLASes of cost / cost at build
     double buildMs = 0.0;
+};
+
+// Facts about one TLAS instance that traversal needs per hit.
+struct InstanceFacts {
+    mat3 normalFromObject{1.f};  // inverse transpose of worldFromObject's 3x3
+    bool mayBeNonOpaque = false; // some geometry is non-opaque after instance flags
+    bool hasProcedural = false;
 };
 
 // Owns the Embree device.
@@ -66,6 +80,10 @@ public:
     const ecs::InstanceSnapshot& instance(std::uint32_t instId) const { return instances_.at(instId); }
     std::size_t instanceCount() const { return instances_.size(); }
     const GeometryInfo& geometryInfo(ecs::MeshId mesh, std::uint32_t geometryIndex) const;
+    const InstanceFacts& instanceFacts(std::uint32_t instId) const { return instanceFacts_[instId]; }
+    // True when every instance is opaque and triangle-only: rays with no
+    // culling flags can then skip the per-candidate filter entirely.
+    bool allOpaqueTriangles() const { return allOpaqueTriangles_; }
     std::uint32_t geometryCount(ecs::MeshId mesh) const;
     // Shader-table slot of geometry 0 of `mesh`: meshes are laid out in id
     // order, one slot per geometry (the automatic instance contribution is
@@ -86,6 +104,9 @@ private:
     RTCScene tlas_ = nullptr;
     std::vector<ecs::InstanceSnapshot> instances_;
     std::vector<std::uint32_t> instIdByEntityIndex_;
+    void refreshInstanceFacts();
+    std::vector<InstanceFacts> instanceFacts_;
+    bool allOpaqueTriangles_ = true;
     std::vector<std::uint32_t> slotBase_;
     std::uint32_t slotCount_ = 0;
 };

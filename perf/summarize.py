@@ -1,0 +1,32 @@
+#!/usr/bin/env python3
+"""Turns the Google Benchmark JSON files of one `make bench` run into the
+ratios the issues ask for, written to OUT_DIR/summary.json and printed."""
+import json, pathlib, sys
+
+out = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench")
+times, rates = {}, {}
+for f in sorted(out.glob("*.json")):
+    if f.name == "summary.json":
+        continue
+    for b in json.loads(f.read_text()).get("benchmarks", []):
+        if b.get("run_type", "iteration") != "iteration":
+            continue
+        times[b["name"]] = b["real_time"]
+        if "rays_per_s" in b:
+            rates[b["name"]] = b["rays_per_s"]
+
+def ratio(num, den, table):
+    return table[num] / table[den] if num in table and den in table and table[den] else None
+
+summary = {
+    "pipeline_vs_raw_embree_throughput_1t": ratio("BM_PipelinePacket/1/min_time:1.000/real_time", "BM_RawIntersect8/1/min_time:1.000/real_time", rates),
+    "pipeline_vs_raw_embree_throughput_2t": ratio("BM_PipelinePacket/2/min_time:1.000/real_time", "BM_RawIntersect8/2/min_time:1.000/real_time", rates),
+    "packet_vs_single_ray_throughput_1t": ratio("BM_PipelinePacket/1/min_time:1.000/real_time", "BM_PipelineSingleRay/1/min_time:1.000/real_time", rates),
+    "pipeline_packet_2t_vs_1t": ratio("BM_PipelinePacket/2/min_time:1.000/real_time", "BM_PipelinePacket/1/min_time:1.000/real_time", rates),
+    "raw_embree_2t_vs_1t": ratio("BM_RawIntersect8/2/min_time:1.000/real_time", "BM_RawIntersect8/1/min_time:1.000/real_time", rates),
+    "refit_vs_rebuild_time_1M": ratio("BM_Refit1M/min_time:2.000/real_time", "BM_Rebuild1M/min_time:2.000/real_time", times),
+    "one_moves_vs_full_build_1000": ratio("BM_OneMoves1000/min_time:1.000/real_time", "BM_FullBuild1000/min_time:1.000/real_time", times),
+}
+(out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+for k, v in summary.items():
+    print(f"{k}: {v:.4f}" if v is not None else f"{k}: (missing)")

@@ -1,0 +1,112 @@
+// Pipeline overhead against raw Embree, packet vs single ray, thread scaling.
+// All on the same primary rays of builtin:showcase at 1024x1024.
+//   BM_RawIntersect8      rtcIntersect8 over 16x16 tiles, no callbacks (the floor)
+//   BM_PipelinePacket     Pipeline::dispatchCoherent, trivial closest-hit/miss
+//   BM_PipelineSingleRay  Pipeline::dispatchRays + traceRay per pixel
+// Each runs with 1 and 2 threads; perf/summarize.py turns them into ratios.
+#include "bench_scenes.hpp"
+
+#include <rtlab/core/parallel.hpp>
+#include <rtlab/tracer/pipeline.hpp>
+
+#include <benchmark/benchmark.h>
+#include <embree3/rtcore.h>
+
+#include <array>
+
+namespace {
+
+using namespace rtlab;
+constexpr int kSize = 1024;
+
+const bench::LoadedScene& showcase() {
+    static const bench::LoadedScene scene("builtin:showcase");
+    return scene;
+}
+
+struct HitPayload {
+    float t = 0.f;
+};
+
+tracer::Pipeline<HitPayload>::Desc trivialShaders(const tracer::AccelManager& accel) {
+    tracer::Pipeline<HitPayload>::Desc desc;
+    desc.hitGroups.resize(accel.geometrySlotCount());
+    for (auto& g : desc.hitGroups)
+        g.closestHit = [](const tracer::HitContext& ctx, HitPayload& p, const tracer::HitAttributes&) { p.t = ctx.rayTCurrent; };
+    desc.missShaders.push_back([](const tracer::MissContext&, HitPayload& p) { p.t = -1.f; });
+    return desc;
+}
+
+void BM_RawIntersect8(benchmark::State& state) {
+    const ThreadLimit limit(static_cast<int>(state.range(0)));
+    const auto& scene = showcase();
+    const std::vector<Tile> tiles = makeTiles(kSize, kSize, 16);
+    std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
+    for (auto _ : state) {
+        parallelForEach(tiles.size(), [&](std::size_t ti) {
+            const Tile& tile = tiles[ti];
+            RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x0 = tile.x0; x0 < tile.x1; x0 += 8) {
+                    alignas(32) std::array<int, 8> valid{};
+                    alignas(32) RTCRayHit8 rh{};
+                    for (int i = 0; i < 8; ++i) {
+                        valid[i] = x0 + i < tile.x1 ? -1 : 0;
+                        const tracer::RayDesc r = scene.primaryRay(x0 + i, y, kSize, kSize);
+                        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
+                        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+                        rh.ray.tnear[i] = 0.f;
+                        rh.ray.tfar[i] = kInfinity;
+                        rh.ray.mask[i] = 0xff;
+                        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+                    }
+                    rtcIntersect8(valid.data(), scene.accel->tlas(), &ctx, &rh);
+                    for (int i = 0; i < 8 && x0 + i < tile.x1; ++i)
+                        out[static_cast<std::size_t>(y) * kSize + x0 + i] =
+                            rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ? -1.f : rh.ray.tfar[i];
+                }
+        });
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
+}
+
+void BM_PipelinePacket(benchmark::State& state) {
+    const ThreadLimit limit(static_cast<int>(state.range(0)));
+    const auto& scene = showcase();
+    const tracer::Pipeline<HitPayload> pipeline(*scene.accel, trivialShaders(*scene.accel));
+    std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
+    for (auto _ : state) {
+        pipeline.dispatchCoherent(
+            kSize, kSize, tracer::TraceArgs{}, [&](int x, int y, HitPayload&) { return scene.primaryRay(x, y, kSize, kSize); },
+            [&](int x, int y, const HitPayload& p) { out[static_cast<std::size_t>(y) * kSize + x] = p.t; });
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
+}
+
+void BM_PipelineSingleRay(benchmark::State& state) {
+    const ThreadLimit limit(static_cast<int>(state.range(0)));
+    const auto& scene = showcase();
+    const tracer::Pipeline<HitPayload> pipeline(*scene.accel, trivialShaders(*scene.accel));
+    std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
+    for (auto _ : state) {
+        pipeline.dispatchRays(kSize, kSize, [&](int x, int y) {
+            HitPayload p;
+            pipeline.traceRay(tracer::TraceArgs{}, scene.primaryRay(x, y, kSize, kSize), p);
+            out[static_cast<std::size_t>(y) * kSize + x] = p.t;
+        });
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
+}
+
+BENCHMARK(BM_RawIntersect8)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_PipelinePacket)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_PipelineSingleRay)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+
+}  // namespace
+
+BENCHMARK_MAIN();
