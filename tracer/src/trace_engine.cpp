@@ -68,6 +68,20 @@ void contextFilter(const RTCFilterFunctionNArguments* args);
 
 bool isPipelineContext(const RTCIntersectContext* c) { return c && c->filter == contextFilter; }
 
+// Opacity: geometry flag, then instance overrides, then ray overrides.
+bool isOpaque(const GeometryInfo& geo, const ecs::InstanceSnapshot& inst, std::uint32_t rayFlags) {
+    bool opaque = geo.opaque;
+    if (inst.flags & InstanceFlag::ForceOpaque) opaque = true;
+    if (inst.flags & InstanceFlag::ForceNonOpaque) opaque = false;
+    if (rayFlags & RayFlag::ForceOpaque) opaque = true;
+    if (rayFlags & RayFlag::ForceNonOpaque) opaque = false;
+    return opaque;
+}
+
+bool culledByOpacity(bool opaque, std::uint32_t rayFlags) {
+    return opaque ? (rayFlags & RayFlag::CullOpaque) != 0 : (rayFlags & RayFlag::CullNonOpaque) != 0;
+}
+
 // The DXR decision for one candidate hit; returns true when committed.
 bool filterCandidate(PipelineContext& ctx, std::uint32_t lane, float t, std::uint32_t instanceIndex,
                      std::uint32_t geometryIndex, std::uint32_t primitiveIndex, const vec3& objectDirection,
@@ -100,13 +114,8 @@ bool filterCandidate(PipelineContext& ctx, std::uint32_t lane, float t, std::uin
     }
 
     // Step: opacity — geometry flag, then instance overrides, then ray overrides.
-    bool opaque = geo.opaque;
-    if (inst.flags & InstanceFlag::ForceOpaque) opaque = true;
-    if (inst.flags & InstanceFlag::ForceNonOpaque) opaque = false;
-    if (flags & RayFlag::ForceOpaque) opaque = true;
-    if (flags & RayFlag::ForceNonOpaque) opaque = false;
-    if ((flags & RayFlag::CullOpaque) && opaque) return false;
-    if ((flags & RayFlag::CullNonOpaque) && !opaque) return false;
+    const bool opaque = isOpaque(geo, inst, flags);
+    if (culledByOpacity(opaque, flags)) return false;
 
     std::uint32_t record = 0;
     try {
@@ -211,6 +220,10 @@ void runIntersectionShader(const Args* a, bool occlusion) {
         const std::uint32_t instanceIndex = a->context->instID[0];
         const AccelManager& accel = ctx.engine->accel();
         const ecs::InstanceSnapshot& inst = accel.instance(instanceIndex);
+        // DXR culls a procedural primitive by opacity before its intersection shader runs.
+        if (culledByOpacity(isOpaque(accel.geometryInfo(inst.mesh, a->geomID), inst, ctx.args.rayFlags),
+                            ctx.args.rayFlags))
+            continue;
         std::uint32_t record = 0;
         try {
             record = ctx.engine->hitGroupRecord(ctx.args, instanceIndex, a->geomID);

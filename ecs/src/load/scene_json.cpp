@@ -218,7 +218,7 @@ public:
         }
         const float len = glm::length(dir);
         if (!(len > 1e-6f) || !std::isfinite(len))
-            fail(where, hasLookAt ? "lookAt must differ from the position" : "direction must be a non-zero vector");
+            fail(where, hasLookAt ? "lookAt must differ from the position" : "direction must be a non-zero vector of finite length");
         return orientationLookingAlong(dir / len);
     }
 

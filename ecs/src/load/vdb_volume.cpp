@@ -392,7 +392,8 @@ std::shared_ptr<VolumeGrid> VolumeGrid::loadVdb(const std::filesystem::path& pat
                 throw InputError(where, "grid '" + gridName + "' not found (the file has " + names + ")");
             }
             if (!named->isType<openvdb::FloatGrid>())
-                throw InputError(where, "grid '" + gridName + "' is a " + named->type() + " grid, not a float grid");
+                throw InputError(where, "grid '" + gridName + "' holds " + named->valueType() +
+                                            " values: not a float grid");
             grid = openvdb::gridPtrCast<openvdb::FloatGrid>(named);
         }
     } catch (const InputError&) {
