@@ -149,12 +149,12 @@ TEST(AccelManager, InstanceFactsTrackOpacity) {
     world.emplace(a, MeshInstance{opaqueMesh});
     tracer::AccelManager accel;
     accel.update(makeSnapshot(world, world.update(0.f)));
-    EXPECT_TRUE(accel.allOpaqueTriangles());
+    EXPECT_TRUE(accel.allOpaque());
     const Entity b = world.create("b");
     world.emplace(b, MeshInstance{maskedMesh});
     accel.update(makeSnapshot(world, world.update(0.1f)));
-    EXPECT_FALSE(accel.allOpaqueTriangles());
+    EXPECT_FALSE(accel.allOpaque());
     world.patch<MeshInstance>(b, [](MeshInstance& m) { m.flags = 0x4; });  // InstanceFlag::ForceOpaque
     accel.update(makeSnapshot(world, world.update(0.1f)));
-    EXPECT_TRUE(accel.allOpaqueTriangles());
+    EXPECT_TRUE(accel.allOpaque());
 }

@@ -288,7 +288,8 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
 
 void AccelManager::refreshInstanceFacts() {
     instanceFacts_.resize(instances_.size());
-    allOpaqueTriangles_ = true;
+    allOpaque_ = true;
+    anyProcedural_ = false;
     for (std::size_t i = 0; i < instances_.size(); ++i) {
         const ecs::InstanceSnapshot& inst = instances_[i];
         InstanceFacts& f = instanceFacts_[i];
@@ -300,7 +301,8 @@ void AccelManager::refreshInstanceFacts() {
         }
         if (inst.flags & InstanceFlag::ForceOpaque) f.mayBeNonOpaque = false;
         if (inst.flags & InstanceFlag::ForceNonOpaque) f.mayBeNonOpaque = true;
-        allOpaqueTriangles_ = allOpaqueTriangles_ && !f.mayBeNonOpaque && !f.hasProcedural;
+        allOpaque_ = allOpaque_ && !f.mayBeNonOpaque;
+        anyProcedural_ = anyProcedural_ || f.hasProcedural;
     }
 }
 

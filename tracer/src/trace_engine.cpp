@@ -9,6 +9,7 @@
 #include <rtlab/tracer/pipeline.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <exception>
 
@@ -57,12 +58,22 @@ struct PipelineContext {
     std::array<HitAttributes, kMaxLanes> committedAttributes{};
     std::array<std::uint32_t, kMaxLanes> committedHitKind{};
     std::array<std::uint32_t, kMaxLanes> committedRecord{};
+    std::array<bool, kMaxLanes> committedAny{};  // RayTCurrent is TMax until the first commit
     // Set by ReportHit() for the procedural candidate being filtered.
     bool pendingProcedural = false;
     std::uint32_t pendingHitKind = 0;
     HitAttributes pendingAttributes;
     std::exception_ptr error;  // first exception from a shader or a bad record
+    // No candidate needs a decision (all geometry opaque triangles, no culling
+    // flags): Embree runs without the filter and the committed hit's HitKind
+    // and record are computed once, after traversal.
+    bool filterFree = false;
 };
+
+// Ray flags whose rules need a per-candidate decision.
+constexpr std::uint32_t kCandidateFlags = RayFlag::CullBackFacingTriangles | RayFlag::CullFrontFacingTriangles |
+                                          RayFlag::SkipTriangles | RayFlag::CullOpaque | RayFlag::CullNonOpaque |
+                                          RayFlag::ForceNonOpaque;
 
 void contextFilter(const RTCFilterFunctionNArguments* args);
 
@@ -165,6 +176,7 @@ bool filterCandidate(PipelineContext& ctx, std::uint32_t lane, float t, std::uin
     ctx.committedAttributes[lane] = attributes;
     ctx.committedHitKind[lane] = hitKind;
     ctx.committedRecord[lane] = record;
+    ctx.committedAny[lane] = true;
     if (endSearch) ctx.ended[lane] = true;
     return true;
 }
@@ -199,6 +211,34 @@ void initContext(PipelineContext& ctx, const TraceEngine* engine, const TraceArg
     // occlusion query: Embree stops at the first committed hit.
     ctx.occlusion = (args.rayFlags & RayFlag::AcceptFirstHitAndEndSearch) &&
                     (args.rayFlags & RayFlag::SkipClosestHitShader);
+    // ACCEPT_FIRST_HIT on a closest-hit query still needs the filter to stop
+    // at the first hit; as an occlusion query Embree stops by itself.
+    const bool needsFirstHitStop = (args.rayFlags & RayFlag::AcceptFirstHitAndEndSearch) && !ctx.occlusion;
+    // Without any-hit shaders a non-opaque candidate is simply accepted, as an
+    // opaque one is: opacity then only matters to the CULL_*/FORCE_NON_OPAQUE flags.
+    const AccelManager& accel = engine->accel();
+    const bool opaqueInEffect = accel.allOpaque() || !engine->shaders().anyHitGroupHasAnyHit();
+    ctx.filterFree = opaqueInEffect && !accel.anyProcedural() && !(args.rayFlags & kCandidateFlags) && !needsFirstHitStop;
+    if (ctx.filterFree) ctx.embree.filter = nullptr;
+}
+
+// Embree accepts tnear <= t <= tfar; DXR's interval is open.
+float openIntervalStart(float tMin) { return std::nextafter(tMin, kInfinity); }
+float openIntervalEnd(float tMax) { return std::nextafter(tMax, 0.f); }
+
+// Filter-free path: HitKind and record of the committed hit. The facing test
+// dot(objectDir, Ng) equals dot(worldDir, normalFromObject * Ng).
+void commitAfterTraversal(PipelineContext& ctx, std::uint32_t lane, std::uint32_t instID, std::uint32_t geomID,
+                          const vec3& objectNormal, float u, float v) {
+    const AccelManager& accel = ctx.engine->accel();
+    const InstanceFacts& facts = accel.instanceFacts(instID);
+    bool front = glm::dot(ctx.rays[lane].direction, facts.normalFromObject * objectNormal) < 0.f;
+    if (accel.instance(instID).flags & InstanceFlag::TriangleFrontCounterClockwise) front = !front;
+    ctx.committedHitKind[lane] = front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace;
+    ctx.committedRecord[lane] = ctx.engine->hitGroupRecord(ctx.args, instID, geomID);
+    ctx.committedAttributes[lane] = HitAttributes{};
+    ctx.committedAttributes[lane].values[0] = u;
+    ctx.committedAttributes[lane].values[1] = v;
 }
 
 RTCRayN* rayOf(const RTCIntersectFunctionNArguments* a) { return RTCRayHitN_RayN(a->rayhit, a->N); }
@@ -239,7 +279,8 @@ void runIntersectionShader(const Args* a, bool occlusion) {
         ic.worldRayOrigin = ray.origin;
         ic.worldRayDirection = ray.direction;
         ic.rayTMin = ray.tMin;
-        ic.rayTCurrent = RTCRayN_tfar(rayN, a->N, i);
+        // Embree's tfar sits one float below TMax until the first commit (open interval).
+        ic.rayTCurrent = ctx.committedAny[lane] ? RTCRayN_tfar(rayN, a->N, i) : ray.tMax;
         ic.rayFlags = ctx.args.rayFlags;
         ic.instanceIndex = instanceIndex;
         ic.instanceId = inst.instanceId;
@@ -266,7 +307,7 @@ void runIntersectionShader(const Args* a, bool occlusion) {
                 if (!c.error) c.error = std::make_exception_ptr(PipelineError("ReportHit: hitKind must be < 128"));
                 return false;
             }
-            const float tCurrent = RTCRayN_tfar(s.rayN, s.a->N, s.i);
+            const float tCurrent = c.committedAny[s.lane] ? RTCRayN_tfar(s.rayN, s.a->N, s.i) : c.rays[s.lane].tMax;
             if (!(t > c.rays[s.lane].tMin && t < tCurrent) || c.ended[s.lane]) return false;
             c.pendingProcedural = true;
             c.pendingHitKind = hitKind;
@@ -376,7 +417,6 @@ HitContext TraceEngine::hitContext(const TraceArgs& args, const RayDesc& ray, co
 CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void* payload, std::uint32_t depth,
                                 TraceCounters& counters) const {
     CommittedHit out;
-    bool active = true;
     void* payloads[1] = {payload};
     // A single ray is a one-lane trace; no packet overhead for Embree.
     PipelineContext ctx;
@@ -387,15 +427,14 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
         // DXR: such rays are undefined; we count them as misses.
         ++counters.rays[type];
         ++counters.misses[type];
-        (void)active;
         return out;
     }
     if (ctx.occlusion) {
         RTCRay r{};
         r.org_x = ray.origin.x; r.org_y = ray.origin.y; r.org_z = ray.origin.z;
         r.dir_x = ray.direction.x; r.dir_y = ray.direction.y; r.dir_z = ray.direction.z;
-        r.tnear = ray.tMin;
-        r.tfar = ray.tMax;
+        r.tnear = openIntervalStart(ray.tMin);
+        r.tfar = openIntervalEnd(ray.tMax);
         r.mask = args.instanceInclusionMask & 0xff;
         r.id = 0;
         rtcOccluded1(accel_.tlas(), &ctx.embree, &r);
@@ -408,14 +447,17 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     RTCRayHit rh{};
     rh.ray.org_x = ray.origin.x; rh.ray.org_y = ray.origin.y; rh.ray.org_z = ray.origin.z;
     rh.ray.dir_x = ray.direction.x; rh.ray.dir_y = ray.direction.y; rh.ray.dir_z = ray.direction.z;
-    rh.ray.tnear = ray.tMin;
-    rh.ray.tfar = ray.tMax;
+    rh.ray.tnear = openIntervalStart(ray.tMin);
+    rh.ray.tfar = openIntervalEnd(ray.tMax);
     rh.ray.mask = args.instanceInclusionMask & 0xff;
     rh.ray.id = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(accel_.tlas(), &ctx.embree, &rh);
     if (ctx.error) std::rethrow_exception(ctx.error);
+    if (ctx.filterFree && rh.hit.geomID != RTC_INVALID_GEOMETRY_ID)
+        commitAfterTraversal(ctx, 0, rh.hit.instID[0], rh.hit.geomID, vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z),
+                             rh.hit.u, rh.hit.v);
     finishLane(ctx, 0, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID,
                rh.hit.primID, out, counters);
     return out;
@@ -435,8 +477,8 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
         any = any || ok;
         rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
         rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
-        rh.ray.tnear[i] = r.tMin;
-        rh.ray.tfar[i] = r.tMax;
+        rh.ray.tnear[i] = ok ? openIntervalStart(r.tMin) : 0.f;
+        rh.ray.tfar[i] = ok ? openIntervalEnd(r.tMax) : 0.f;
         rh.ray.mask[i] = args.instanceInclusionMask & 0xff;
         rh.ray.id[i] = static_cast<unsigned>(i);
         rh.ray.flags[i] = 0;
@@ -457,6 +499,11 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
         }
         rtcIntersect8(valid, accel_.tlas(), &ctx.embree, &rh);
         if (ctx.error) std::rethrow_exception(ctx.error);
+        if (ctx.filterFree)
+            for (int i = 0; i < kMaxLanes; ++i)
+                if (valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID)
+                    commitAfterTraversal(ctx, i, rh.hit.instID[0][i], rh.hit.geomID[i],
+                                         vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.hit.u[i], rh.hit.v[i]);
     }
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i])

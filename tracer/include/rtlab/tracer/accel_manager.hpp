@@ -81,9 +81,10 @@ public:
     std::size_t instanceCount() const { return instances_.size(); }
     const GeometryInfo& geometryInfo(ecs::MeshId mesh, std::uint32_t geometryIndex) const;
     const InstanceFacts& instanceFacts(std::uint32_t instId) const { return instanceFacts_[instId]; }
-    // True when every instance is opaque and triangle-only: rays with no
-    // culling flags can then skip the per-candidate filter entirely.
-    bool allOpaqueTriangles() const { return allOpaqueTriangles_; }
+    // Every instance is opaque (after instance flags) / some instance has
+    // procedural geometry. Traversal uses them to skip per-candidate work.
+    bool allOpaque() const { return allOpaque_; }
+    bool anyProcedural() const { return anyProcedural_; }
     std::uint32_t geometryCount(ecs::MeshId mesh) const;
     // Shader-table slot of geometry 0 of `mesh`: meshes are laid out in id
     // order, one slot per geometry (the automatic instance contribution is
@@ -106,7 +107,8 @@ private:
     std::vector<std::uint32_t> instIdByEntityIndex_;
     void refreshInstanceFacts();
     std::vector<InstanceFacts> instanceFacts_;
-    bool allOpaqueTriangles_ = true;
+    bool allOpaque_ = true;
+    bool anyProcedural_ = false;
     std::vector<std::uint32_t> slotBase_;
     std::uint32_t slotCount_ = 0;
 };

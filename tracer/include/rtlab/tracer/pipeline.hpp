@@ -117,6 +117,7 @@ class ShaderTableView {
 public:
     virtual ~ShaderTableView() = default;
     virtual std::size_t hitGroupCount() const = 0;
+    virtual bool anyHitGroupHasAnyHit() const = 0;
     virtual bool hasAnyHit(std::uint32_t record) const = 0;
     virtual AnyHitResult anyHit(std::uint32_t record, const HitContext& ctx, void* payload,
                                 const HitAttributes& attributes) const = 0;
@@ -185,6 +186,7 @@ public:
             throw PipelineError("rayTypeCount must be in [1, 16]");
         if (desc_.maxRecursionDepth == 0 || desc_.maxRecursionDepth > 31)
             throw PipelineError("maxRecursionDepth must be in [1, 31] (DXR limit)");
+        for (const HitGroup& g : desc_.hitGroups) anyHitShaders_ = anyHitShaders_ || static_cast<bool>(g.anyHit);
     }
 
     // TraceRay(): closest-hit for the committed hit (unless
@@ -300,6 +302,7 @@ private:
 
     // ShaderTableView
     std::size_t hitGroupCount() const override { return desc_.hitGroups.size(); }
+    bool anyHitGroupHasAnyHit() const override { return anyHitShaders_; }
     bool hasAnyHit(std::uint32_t record) const override { return static_cast<bool>(desc_.hitGroups[record].anyHit); }
     AnyHitResult anyHit(std::uint32_t record, const HitContext& ctx, void* payload,
                         const HitAttributes& attributes) const override {
@@ -313,6 +316,7 @@ private:
     }
 
     Desc desc_;
+    bool anyHitShaders_ = false;
     TraceEngine engine_;
 };
 
