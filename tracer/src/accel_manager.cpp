@@ -295,6 +295,7 @@ void AccelManager::refreshInstanceFacts() {
         InstanceFacts& f = instanceFacts_[i];
         f = InstanceFacts{};
         f.normalFromObject = glm::transpose(glm::inverse(mat3(inst.worldFromObject)));
+        f.frontCounterClockwise = (inst.flags & InstanceFlag::TriangleFrontCounterClockwise) != 0;
         for (const GeometryInfo& g : blases_.at(inst.mesh)->info) {
             f.hasProcedural = f.hasProcedural || g.procedural;
             f.mayBeNonOpaque = f.mayBeNonOpaque || !g.opaque;

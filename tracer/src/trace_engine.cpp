@@ -9,7 +9,9 @@
 #include <rtlab/tracer/pipeline.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <limits>
 #include <cstring>
 #include <exception>
 
@@ -55,7 +57,7 @@ struct PipelineContext {
     const RayDesc* rays = nullptr;     // world-space rays, per lane
     void* const* payloads = nullptr;   // per lane
     std::array<bool, kMaxLanes> ended{};
-    std::array<HitAttributes, kMaxLanes> committedAttributes{};
+    std::array<HitAttributes, kMaxLanes> committedAttributes;  // written before read (on commit)
     std::array<std::uint32_t, kMaxLanes> committedHitKind{};
     std::array<std::uint32_t, kMaxLanes> committedRecord{};
     std::array<bool, kMaxLanes> committedAny{};  // RayTCurrent is TMax until the first commit
@@ -222,9 +224,19 @@ void initContext(PipelineContext& ctx, const TraceEngine* engine, const TraceArg
     if (ctx.filterFree) ctx.embree.filter = nullptr;
 }
 
-// Embree accepts tnear <= t <= tfar; DXR's interval is open.
-float openIntervalStart(float tMin) { return std::nextafter(tMin, kInfinity); }
-float openIntervalEnd(float tMax) { return std::nextafter(tMax, 0.f); }
+// Embree accepts tnear <= t <= tfar; DXR's interval is open. Both inputs
+// are validated non-negative and not NaN, so stepping the bit pattern by one
+// is nextafter (towards +inf for the start, towards 0 for the end).
+float openIntervalStart(float tMin) {
+    if (tMin == kInfinity) return tMin;
+    if (tMin == 0.f) return std::numeric_limits<float>::denorm_min();  // also for -0
+    return std::bit_cast<float>(std::bit_cast<std::uint32_t>(tMin) + 1u);
+}
+float openIntervalEnd(float tMax) {
+    if (tMax == 0.f) return tMax;  // empty interval either way
+    return tMax == kInfinity ? std::numeric_limits<float>::max()
+                             : std::bit_cast<float>(std::bit_cast<std::uint32_t>(tMax) - 1u);
+}
 
 // Filter-free path: HitKind and record of the committed hit. The facing test
 // dot(objectDir, Ng) equals dot(worldDir, normalFromObject * Ng).
@@ -232,8 +244,13 @@ void commitAfterTraversal(PipelineContext& ctx, std::uint32_t lane, std::uint32_
                           const vec3& objectNormal, float u, float v) {
     const AccelManager& accel = ctx.engine->accel();
     const InstanceFacts& facts = accel.instanceFacts(instID);
-    bool front = glm::dot(ctx.rays[lane].direction, facts.normalFromObject * objectNormal) < 0.f;
-    if (accel.instance(instID).flags & InstanceFlag::TriangleFrontCounterClockwise) front = !front;
+    const vec3& d = ctx.rays[lane].direction;
+    // dot(d, N n) = dot(N^T d, n) with N = normalFromObject (column-major mat3).
+    const mat3& n = facts.normalFromObject;
+    const float facing = objectNormal.x * glm::dot(n[0], d) + objectNormal.y * glm::dot(n[1], d) +
+                         objectNormal.z * glm::dot(n[2], d);
+    bool front = facing < 0.f;
+    if (facts.frontCounterClockwise) front = !front;
     ctx.committedHitKind[lane] = front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace;
     ctx.committedRecord[lane] = ctx.engine->hitGroupRecord(ctx.args, instID, geomID);
     ctx.committedAttributes[lane] = HitAttributes{};
@@ -347,9 +364,10 @@ void finishLane(const PipelineContext& ctx, std::uint32_t lane, bool hit, float 
                 std::uint32_t geomID, std::uint32_t primID, CommittedHit& out, TraceCounters& counters) {
     const std::uint32_t type = ctx.args.rayContribution & 0xf;
     ++counters.rays[type];
-    out = CommittedHit{};
     if (!hit) {
         ++counters.misses[type];
+        out.hit = false;
+        out.t = kInfinity;
         return;
     }
     ++counters.hits[type];

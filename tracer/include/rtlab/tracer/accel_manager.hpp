@@ -49,6 +49,7 @@ struct InstanceFacts {
     mat3 normalFromObject{1.f};  // inverse transpose of worldFromObject's 3x3
     bool mayBeNonOpaque = false; // some geometry is non-opaque after instance flags
     bool hasProcedural = false;
+    bool frontCounterClockwise = false;  // InstanceFlag::TriangleFrontCounterClockwise
 };
 
 // Owns the Embree device.

@@ -230,15 +230,17 @@ public:
             TraceCounters& counters = *scope.counters;
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x0 = tile.x0; x0 < tile.x1; x0 += 8) {
+                    // No value-initialisation of the ray and hit arrays: every
+                    // lane is written below (inactive lanes get an empty ray).
                     std::array<Payload, 8> payloads{};
-                    std::array<RayDesc, 8> rays{};
-                    std::array<void*, 8> payloadPtrs{};
-                    std::array<bool, 8> active{};
-                    std::array<CommittedHit, 8> hits{};
+                    std::array<RayDesc, 8> rays;
+                    std::array<void*, 8> payloadPtrs;
+                    std::array<bool, 8> active;
+                    std::array<CommittedHit, 8> hits;  // trace8 writes every active lane
                     for (int lane = 0; lane < 8; ++lane) {
                         active[lane] = x0 + lane < tile.x1;
                         payloadPtrs[lane] = &payloads[lane];
-                        if (active[lane]) rays[lane] = makeRay(x0 + lane, y, payloads[lane]);
+                        rays[lane] = active[lane] ? makeRay(x0 + lane, y, payloads[lane]) : RayDesc{};
                     }
                     engine_.trace8(args, rays.data(), payloadPtrs.data(), active.data(), 1, hits.data(), counters);
                     const DepthGuard guard(scope, 1);
