@@ -78,6 +78,30 @@ double clusterCost(const ecs::Geometry& g, const std::vector<std::uint32_t>& ord
 
 }  // namespace
 
+void AccelManager::setWatertightPositions(WatertightTriangles& data, const ecs::Geometry& g) const {
+    data.positions = g.positions;
+    Aabb bounds;
+    for (const vec3& p : g.positions) bounds.extend(p);
+    const vec3 extent = bounds.empty() ? vec3(0.f) : bounds.extent();
+    data.padding = options_.watertightBoundsPadding * std::max({extent.x, extent.y, extent.z});
+}
+
+void watertightBoundsCallback(const RTCBoundsFunctionArguments* args) {
+    const auto& data = *static_cast<const WatertightTriangles*>(args->geometryUserPtr);
+    const std::uint32_t* tri = &data.indices[3 * args->primID];
+    Aabb box;
+    for (int k = 0; k < 3; ++k) box.extend(data.positions[tri[k]]);
+    // Padding: Embree's user-geometry BVH uses the non-robust box test.
+    box.lo -= vec3(data.padding);
+    box.hi += vec3(data.padding);
+    args->bounds_o->lower_x = box.lo.x;
+    args->bounds_o->lower_y = box.lo.y;
+    args->bounds_o->lower_z = box.lo.z;
+    args->bounds_o->upper_x = box.hi.x;
+    args->bounds_o->upper_y = box.hi.y;
+    args->bounds_o->upper_z = box.hi.z;
+}
+
 EmbreeDevice::EmbreeDevice(int threads) {
     const std::string config = threads > 0 ? "threads=" + std::to_string(threads) : std::string();
     device_ = rtcNewDevice(config.c_str());
@@ -92,6 +116,7 @@ struct AccelManager::Blas {
     std::vector<RTCGeometry> geometries;
     std::vector<GeometryInfo> info;
     std::vector<std::vector<Aabb>> boxes;  // procedural AABBs (user data of the geometry)
+    std::vector<std::unique_ptr<WatertightTriangles>> watertight;  // per geometry; null unless watertight triangles
     std::vector<std::vector<std::uint32_t>> clusterOrder;  // per deformable geometry (refit quality)
     double buildCost = 0.0;  // clusterCost summed over deformable geometries, at build time
 
@@ -143,6 +168,25 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
         }
         blas->clusterOrder.push_back(g.deformable() && options_.refitRebuildThreshold > 0.f ? mortonTriangleOrder(g)
                                                                                             : std::vector<std::uint32_t>{});
+        if (options_.watertight) {
+            auto data = std::make_unique<WatertightTriangles>();
+            data->indices = g.indices;
+            setWatertightPositions(*data, g);
+            RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER);
+            rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
+            rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(g.triangleCount()));
+            rtcSetGeometryUserData(geom, data.get());
+            rtcSetGeometryBoundsFunction(geom, watertightBoundsCallback, nullptr);
+            rtcSetGeometryIntersectFunction(geom, watertightIntersectCallback);
+            rtcSetGeometryOccludedFunction(geom, watertightOccludedCallback);
+            rtcCommitGeometry(geom);
+            rtcAttachGeometry(blas->scene, geom);
+            blas->geometries.push_back(geom);
+            blas->watertight.push_back(std::move(data));
+            rtcReleaseGeometry(geom);
+            continue;
+        }
+        blas->watertight.emplace_back();
         RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
         // Deformable geometry keeps a refittable BVH.
         rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
@@ -164,6 +208,11 @@ void AccelManager::refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
     Blas& blas = *blases_.at(id);
     for (std::size_t i = 0; i < mesh.geometries.size(); ++i) {
         if (blas.info[i].procedural) continue;
+        if (blas.watertight[i]) {
+            setWatertightPositions(*blas.watertight[i], mesh.geometries[i]);
+            rtcCommitGeometry(blas.geometries[i]);
+            continue;
+        }
         uploadVertices(blas.geometries[i], mesh.geometries[i], false);
         rtcCommitGeometry(blas.geometries[i]);
     }

@@ -7,6 +7,7 @@
 // Procedural primitives call the intersection shader from Embree's user
 // geometry callbacks; ReportHit() runs the same filter via rtcFilterIntersection.
 #include <rtlab/tracer/pipeline.hpp>
+#include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <algorithm>
 #include <bit>
@@ -392,6 +393,64 @@ void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args) {
     args->bounds_o->upper_y = box.hi.y;
     args->bounds_o->upper_z = box.hi.z;
 }
+
+namespace {
+
+// Watertight triangles (AccelOptions::watertight): the Woop-Benthin-Wald test
+// on the object-space ray Embree hands us. Inside a pipeline trace the
+// candidate goes through the same DXR filter as a native triangle; otherwise
+// (filter-free fast path, plain Embree queries) the nearest hit is committed.
+template <class Args>
+void intersectWatertightTriangles(const Args* a, bool occlusion) {
+    const auto& mesh = *static_cast<const WatertightTriangles*>(a->geometryUserPtr);
+    const std::uint32_t* tri = &mesh.indices[3 * a->primID];
+    const vec3& p0 = mesh.positions[tri[0]];
+    const vec3& p1 = mesh.positions[tri[1]];
+    const vec3& p2 = mesh.positions[tri[2]];
+    RTCRayN* rayN = rayOf(a);
+    const bool pipeline = isPipelineContext(a->context);
+    const std::uint32_t instanceIndex = a->context->instID[0];
+    for (unsigned i = 0; i < a->N; ++i) {
+        if (a->valid[i] == 0) continue;
+        const vec3 o(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i));
+        const vec3 d(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i));
+        float& tfar = RTCRayN_tfar(rayN, a->N, i);
+        // Embree's interval [tnear, tfar] is inclusive at tnear (pipeline traces
+        // already moved it one float up, making DXR's open interval); the
+        // watertight test's lower end is exclusive, so step one float down.
+        const float tnearInclusive = RTCRayN_tnear(rayN, a->N, i);
+        const float tnear = tnearInclusive > 0.f ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(tnearInclusive) - 1u)
+                                                 : -std::numeric_limits<float>::denorm_min();
+        const std::optional<TriangleHit> hit = intersectTriangleWatertight(o, d, p0, p1, p2, tnear, tfar);
+        if (!hit) continue;
+        const vec3 ng = glm::cross(p1 - p0, p2 - p0);
+        if (pipeline) {
+            auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
+            const std::uint32_t lane = RTCRayN_id(rayN, a->N, i);
+            if (!filterCandidate(ctx, lane, hit->t, instanceIndex, a->geomID, a->primID, d, ng, hit->b1, hit->b2))
+                continue;
+        }
+        if (occlusion) {
+            tfar = -kInfinity;  // Embree's "occluded"
+            continue;
+        }
+        tfar = hit->t;
+        RTCHitN* h = hitOf(a);
+        RTCHitN_u(h, a->N, i) = hit->b1;
+        RTCHitN_v(h, a->N, i) = hit->b2;
+        RTCHitN_Ng_x(h, a->N, i) = ng.x;
+        RTCHitN_Ng_y(h, a->N, i) = ng.y;
+        RTCHitN_Ng_z(h, a->N, i) = ng.z;
+        RTCHitN_geomID(h, a->N, i) = a->geomID;
+        RTCHitN_primID(h, a->N, i) = a->primID;
+        RTCHitN_instID(h, a->N, i, 0) = instanceIndex;
+    }
+}
+
+}  // namespace
+
+void watertightIntersectCallback(const RTCIntersectFunctionNArguments* args) { intersectWatertightTriangles(args, false); }
+void watertightOccludedCallback(const RTCOccludedFunctionNArguments* args) { intersectWatertightTriangles(args, true); }
 
 void proceduralIntersectCallback(const RTCIntersectFunctionNArguments* args) { runIntersectionShader(args, false); }
 void proceduralOccludedCallback(const RTCOccludedFunctionNArguments* args) { runIntersectionShader(args, true); }

@@ -23,6 +23,21 @@ struct AccelOptions {
     // this multiple of its value at the last build, the BLAS is rebuilt
     // instead (docs/acceleration-structures.md). <= 0 disables the policy.
     float refitRebuildThreshold = 2.0f;
+    // Watertight triangles: Embree 3.13.5's robust triangle test leaks rays
+    // through shared vertices (docs/acceleration-structures.md). With this on,
+    // triangles are Embree user geometry intersected by a double-precision
+    // Woop-Benthin-Wald test, and each triangle's bounds are padded by
+    // watertightBoundsPadding x the geometry's extent, because Embree's
+    // user-geometry and instance BVHs use the non-robust box test.
+    bool watertight = true;
+    float watertightBoundsPadding = 1e-4f;
+};
+
+// The user data of a watertight triangle geometry (read by its callbacks).
+struct WatertightTriangles {
+    std::vector<vec3> positions;
+    std::vector<std::uint32_t> indices;
+    float padding = 0.f;  // absolute bounds enlargement
 };
 
 // Per-geometry facts the pipeline needs during traversal.
@@ -96,6 +111,7 @@ public:
 private:
     struct Blas;
     RTCSceneFlags sceneFlags() const;
+    void setWatertightPositions(WatertightTriangles& data, const ecs::Geometry& g) const;
     void buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const std::vector<ecs::Material>& materials);
     void refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id);
     void rebuildTlas(const ecs::SceneSnapshot& scene);
@@ -119,5 +135,8 @@ private:
 void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args);
 void proceduralIntersectCallback(const RTCIntersectFunctionNArguments* args);
 void proceduralOccludedCallback(const RTCOccludedFunctionNArguments* args);
+void watertightBoundsCallback(const RTCBoundsFunctionArguments* args);
+void watertightIntersectCallback(const RTCIntersectFunctionNArguments* args);
+void watertightOccludedCallback(const RTCOccludedFunctionNArguments* args);
 
 }  // namespace rtlab::tracer
