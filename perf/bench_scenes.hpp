@@ -17,10 +17,10 @@ struct LoadedScene {
     ecs::SceneSnapshot snapshot;
     std::unique_ptr<tracer::AccelManager> accel;
 
-    explicit LoadedScene(const std::string& source) {
+    explicit LoadedScene(const std::string& source, tracer::AccelOptions options = {}) {
         ecs::load::loadScene(world, source);
         snapshot = ecs::makeSnapshot(world, world.update(0.f));
-        accel = std::make_unique<tracer::AccelManager>();
+        accel = std::make_unique<tracer::AccelManager>(options);
         accel->update(snapshot);
     }
     tracer::RayDesc primaryRay(int x, int y, int width, int height) const {

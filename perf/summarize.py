@@ -18,12 +18,17 @@ for f in sorted(out.glob("*.json")):
 def ratio(num, den, table):
     return table[num] / table[den] if num in table and den in table and table[den] else None
 
+def b(name, threads, watertight):
+    return f"{name}/{threads}/{watertight}/min_time:1.000/real_time"
+
 summary = {
-    "pipeline_vs_raw_embree_throughput_1t": ratio("BM_PipelinePacket/1/min_time:1.000/real_time", "BM_RawIntersect8/1/min_time:1.000/real_time", rates),
-    "pipeline_vs_raw_embree_throughput_2t": ratio("BM_PipelinePacket/2/min_time:1.000/real_time", "BM_RawIntersect8/2/min_time:1.000/real_time", rates),
-    "packet_vs_single_ray_throughput_1t": ratio("BM_PipelinePacket/1/min_time:1.000/real_time", "BM_PipelineSingleRay/1/min_time:1.000/real_time", rates),
-    "pipeline_packet_2t_vs_1t": ratio("BM_PipelinePacket/2/min_time:1.000/real_time", "BM_PipelinePacket/1/min_time:1.000/real_time", rates),
-    "raw_embree_2t_vs_1t": ratio("BM_RawIntersect8/2/min_time:1.000/real_time", "BM_RawIntersect8/1/min_time:1.000/real_time", rates),
+    "pipeline_vs_raw_embree_throughput_1t": ratio(b("BM_PipelinePacket", 1, 1), b("BM_RawIntersect8", 1, 1), rates),
+    "pipeline_vs_raw_embree_throughput_2t": ratio(b("BM_PipelinePacket", 2, 1), b("BM_RawIntersect8", 2, 1), rates),
+    "pipeline_vs_raw_embree_throughput_1t_native_triangles": ratio(b("BM_PipelinePacket", 1, 0), b("BM_RawIntersect8", 1, 0), rates),
+    "watertight_vs_native_raw_embree_1t": ratio(b("BM_RawIntersect8", 1, 1), b("BM_RawIntersect8", 1, 0), rates),
+    "packet_vs_single_ray_throughput_1t": ratio(b("BM_PipelinePacket", 1, 1), b("BM_PipelineSingleRay", 1, 1), rates),
+    "pipeline_packet_2t_vs_1t": ratio(b("BM_PipelinePacket", 2, 1), b("BM_PipelinePacket", 1, 1), rates),
+    "raw_embree_2t_vs_1t": ratio(b("BM_RawIntersect8", 2, 1), b("BM_RawIntersect8", 1, 1), rates),
     "refit_vs_rebuild_time_1M": ratio("BM_Refit1M/min_time:2.000/real_time", "BM_Rebuild1M/min_time:2.000/real_time", times),
     "one_moves_vs_full_build_1000": ratio("BM_OneMoves1000/min_time:1.000/real_time", "BM_FullBuild1000/min_time:1.000/real_time", times),
 }

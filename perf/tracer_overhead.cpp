@@ -3,7 +3,9 @@
 //   BM_RawIntersect8      rtcIntersect8 over 16x16 tiles, no callbacks (the floor)
 //   BM_PipelinePacket     Pipeline::dispatchCoherent, trivial closest-hit/miss
 //   BM_PipelineSingleRay  Pipeline::dispatchRays + traceRay per pixel
-// Each runs with 1 and 2 threads; perf/summarize.py turns them into ratios.
+// Each runs with 1 and 2 threads (first argument) and with the default
+// watertight triangles (second argument 1) or Embree's native robust
+// triangles (0); perf/summarize.py turns them into ratios.
 #include "bench_scenes.hpp"
 
 #include <rtlab/core/parallel.hpp>
@@ -19,9 +21,14 @@ namespace {
 using namespace rtlab;
 constexpr int kSize = 1024;
 
-const bench::LoadedScene& showcase() {
-    static const bench::LoadedScene scene("builtin:showcase");
-    return scene;
+const bench::LoadedScene& showcase(bool watertight) {
+    static const bench::LoadedScene watertightScene("builtin:showcase");
+    static const bench::LoadedScene nativeScene("builtin:showcase", [] {
+        tracer::AccelOptions o;
+        o.watertight = false;
+        return o;
+    }());
+    return watertight ? watertightScene : nativeScene;
 }
 
 struct HitPayload {
@@ -39,7 +46,7 @@ tracer::Pipeline<HitPayload>::Desc trivialShaders(const tracer::AccelManager& ac
 
 void BM_RawIntersect8(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
-    const auto& scene = showcase();
+    const auto& scene = showcase(state.range(1) != 0);
     const std::vector<Tile> tiles = makeTiles(kSize, kSize, 16);
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
@@ -75,7 +82,7 @@ void BM_RawIntersect8(benchmark::State& state) {
 
 void BM_PipelinePacket(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
-    const auto& scene = showcase();
+    const auto& scene = showcase(state.range(1) != 0);
     const tracer::Pipeline<HitPayload> pipeline(*scene.accel, trivialShaders(*scene.accel));
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
@@ -89,7 +96,7 @@ void BM_PipelinePacket(benchmark::State& state) {
 
 void BM_PipelineSingleRay(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
-    const auto& scene = showcase();
+    const auto& scene = showcase(state.range(1) != 0);
     const tracer::Pipeline<HitPayload> pipeline(*scene.accel, trivialShaders(*scene.accel));
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
@@ -103,9 +110,9 @@ void BM_PipelineSingleRay(benchmark::State& state) {
     state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
 }
 
-BENCHMARK(BM_RawIntersect8)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
-BENCHMARK(BM_PipelinePacket)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
-BENCHMARK(BM_PipelineSingleRay)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_RawIntersect8)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_PipelinePacket)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_PipelineSingleRay)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 
 }  // namespace
 
