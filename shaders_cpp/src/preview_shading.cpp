@@ -85,15 +85,13 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
         return baseColorAt(m, textures, sp.uv).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
                                                                  : tracer::AnyHitResult::Accept;
     };
-    desc.hitGroups.resize(accel.geometrySlotCount());
-    for (std::size_t mesh = 0; mesh < scene.meshes->size(); ++mesh)
-        for (std::uint32_t g = 0; g < accel.geometryCount(static_cast<ecs::MeshId>(mesh)); ++g) {
-            const ecs::Geometry& geo = (*scene.meshes)[mesh].geometries[g];
-            Pipeline::HitGroup& group = desc.hitGroups[accel.geometrySlotBase(static_cast<ecs::MeshId>(mesh)) + g];
+    desc.hitGroups = tracer::buildMaterialShaderTable<PreviewPayload>(
+        accel, scene, 1, [&](const ecs::Material& material, const ecs::Geometry&, std::uint32_t) {
+            Pipeline::HitGroup group;
             group.closestHit = closestHit;
-            if (geo.material < materials.size() && materials[geo.material].alphaMode == ecs::AlphaMode::Mask)
-                group.anyHit = alphaTest;
-        }
+            if (material.alphaMode == ecs::AlphaMode::Mask) group.anyHit = alphaTest;
+            return group;
+        });
     desc.missShaders.push_back([](const tracer::MissContext&, PreviewPayload& p) { p = PreviewPayload{}; });
     const Pipeline pipeline(accel, std::move(desc));
 

@@ -322,4 +322,30 @@ private:
     TraceEngine engine_;
 };
 
+// The usual shader table for a scene: one record per (geometry slot, ray
+// type), record = slot * rayTypeCount + rayType, so that TraceRay with
+// rayContribution = ray type and multiplier = rayTypeCount (and automatic
+// instance contributions) finds it. makeHitGroup(material, geometry, rayType)
+// returns the shaders of one record.
+template <class Payload, class MakeHitGroup>
+std::vector<typename Pipeline<Payload>::HitGroup> buildMaterialShaderTable(const AccelManager& accel,
+                                                                          const ecs::SceneSnapshot& scene,
+                                                                          std::uint32_t rayTypeCount,
+                                                                          MakeHitGroup&& makeHitGroup) {
+    std::vector<typename Pipeline<Payload>::HitGroup> table(std::size_t(accel.geometrySlotCount()) * rayTypeCount);
+    static const ecs::Material kDefaultMaterial{};
+    for (std::size_t mesh = 0; mesh < scene.meshes->size(); ++mesh) {
+        const auto id = static_cast<ecs::MeshId>(mesh);
+        for (std::uint32_t g = 0; g < accel.geometryCount(id); ++g) {
+            const ecs::Geometry& geometry = (*scene.meshes)[mesh].geometries[g];
+            const ecs::Material& material =
+                geometry.material < scene.materials->size() ? (*scene.materials)[geometry.material] : kDefaultMaterial;
+            for (std::uint32_t rayType = 0; rayType < rayTypeCount; ++rayType)
+                table[std::size_t(accel.geometrySlotBase(id) + g) * rayTypeCount + rayType] =
+                    makeHitGroup(material, geometry, rayType);
+        }
+    }
+    return table;
+}
+
 }  // namespace rtlab::tracer
