@@ -1,0 +1,70 @@
+#pragma once
+// The model's two-level acceleration structure for one frame: a BLAS per
+// mesh and a TLAS over the instances, kept up to date from the ECS's
+// FrameUpdate with the policy of tracer::AccelManager
+// (docs/acceleration-structures.md):
+//   mesh in rebuiltMeshes -> BLAS rebuild
+//   mesh in refitMeshes   -> bottom-up BLAS refit (rebuild when its SAH cost
+//                            exceeds bvh.refitRebuildThreshold x build cost)
+//   otherwise             -> BLAS reused
+//   any geometry change   -> TLAS rebuild over the instances' world boxes
+#include <rtlab/ecs/snapshot.hpp>
+#include <rtlab/rtcore_sim/bvh.hpp>
+#include <rtlab/rtcore_sim/config.hpp>
+#include <rtlab/tracer/accel_manager.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace rtlab::rtcore_sim {
+
+// One TLAS instance; index = position in the snapshot (= Embree's instID).
+struct ModelInstance {
+    ecs::MeshId mesh = 0;
+    mat4 worldFromObject{1.f};
+    // The instance-transform step: inverse(worldFromObject), computed and
+    // applied in double precision so that the object-space ray is the world
+    // ray's correctly rounded image (docs/rtcore-model.md).
+    glm::dmat4 objectFromWorld{1.0};
+    std::uint8_t mask = 0xff;
+    Aabb worldBounds;  // BLAS root box transformed to world space; empty for an empty BLAS
+};
+
+// What one update() did (names as in tracer::AccelUpdateStats).
+struct ModelUpdateStats {
+    std::uint32_t blasRebuilt = 0;            // includes blasRebuiltForQuality
+    std::uint32_t blasRefit = 0;
+    std::uint32_t blasReused = 0;
+    std::uint32_t blasRebuiltForQuality = 0;  // refits turned into rebuilds by the SAH-cost policy
+    std::uint32_t tlasBuilds = 0;
+    std::uint32_t instancesMoved = 0;
+    float worstRefitDegradation = 1.f;        // max over refit BLASes of SAH cost / cost at build
+};
+
+class ModelScene {
+public:
+    explicit ModelScene(BvhParams params = {});
+
+    ModelUpdateStats update(const ecs::SceneSnapshot& scene);
+
+    const BvhParams& params() const { return params_; }
+    const Bvh& tlas() const { return tlas_; }
+    const std::vector<ModelInstance>& instances() const { return instances_; }
+    // The BLAS of `mesh`, or nullptr when it was never built.
+    const Blas* blas(ecs::MeshId mesh) const { return mesh < blases_.size() ? blases_[mesh].get() : nullptr; }
+
+private:
+    void buildBlasOf(const ecs::MeshAsset& mesh, ecs::MeshId id);
+    void rebuildTlas(const ecs::SceneSnapshot& scene, ModelUpdateStats& stats);
+
+    BvhParams params_;
+    tracer::EmbreeDevice device_;  // default thread configuration: builds run in their own one-thread arena
+    BvhBuilder builder_;
+    std::vector<std::unique_ptr<Blas>> blases_;  // indexed by MeshId
+    std::vector<ModelInstance> instances_;
+    Bvh tlas_;
+    bool tlasBuilt_ = false;
+};
+
+}  // namespace rtlab::rtcore_sim

@@ -1,0 +1,211 @@
+#include <rtlab/rtcore_sim/config.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace rtlab::rtcore_sim {
+namespace {
+
+std::string formatNumber(double v) {
+    std::ostringstream out;
+    out << v;
+    return out.str();
+}
+
+std::string listAllowed(const std::vector<nlohmann::json>& allowed) {
+    std::string s;
+    for (std::size_t i = 0; i < allowed.size(); ++i) {
+        if (i) s += ", ";
+        s += allowed[i].is_string() ? allowed[i].get<std::string>() : allowed[i].dump();
+    }
+    return s;
+}
+
+[[noreturn]] void fail(const std::string& where, const std::string& key, const std::string& problem) {
+    throw InputError(where, key + ": " + problem);
+}
+
+// Every section of RtCoreConfig: fn(name, member pointer, table). Adding a
+// unit's parameters is one line here.
+template <class Fn>
+void forEachSection(Fn&& fn) {
+    fn("bvh", &RtCoreConfig::bvh, bvhParamTable());
+}
+
+std::string knownSections() {
+    std::string s;
+    forEachSection([&](const char* name, auto, const auto&) { s += (s.empty() ? "" : ", ") + std::string(name); });
+    return s;
+}
+
+template <class Params>
+std::string knownFields(const ParamTable<Params>& table) {
+    std::string s;
+    for (const auto& f : table.fields()) s += (s.empty() ? "" : ", ") + f.info.name;
+    return s;
+}
+
+// Sets section.field from a JSON value; false when the section is unknown.
+bool setField(RtCoreConfig& config, const std::string& section, const std::string& field, const nlohmann::json& value,
+              const std::string& where) {
+    bool found = false;
+    forEachSection([&](const char* name, auto member, const auto& table) {
+        if (found || section != name) return;
+        found = true;
+        const std::string key = section + "." + field;
+        const auto* f = table.find(field);
+        if (!f) fail(where, key, "unknown key (known in \"" + section + "\": " + knownFields(table) + ")");
+        f->write(config.*member, checkParamValue(f->info, value, where, key));
+    });
+    return found;
+}
+
+}  // namespace
+
+nlohmann::json checkParamValue(const ParamInfo& info, const nlohmann::json& value, const std::string& where,
+                               const std::string& key) {
+    switch (info.kind) {
+        case ParamKind::Unsigned: {
+            if (!value.is_number_integer()) fail(where, key, "must be an unsigned integer (got " + value.dump() + ")");
+            const std::int64_t v = value.is_number_unsigned() ? static_cast<std::int64_t>(std::min<std::uint64_t>(
+                                                                     value.get<std::uint64_t>(), INT64_MAX))
+                                                               : value.get<std::int64_t>();
+            if (!info.allowed.empty()) {
+                for (const nlohmann::json& a : info.allowed)
+                    if (a.get<std::int64_t>() == v) return nlohmann::json(static_cast<std::uint32_t>(v));
+                fail(where, key, "must be one of " + listAllowed(info.allowed) + " (got " + value.dump() + ")");
+            }
+            if (double(v) < info.min || double(v) > info.max)
+                fail(where, key,
+                     "must be in [" + formatNumber(info.min) + ", " + formatNumber(info.max) + "] (got " + value.dump() + ")");
+            return nlohmann::json(static_cast<std::uint32_t>(v));
+        }
+        case ParamKind::Real: {
+            if (!value.is_number()) fail(where, key, "must be a number (got " + value.dump() + ")");
+            const double v = value.get<double>();
+            if (!std::isfinite(v) || v < info.min || v > info.max)
+                fail(where, key,
+                     "must be in [" + formatNumber(info.min) + ", " + formatNumber(info.max) + "] (got " + value.dump() + ")");
+            return nlohmann::json(static_cast<float>(v));
+        }
+        case ParamKind::Boolean:
+            if (!value.is_boolean()) fail(where, key, "must be true or false (got " + value.dump() + ")");
+            return value;
+        case ParamKind::Choice:
+            for (const nlohmann::json& a : info.allowed)
+                if (value == a) return value;
+            fail(where, key, "must be one of " + listAllowed(info.allowed) + " (got " + value.dump() + ")");
+    }
+    fail(where, key, "unsupported parameter kind");
+}
+
+std::string toString(BuildQuality quality) {
+    switch (quality) {
+        case BuildQuality::Low: return "low";
+        case BuildQuality::Medium: return "medium";
+        case BuildQuality::High: return "high";
+    }
+    return "?";
+}
+
+const ParamTable<BvhParams>& bvhParamTable() {
+    static const ParamTable<BvhParams> table = [] {
+        ParamTable<BvhParams> t;
+        t.addUnsignedOneOf("width", &BvhParams::width, "children per internal BVH node (both levels)", {2, 4, 6, 8});
+        t.addUnsigned("maxLeafSize", &BvhParams::maxLeafSize, "most triangles referenced by one BLAS leaf", 1, 32);
+        t.addUnsigned("tlasMaxLeafSize", &BvhParams::tlasMaxLeafSize, "most instances referenced by one TLAS leaf", 1, 32);
+        t.addChoice("buildQuality", &BvhParams::buildQuality,
+                    "Embree builder: low = Morton, medium = binned SAH, high = SAH with spatial splits (rigid meshes)",
+                    std::vector<std::pair<std::string, BuildQuality>>{
+                        {"low", BuildQuality::Low}, {"medium", BuildQuality::Medium}, {"high", BuildQuality::High}});
+        t.addReal("sahTraversalCost", &BvhParams::sahTraversalCost, "SAH cost of one node traversal step, for the builder",
+                  0.001f, 1000.f);
+        t.addReal("sahIntersectionCost", &BvhParams::sahIntersectionCost,
+                  "SAH cost of one primitive intersection, for the builder", 0.001f, 1000.f);
+        t.addReal("refitRebuildThreshold", &BvhParams::refitRebuildThreshold,
+                  "rebuild a deformed BLAS instead of refitting once its SAH cost exceeds this multiple of its "
+                  "build-time cost (0 = always refit)",
+                  0.f, 1e6f);
+        return t;
+    }();
+    return table;
+}
+
+RtCoreConfig RtCoreConfig::fromJson(const nlohmann::json& json, const std::string& where) {
+    RtCoreConfig config;
+    config.applyJson(json, where);
+    return config;
+}
+
+RtCoreConfig RtCoreConfig::loadFile(const std::filesystem::path& path) {
+    const std::string where = path.string();
+    std::ifstream in(path);
+    if (!in) throw InputError(where, "cannot open RT-core configuration");
+    nlohmann::json json;
+    try {
+        json = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::parse_error& e) {
+        throw InputError(where, std::string("invalid JSON: ") + e.what());
+    }
+    return fromJson(json, where);
+}
+
+void RtCoreConfig::applyJson(const nlohmann::json& json, const std::string& where) {
+    if (!json.is_object()) throw InputError(where, "RT-core configuration must be a JSON object of sections");
+    for (const auto& [section, fields] : json.items()) {
+        bool sectionExists = false;
+        forEachSection([&](const char* name, auto, const auto&) { sectionExists = sectionExists || section == name; });
+        if (!sectionExists) fail(where, section, "unknown section (known: " + knownSections() + ")");
+        if (!fields.is_object()) fail(where, section, "must be an object of parameters");
+        for (const auto& [field, value] : fields.items()) setField(*this, section, field, value, where);
+    }
+}
+
+void RtCoreConfig::set(const std::string& assignment, const std::string& where) {
+    // Step: split "section.field=value".
+    const std::size_t eq = assignment.find('=');
+    const std::size_t dot = assignment.find('.');
+    if (eq == std::string::npos || dot == std::string::npos || dot > eq || dot == 0 || dot + 1 == eq)
+        throw InputError(where, "expected section.field=value (got \"" + assignment + "\")");
+    const std::string section = assignment.substr(0, dot);
+    const std::string field = assignment.substr(dot + 1, eq - dot - 1);
+    const std::string text = assignment.substr(eq + 1);
+    if (text.empty()) fail(where, section + "." + field, "missing value");
+
+    // Step: the value is JSON when it parses as JSON, a bare word otherwise.
+    nlohmann::json value = nlohmann::json::parse(text, nullptr, false);
+    if (value.is_discarded()) value = text;
+
+    if (!setField(*this, section, field, value, where))
+        fail(where, section + "." + field, "unknown section \"" + section + "\" (known: " + knownSections() + ")");
+}
+
+nlohmann::json RtCoreConfig::toJson() const {
+    nlohmann::json out = nlohmann::json::object();
+    forEachSection([&](const char* name, auto member, const auto& table) {
+        nlohmann::json& section = out[name];
+        section = nlohmann::json::object();
+        for (const auto& f : table.fields()) section[f.info.name] = f.read(this->*member);
+    });
+    return out;
+}
+
+nlohmann::json RtCoreConfig::describe() {
+    nlohmann::json out = nlohmann::json::object();
+    forEachSection([&](const char* name, auto, const auto& table) {
+        for (const auto& f : table.fields()) {
+            nlohmann::json d;
+            d["description"] = f.info.description;
+            d["default"] = f.info.defaultValue;
+            if (!f.info.allowed.empty())
+                d["allowed"] = f.info.allowed;
+            else if (f.info.kind == ParamKind::Unsigned || f.info.kind == ParamKind::Real)
+                d["range"] = {f.info.min, f.info.max};
+            out[name][f.info.name] = std::move(d);
+        }
+    });
+    return out;
+}
+
+}  // namespace rtlab::rtcore_sim

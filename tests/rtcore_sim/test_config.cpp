@@ -1,0 +1,135 @@
+// The RT-core configuration: defaults, JSON loading, command-line style
+// overrides, and bad input reported as InputError naming the key.
+#include <rtlab/core/error.hpp>
+#include <rtlab/rtcore_sim/config.hpp>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+using namespace rtlab;
+using namespace rtlab::rtcore_sim;
+using nlohmann::json;
+
+namespace {
+
+// The InputError message of `fn`, or "" when it does not throw one.
+template <class Fn>
+std::string inputErrorOf(Fn&& fn) {
+    try {
+        fn();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+}  // namespace
+
+TEST(RtCoreConfig, DefaultsAndDescriptionsCoverEveryField) {
+    const RtCoreConfig config;
+    EXPECT_EQ(config.bvh.width, 6u);
+    EXPECT_EQ(config.bvh.maxLeafSize, 4u);
+    EXPECT_EQ(config.bvh.tlasMaxLeafSize, 1u);
+    EXPECT_EQ(config.bvh.buildQuality, BuildQuality::Medium);
+
+    const json dumped = config.toJson();
+    const json described = RtCoreConfig::describe();
+    ASSERT_TRUE(dumped.contains("bvh"));
+    EXPECT_EQ(dumped["bvh"].size(), bvhParamTable().fields().size());
+    for (const auto& field : bvhParamTable().fields()) {
+        const std::string& name = field.info.name;
+        ASSERT_TRUE(dumped["bvh"].contains(name)) << name;
+        ASSERT_TRUE(described["bvh"].contains(name)) << name;
+        EXPECT_FALSE(field.info.description.empty()) << name;
+        EXPECT_EQ(described["bvh"][name]["default"], dumped["bvh"][name]) << name;  // defaults echo Params{}
+    }
+    EXPECT_EQ(dumped["bvh"]["buildQuality"], "medium");
+    EXPECT_EQ(described["bvh"]["width"]["allowed"], json({2, 4, 6, 8}));
+    EXPECT_EQ(described["bvh"]["maxLeafSize"]["range"], json({1.0, 32.0}));
+}
+
+TEST(RtCoreConfig, JsonOverlaysDefaultsAndRoundTrips) {
+    const json input = {{"bvh", {{"width", 8}, {"maxLeafSize", 2}, {"buildQuality", "high"}, {"sahTraversalCost", 1.5}}}};
+    const RtCoreConfig config = RtCoreConfig::fromJson(input, "test.json");
+    EXPECT_EQ(config.bvh.width, 8u);
+    EXPECT_EQ(config.bvh.maxLeafSize, 2u);
+    EXPECT_EQ(config.bvh.buildQuality, BuildQuality::High);
+    EXPECT_FLOAT_EQ(config.bvh.sahTraversalCost, 1.5f);
+    EXPECT_EQ(config.bvh.tlasMaxLeafSize, 1u);  // absent: default
+
+    // The dump of a configuration loads back to the same configuration.
+    const RtCoreConfig again = RtCoreConfig::fromJson(config.toJson(), "dump");
+    EXPECT_EQ(again.toJson(), config.toJson());
+}
+
+TEST(RtCoreConfig, LoadsFilesAndNamesThemInErrors) {
+    const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rtlab_rtcore_config_test";
+    std::filesystem::create_directories(dir);
+    const std::filesystem::path good = dir / "good.json";
+    std::ofstream(good) << R"({"bvh": {"width": 2}})";
+    EXPECT_EQ(RtCoreConfig::loadFile(good).bvh.width, 2u);
+
+    const std::filesystem::path broken = dir / "broken.json";
+    std::ofstream(broken) << R"({"bvh": {"width": )";
+    EXPECT_NE(inputErrorOf([&] { RtCoreConfig::loadFile(broken); }).find(broken.string()), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { RtCoreConfig::loadFile(dir / "missing.json"); }).find("missing.json"), std::string::npos);
+    std::filesystem::remove_all(dir);
+}
+
+TEST(RtCoreConfig, SetParsesSectionFieldValue) {
+    RtCoreConfig config;
+    config.set("bvh.width=8");
+    config.set("bvh.buildQuality=low");
+    config.set("bvh.refitRebuildThreshold=0");
+    config.set("bvh.sahIntersectionCost=2.5");
+    EXPECT_EQ(config.bvh.width, 8u);
+    EXPECT_EQ(config.bvh.buildQuality, BuildQuality::Low);
+    EXPECT_FLOAT_EQ(config.bvh.refitRebuildThreshold, 0.f);
+    EXPECT_FLOAT_EQ(config.bvh.sahIntersectionCost, 2.5f);
+}
+
+TEST(RtCoreConfig, UnknownKeysAreInputErrorsNamingTheKey) {
+    const std::string unknownField =
+        inputErrorOf([] { RtCoreConfig::fromJson(json{{"bvh", {{"widht", 4}}}}, "cfg.json"); });
+    EXPECT_NE(unknownField.find("cfg.json"), std::string::npos) << unknownField;
+    EXPECT_NE(unknownField.find("bvh.widht"), std::string::npos) << unknownField;
+    EXPECT_NE(unknownField.find("width"), std::string::npos) << unknownField;  // lists the known ones
+
+    const std::string unknownSection = inputErrorOf([] { RtCoreConfig::fromJson(json{{"cache", json::object()}}, "cfg.json"); });
+    EXPECT_NE(unknownSection.find("cache"), std::string::npos) << unknownSection;
+    EXPECT_NE(unknownSection.find("bvh"), std::string::npos) << unknownSection;
+
+    RtCoreConfig config;
+    const std::string unknownSet = inputErrorOf([&] { config.set("bvh.depth=3"); });
+    EXPECT_NE(unknownSet.find("--rtcore-set"), std::string::npos) << unknownSet;
+    EXPECT_NE(unknownSet.find("bvh.depth"), std::string::npos) << unknownSet;
+    EXPECT_NE(inputErrorOf([&] { config.set("queue.width=3"); }).find("queue"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("width=3"); }).find("section.field=value"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("bvh.width"); }).find("section.field=value"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("bvh.width="); }).find("missing value"), std::string::npos);
+    EXPECT_NE(inputErrorOf([] { RtCoreConfig::fromJson(json::array(), "cfg.json"); }).find("object"), std::string::npos);
+    EXPECT_NE(inputErrorOf([] { RtCoreConfig::fromJson(json{{"bvh", 4}}, "cfg.json"); }).find("bvh"), std::string::npos);
+}
+
+TEST(RtCoreConfig, OutOfRangeAndMistypedValuesAreInputErrorsNamingTheKey) {
+    const auto errorFor = [](const json& bvh) { return inputErrorOf([&] { RtCoreConfig::fromJson(json{{"bvh", bvh}}, "cfg.json"); }); };
+    const std::string width = errorFor({{"width", 5}});
+    EXPECT_NE(width.find("bvh.width"), std::string::npos) << width;
+    EXPECT_NE(width.find("2, 4, 6, 8"), std::string::npos) << width;
+    EXPECT_NE(errorFor({{"maxLeafSize", 0}}).find("bvh.maxLeafSize"), std::string::npos);
+    EXPECT_NE(errorFor({{"maxLeafSize", 33}}).find("[1, 32]"), std::string::npos);
+    EXPECT_NE(errorFor({{"maxLeafSize", -1}}).find("bvh.maxLeafSize"), std::string::npos);
+    EXPECT_NE(errorFor({{"maxLeafSize", 2.5}}).find("unsigned integer"), std::string::npos);
+    EXPECT_NE(errorFor({{"width", "8"}}).find("bvh.width"), std::string::npos);
+    EXPECT_NE(errorFor({{"buildQuality", "best"}}).find("low, medium, high"), std::string::npos);
+    EXPECT_NE(errorFor({{"sahTraversalCost", 0}}).find("bvh.sahTraversalCost"), std::string::npos);
+    EXPECT_NE(errorFor({{"refitRebuildThreshold", -1}}).find("bvh.refitRebuildThreshold"), std::string::npos);
+
+    RtCoreConfig config;
+    EXPECT_NE(inputErrorOf([&] { config.set("bvh.width=3"); }).find("bvh.width"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("bvh.buildQuality=fast"); }).find("bvh.buildQuality"), std::string::npos);
+    EXPECT_EQ(config.bvh.width, 6u);  // failed overrides change nothing
+}
