@@ -25,14 +25,13 @@ void uploadVertices(RTCGeometry geom, const ecs::Geometry& g, bool allocate) {
     if (!allocate) rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
 }
 
-// Refit quality estimate. At build time the triangles of a deformable
-// geometry are ordered along a Morton curve and cut into fixed clusters of
-// kClusterSize: spatially tight groups, like the BVH's lower nodes. A refit
-// keeps the BVH topology, i.e. keeps these groups, so the SAH-style cost
-//   sum over clusters (area(cluster bounds) * triangles) / area(all bounds)
-// measures how much the refit hierarchy has loosened. Uniform scaling leaves
-// it unchanged; vertices wandering away from their build-time neighbours
-// raise it.
+// Refit quality estimate. Triangles ordered along a Morton curve of their
+// centroids and cut into fixed clusters of kClusterSize are spatially tight
+// groups, like a BVH's lower nodes. The SAH-style cost
+//   C(order) = sum over clusters (area(cluster bounds) * triangles) / area(all bounds)
+// of the build-time order is what a refit keeps; C of a fresh Morton order
+// of the current positions is what a rebuild would get. Their ratio says how
+// much a rebuild would gain (1 = nothing).
 constexpr std::size_t kClusterSize = 32;
 
 std::uint32_t spreadBits10(std::uint32_t v) {
@@ -117,14 +116,18 @@ struct AccelManager::Blas {
     std::vector<GeometryInfo> info;
     std::vector<std::vector<Aabb>> boxes;  // procedural AABBs (user data of the geometry)
     std::vector<std::unique_ptr<WatertightTriangles>> watertight;  // per geometry; null unless watertight triangles
-    std::vector<std::vector<std::uint32_t>> clusterOrder;  // per deformable geometry (refit quality)
-    double buildCost = 0.0;  // clusterCost summed over deformable geometries, at build time
+    std::vector<std::vector<std::uint32_t>> clusterOrder;  // per deformable geometry: build-time order
+    std::uint32_t refitsSinceCheck = 0;
 
-    double currentCost(const ecs::MeshAsset& mesh) const {
-        double cost = 0.0;
+    // Refit cost / rebuild cost at the current positions (>= ~1).
+    double degradation(const ecs::MeshAsset& mesh) const {
+        double refitCost = 0.0, rebuildCost = 0.0;
         for (std::size_t i = 0; i < clusterOrder.size() && i < mesh.geometries.size(); ++i)
-            if (!clusterOrder[i].empty()) cost += clusterCost(mesh.geometries[i], clusterOrder[i]);
-        return cost;
+            if (!clusterOrder[i].empty()) {
+                refitCost += clusterCost(mesh.geometries[i], clusterOrder[i]);
+                rebuildCost += clusterCost(mesh.geometries[i], mortonTriangleOrder(mesh.geometries[i]));
+            }
+        return rebuildCost > 0.0 ? refitCost / rebuildCost : 1.0;
     }
     ~Blas() { if (scene) rtcReleaseScene(scene); }
 };
@@ -200,7 +203,6 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
         rtcReleaseGeometry(geom);  // the scene holds the reference
     }
     rtcCommitScene(blas->scene);
-    blas->buildCost = blas->currentCost(mesh);
     blases_[id] = std::move(blas);
 }
 
@@ -268,10 +270,16 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
             buildBlas(meshes.at(id), id, materials);
             ++stats.blasRebuilt;
         } else {
-            // Quality policy: rebuild instead when the refit hierarchy has loosened too much.
-            const Blas& blas = *blases_[id];
-            const double degradation = blas.buildCost > 0.0 ? blas.currentCost(meshes.at(id)) / blas.buildCost : 1.0;
-            stats.worstRefitDegradation = std::max(stats.worstRefitDegradation, static_cast<float>(degradation));
+            // Quality policy: every refitQualityCheckInterval refits, rebuild
+            // instead when a rebuild would make a much tighter hierarchy.
+            Blas& blas = *blases_[id];
+            double degradation = 1.0;
+            if (options_.refitRebuildThreshold > 0.f &&
+                ++blas.refitsSinceCheck >= std::max<std::uint32_t>(1, options_.refitQualityCheckInterval)) {
+                blas.refitsSinceCheck = 0;
+                degradation = blas.degradation(meshes.at(id));
+                stats.worstRefitDegradation = std::max(stats.worstRefitDegradation, static_cast<float>(degradation));
+            }
             if (options_.refitRebuildThreshold > 0.f && degradation > options_.refitRebuildThreshold) {
                 buildBlas(meshes.at(id), id, materials);
                 ++stats.blasRebuilt;

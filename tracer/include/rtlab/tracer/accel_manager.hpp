@@ -19,10 +19,12 @@ struct AccelOptions {
     bool robust = true;  // RTC_SCENE_FLAG_ROBUST: watertight-leaning traversal and intersection
     int threads = 0;     // Embree build threads (0 = all)
     // Refit quality policy: a refit BLAS keeps its build-time topology, so its
-    // quality decays as vertices move. When the refit cost estimate exceeds
-    // this multiple of its value at the last build, the BLAS is rebuilt
-    // instead (docs/acceleration-structures.md). <= 0 disables the policy.
-    float refitRebuildThreshold = 2.0f;
+    // quality decays as vertices move. Every refitQualityCheckInterval refits
+    // the SAH-style cost of the refit grouping is compared with the grouping a
+    // rebuild would make now; above this ratio the BLAS is rebuilt instead
+    // (docs/acceleration-structures.md). <= 0 disables the policy.
+    float refitRebuildThreshold = 1.5f;
+    std::uint32_t refitQualityCheckInterval = 8;
     // Watertight triangles: Embree 3.13.5's robust triangle test leaks rays
     // through shared vertices (docs/acceleration-structures.md). With this on,
     // triangles are Embree user geometry intersected by a double-precision
@@ -55,7 +57,7 @@ struct AccelUpdateStats {
     std::uint32_t tlasUpdates = 0;        // TLAS recommits for moved instances only
     std::uint32_t instancesMoved = 0;
     std::uint32_t blasRebuiltForQuality = 0;  // refits turned into rebuilds by the quality policy
-    float worstRefitDegradation = 1.f;        // max over refit BLASes of cost / cost at build
+    float worstRefitDegradation = 1.f;        // max over BLASes checked this frame of refit cost / rebuild cost
     double buildMs = 0.0;
 };
 
