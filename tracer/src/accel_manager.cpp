@@ -149,6 +149,12 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
     auto blas = std::make_unique<Blas>();
     blas->scene = rtcNewScene(device_.get());
     rtcSetSceneFlags(blas->scene, sceneFlags());
+    // Embree honours a geometry's RTC_BUILD_QUALITY_REFIT only when the scene's
+    // build quality is LOW (a two-level structure over per-geometry BVHs);
+    // otherwise every commit rebuilds the whole BLAS.
+    bool deformable = false;
+    for (const ecs::Geometry& g : mesh.geometries) deformable = deformable || g.deformable();
+    if (deformable) rtcSetSceneBuildQuality(blas->scene, RTC_BUILD_QUALITY_LOW);
     blas->boxes.reserve(mesh.geometries.size());
     for (const ecs::Geometry& g : mesh.geometries) {
         GeometryInfo info;
