@@ -204,3 +204,32 @@ TEST(AccelManager, InstanceFactsTrackOpacity) {
     accel.update(makeSnapshot(world, world.update(0.1f)));
     EXPECT_TRUE(accel.allOpaque());
 }
+
+TEST(AccelManager, MixedProceduralAndTriangleGeometriesStayAligned) {
+    // Geometry 0 is procedural, geometry 1 a deformable grid: per-geometry
+    // side tables (watertight data, refit clusters) must stay index-aligned.
+    World world;
+    world.addMaterial({});
+    MeshAsset mesh;
+    Geometry boxes;
+    boxes.proceduralBoxes.push_back(Aabb{vec3(5.f), vec3(6.f)});
+    mesh.geometries.push_back(std::move(boxes));
+    Geometry grid = load::makeGrid(2.f, 8, 0);
+    grid.restPositions = grid.positions;
+    grid.restNormals = grid.normals;
+    grid.morphTargets.push_back(MorphTarget{std::vector<vec3>(grid.positions.size(), vec3(0.f)), {}});
+    mesh.geometries.push_back(std::move(grid));
+    const MeshId id = world.addMesh(std::move(mesh));
+    world.emplace(world.create("mixed"), MeshInstance{id});
+    tracer::AccelOptions options;
+    options.refitQualityCheckInterval = 1;
+    tracer::AccelManager accel(options);
+    accel.update(makeSnapshot(world, world.update(0.f)));
+    EXPECT_TRUE(accel.anyProcedural());
+    world.deformMesh(id, [](MeshAsset& m) {
+        for (vec3& p : m.geometries[1].positions) p.y -= 1.f;
+    });
+    const tracer::AccelUpdateStats st = accel.update(makeSnapshot(world, world.update(0.1f)));
+    EXPECT_EQ(st.blasRefit, 1u);
+    EXPECT_NEAR(hitDistance(accel, vec3(0.1f, 5.f, 0.1f), vec3(0.f, -1.f, 0.f)), 6.f, 1e-4f);
+}

@@ -93,12 +93,7 @@ void watertightBoundsCallback(const RTCBoundsFunctionArguments* args) {
     // Padding: Embree's user-geometry BVH uses the non-robust box test.
     box.lo -= vec3(data.padding);
     box.hi += vec3(data.padding);
-    args->bounds_o->lower_x = box.lo.x;
-    args->bounds_o->lower_y = box.lo.y;
-    args->bounds_o->lower_z = box.lo.z;
-    args->bounds_o->upper_x = box.hi.x;
-    args->bounds_o->upper_y = box.hi.y;
-    args->bounds_o->upper_z = box.hi.z;
+    storeEmbreeBounds(args->bounds_o, box);
 }
 
 EmbreeDevice::EmbreeDevice(int threads) {
@@ -144,6 +139,22 @@ RTCSceneFlags AccelManager::sceneFlags() const {
                                       RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
 }
 
+void AccelManager::attachUserGeometry(Blas& blas, std::size_t primitives, void* userData, RTCBuildQuality quality,
+                                      RTCBoundsFunction bounds, RTCIntersectFunctionN intersect,
+                                      RTCOccludedFunctionN occluded) {
+    RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryBuildQuality(geom, quality);
+    rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(primitives));
+    rtcSetGeometryUserData(geom, userData);
+    rtcSetGeometryBoundsFunction(geom, bounds, nullptr);
+    rtcSetGeometryIntersectFunction(geom, intersect);
+    rtcSetGeometryOccludedFunction(geom, occluded);
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(blas.scene, geom);  // geomID = geometry index in the mesh
+    blas.geometries.push_back(geom);
+    rtcReleaseGeometry(geom);  // the scene holds the reference
+}
+
 void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const std::vector<ecs::Material>& materials) {
     if (blases_.size() <= id) blases_.resize(id + 1);
     auto blas = std::make_unique<Blas>();
@@ -162,40 +173,25 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
         info.opaque = g.material >= materials.size() || materials[g.material].alphaMode == ecs::AlphaMode::Opaque;
         blas->info.push_back(info);
         blas->boxes.push_back(g.proceduralBoxes);
-        if (info.procedural) {
-            RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER);
-            rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(g.proceduralBoxes.size()));
-            rtcSetGeometryUserData(geom, blas->boxes.back().data());
-            rtcSetGeometryBoundsFunction(geom, proceduralBoundsCallback, nullptr);
-            rtcSetGeometryIntersectFunction(geom, proceduralIntersectCallback);
-            rtcSetGeometryOccludedFunction(geom, proceduralOccludedCallback);
-            rtcCommitGeometry(geom);
-            rtcAttachGeometry(blas->scene, geom);
-            blas->geometries.push_back(geom);
-            rtcReleaseGeometry(geom);
-            continue;
-        }
-        blas->clusterOrder.push_back(g.deformable() && options_.refitRebuildThreshold > 0.f ? mortonTriangleOrder(g)
-                                                                                            : std::vector<std::uint32_t>{});
-        if (options_.watertight) {
-            auto data = std::make_unique<WatertightTriangles>();
-            data->indices = g.indices;
-            setWatertightPositions(*data, g);
-            RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_USER);
-            rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
-            rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(g.triangleCount()));
-            rtcSetGeometryUserData(geom, data.get());
-            rtcSetGeometryBoundsFunction(geom, watertightBoundsCallback, nullptr);
-            rtcSetGeometryIntersectFunction(geom, watertightIntersectCallback);
-            rtcSetGeometryOccludedFunction(geom, watertightOccludedCallback);
-            rtcCommitGeometry(geom);
-            rtcAttachGeometry(blas->scene, geom);
-            blas->geometries.push_back(geom);
-            blas->watertight.push_back(std::move(data));
-            rtcReleaseGeometry(geom);
-            continue;
-        }
+        // Per-geometry side tables stay index-aligned with the geometries.
+        const bool refitTracked = !info.procedural && g.deformable() && options_.refitRebuildThreshold > 0.f;
+        blas->clusterOrder.push_back(refitTracked ? mortonTriangleOrder(g) : std::vector<std::uint32_t>{});
         blas->watertight.emplace_back();
+        if (info.procedural) {
+            attachUserGeometry(*blas, g.proceduralBoxes.size(), blas->boxes.back().data(), RTC_BUILD_QUALITY_HIGH,
+                               proceduralBoundsCallback, proceduralIntersectCallback, proceduralOccludedCallback);
+            continue;
+        }
+        if (options_.watertight) {
+            blas->watertight.back() = std::make_unique<WatertightTriangles>();
+            WatertightTriangles& data = *blas->watertight.back();
+            data.indices = g.indices;
+            setWatertightPositions(data, g);
+            attachUserGeometry(*blas, g.triangleCount(), &data,
+                               g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH,
+                               watertightBoundsCallback, watertightIntersectCallback, watertightOccludedCallback);
+            continue;
+        }
         RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
         // Deformable geometry keeps a refittable BVH.
         rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);

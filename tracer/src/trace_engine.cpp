@@ -385,13 +385,7 @@ void finishLane(const PipelineContext& ctx, std::uint32_t lane, bool hit, float 
 }  // namespace
 
 void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args) {
-    const Aabb& box = static_cast<const Aabb*>(args->geometryUserPtr)[args->primID];
-    args->bounds_o->lower_x = box.lo.x;
-    args->bounds_o->lower_y = box.lo.y;
-    args->bounds_o->lower_z = box.lo.z;
-    args->bounds_o->upper_x = box.hi.x;
-    args->bounds_o->upper_y = box.hi.y;
-    args->bounds_o->upper_z = box.hi.z;
+    storeEmbreeBounds(args->bounds_o, static_cast<const Aabb*>(args->geometryUserPtr)[args->primID]);
 }
 
 namespace {

@@ -114,6 +114,8 @@ private:
     struct Blas;
     RTCSceneFlags sceneFlags() const;
     void setWatertightPositions(WatertightTriangles& data, const ecs::Geometry& g) const;
+    void attachUserGeometry(Blas& blas, std::size_t primitives, void* userData, RTCBuildQuality quality,
+                            RTCBoundsFunction bounds, RTCIntersectFunctionN intersect, RTCOccludedFunctionN occluded);
     void buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const std::vector<ecs::Material>& materials);
     void refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id);
     void rebuildTlas(const ecs::SceneSnapshot& scene);
@@ -131,6 +133,15 @@ private:
     std::vector<std::uint32_t> slotBase_;
     std::uint32_t slotCount_ = 0;
 };
+
+inline void storeEmbreeBounds(RTCBounds* out, const Aabb& box) {
+    out->lower_x = box.lo.x;
+    out->lower_y = box.lo.y;
+    out->lower_z = box.lo.z;
+    out->upper_x = box.hi.x;
+    out->upper_y = box.hi.y;
+    out->upper_z = box.hi.z;
+}
 
 // Embree callbacks for procedural geometry, implemented by the trace engine
 // (they call the pipeline's intersection shaders).
