@@ -206,12 +206,14 @@ TEST_F(ImageFiles, ExrWriteRejectsEmptyImages) {
 TEST_F(ImageFiles, ExrWriteIntoMissingDirectoryFails) {
     const fs::path path = dir / "no_such_dir" / "out.exr";
     expectInputError([&] { writeExr(path, makeTestImage(2, 2, {"R"})); }, {path.string(), "does not exist"});
+    EXPECT_FALSE(fs::exists(path.parent_path()));  // nothing was created on the way
 }
 
 TEST_F(ImageFiles, ExrReadMissingFileFails) {
     const fs::path path = dir / "missing.exr";
     expectInputError([&] { readExr(path); }, {path.string(), "cannot open"});
     expectInputError([&] { readExr(dir); }, {dir.string(), "cannot open"});
+    EXPECT_FALSE(fs::exists(path));
 }
 
 TEST_F(ImageFiles, ExrReadGarbageFails) {
@@ -471,4 +473,5 @@ TEST_F(ImageFiles, TextWriteOverwritesExistingFile) {
 TEST_F(ImageFiles, TextWriteIntoMissingDirectoryFails) {
     const fs::path target = dir / "absent" / "stats.json";
     expectInputError([&] { writeTextFileAtomically(target, "x"); }, {target.string(), "does not exist"});
+    EXPECT_FALSE(fs::exists(target.parent_path()));
 }
