@@ -70,7 +70,7 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
         return materials[g.material < materials.size() ? g.material : 0];
     };
     const auto closestHit = [&](const tracer::HitContext& ctx, PreviewPayload& p, const tracer::HitAttributes& attr) {
-        const SurfacePoint sp = surfacePoint(scene, ctx, attr);
+        const SurfacePoint sp = surfacePoint(scene, accel.instanceFacts(ctx.instanceIndex).normalFromObject, ctx, attr);
         const ecs::Material& m = materialOf(ctx);
         vec3 n = sp.shadingNormal;
         if (glm::dot(n, ctx.worldRayDirection) > 0.f) n = -n;  // face the viewer
@@ -81,7 +81,7 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     };
     const auto alphaTest = [&](const tracer::HitContext& ctx, PreviewPayload&, const tracer::HitAttributes& attr) {
         const ecs::Material& m = materialOf(ctx);
-        const SurfacePoint sp = surfacePoint(scene, ctx, attr);
+        const SurfacePoint sp = surfacePoint(scene, accel.instanceFacts(ctx.instanceIndex).normalFromObject, ctx, attr);
         return baseColorAt(m, textures, sp.uv).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
                                                                  : tracer::AnyHitResult::Accept;
     };
@@ -124,7 +124,8 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     return result;
 }
 
-SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const tracer::HitContext& ctx, const tracer::HitAttributes& attr) {
+SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const mat3& normalFromObject, const tracer::HitContext& ctx,
+                          const tracer::HitAttributes& attr) {
     const ecs::Geometry& g = (*scene.meshes)[ctx.instance->mesh].geometries[ctx.geometryIndex];
     SurfacePoint sp;
     sp.position = ctx.worldHitPosition();
@@ -136,8 +137,7 @@ SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const tracer::HitCont
     const std::uint32_t i0 = g.indices[3 * ctx.primitiveIndex], i1 = g.indices[3 * ctx.primitiveIndex + 1],
                         i2 = g.indices[3 * ctx.primitiveIndex + 2];
     const float w0 = 1.f - b.x - b.y;
-    // Normals go to world space with the inverse transpose of worldFromObject.
-    const mat3 normalFromObject = glm::transpose(glm::inverse(mat3(ctx.objectToWorld())));
+    // Normals go to world space with the inverse transpose of worldFromObject (cached per instance).
     const auto toWorld = [&](const vec3& n) {
         const vec3 v = normalFromObject * n;
         const float len = glm::length(v);

@@ -63,7 +63,6 @@ struct PipelineContext {
     std::array<std::uint32_t, kMaxLanes> committedRecord{};
     std::array<bool, kMaxLanes> committedAny{};  // RayTCurrent is TMax until the first commit
     // Set by ReportHit() for the procedural candidate being filtered.
-    bool pendingProcedural = false;
     std::uint32_t pendingHitKind = 0;
     HitAttributes pendingAttributes;
     std::exception_ptr error;  // first exception from a shader or a bad record
@@ -327,12 +326,10 @@ void runIntersectionShader(const Args* a, bool occlusion) {
             }
             const float tCurrent = c.committedAny[s.lane] ? RTCRayN_tfar(s.rayN, s.a->N, s.i) : c.rays[s.lane].tMax;
             if (!(t > c.rays[s.lane].tMin && t < tCurrent) || c.ended[s.lane]) return false;
-            c.pendingProcedural = true;
             c.pendingHitKind = hitKind;
             c.pendingAttributes = attrs;
             const bool keep = filterCandidate(c, s.lane, t, s.instanceIndex, s.a->geomID, s.a->primID, vec3(0.f), vec3(0.f),
                                               0.f, 0.f);
-            c.pendingProcedural = false;
             if (!keep) return false;
             // Commit into Embree's ray/hit so traversal shrinks the interval.
             if (s.occlusion) {

@@ -43,7 +43,9 @@ struct SurfacePoint {
     vec3 shadingNormal{0.f, 0.f, 1.f};  // interpolated vertex normal (unit)
     vec2 uv{0.f};
 };
-SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const tracer::HitContext& ctx, const tracer::HitAttributes& attr);
+// normalFromObject: the instance's inverse-transpose 3x3 (AccelManager::instanceFacts).
+SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const mat3& normalFromObject, const tracer::HitContext& ctx,
+                          const tracer::HitAttributes& attr);
 
 // Base colour of a material at a surface UV (texture sampled nearest, sRGB decoded).
 vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>& textures, const vec2& uv);
