@@ -159,12 +159,16 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
     if (blases_.size() <= id) blases_.resize(id + 1);
     auto blas = std::make_unique<Blas>();
     blas->scene = rtcNewScene(device_.get());
-    rtcSetSceneFlags(blas->scene, sceneFlags());
     // Embree honours a geometry's RTC_BUILD_QUALITY_REFIT only when the scene's
-    // build quality is LOW (a two-level structure over per-geometry BVHs);
-    // otherwise every commit rebuilds the whole BLAS.
+    // build quality is LOW (a two-level structure over per-geometry BVHs) AND
+    // the scene is RTC_SCENE_FLAG_DYNAMIC: a static scene makes its
+    // acceleration structures immutable after each commit and re-creates them
+    // on the next one, so every "refit" would be a full rebuild
+    // (docs/acceleration-structures.md, "Refit in Embree").
     bool deformable = false;
     for (const ecs::Geometry& g : mesh.geometries) deformable = deformable || g.deformable();
+    rtcSetSceneFlags(blas->scene,
+                     static_cast<RTCSceneFlags>(sceneFlags() | (deformable ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE)));
     if (deformable) rtcSetSceneBuildQuality(blas->scene, RTC_BUILD_QUALITY_LOW);
     blas->boxes.reserve(mesh.geometries.size());
     for (const ecs::Geometry& g : mesh.geometries) {
