@@ -359,6 +359,8 @@ void AccelManager::refreshInstanceFacts() {
         f = InstanceFacts{};
         f.normalFromObject = glm::transpose(glm::inverse(mat3(inst.worldFromObject)));
         f.frontCounterClockwise = (inst.flags & InstanceFlag::TriangleFrontCounterClockwise) != 0;
+        f.geometrySlotBase = slotBase_.at(inst.mesh);
+        f.hitGroupOffset = inst.hitGroupOffset;
         for (const GeometryInfo& g : blases_.at(inst.mesh)->info) {
             f.hasProcedural = f.hasProcedural || g.procedural;
             f.mayBeNonOpaque = f.mayBeNonOpaque || !g.opaque;

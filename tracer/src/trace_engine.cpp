@@ -58,7 +58,9 @@ struct PipelineContext {
     const RayDesc* rays = nullptr;     // world-space rays, per lane
     void* const* payloads = nullptr;   // per lane
     std::array<bool, kMaxLanes> ended{};
-    std::array<HitAttributes, kMaxLanes> committedAttributes;  // written before read (on commit)
+    // Written on commit, read only for committed lanes: plain floats so that
+    // the context is not zero-filled per trace.
+    std::array<std::array<float, 8>, kMaxLanes> committedAttributes;
     std::array<std::uint32_t, kMaxLanes> committedHitKind{};
     std::array<std::uint32_t, kMaxLanes> committedRecord{};
     std::array<bool, kMaxLanes> committedAny{};  // RayTCurrent is TMax until the first commit
@@ -175,7 +177,7 @@ bool filterCandidate(PipelineContext& ctx, std::uint32_t lane, float t, std::uin
     }
 
     // Step: commit.
-    ctx.committedAttributes[lane] = attributes;
+    ctx.committedAttributes[lane] = attributes.values;
     ctx.committedHitKind[lane] = hitKind;
     ctx.committedRecord[lane] = record;
     ctx.committedAny[lane] = true;
@@ -238,12 +240,13 @@ float openIntervalEnd(float tMax) {
                              : std::bit_cast<float>(std::bit_cast<std::uint32_t>(tMax) - 1u);
 }
 
-// Filter-free path: HitKind and record of the committed hit. The facing test
+// Filter-free path: the committed hit straight from Embree's result, with
+// its HitKind and record computed once, after traversal. The facing test
 // dot(objectDir, Ng) equals dot(worldDir, normalFromObject * Ng).
-void commitAfterTraversal(PipelineContext& ctx, std::uint32_t lane, std::uint32_t instID, std::uint32_t geomID,
-                          const vec3& objectNormal, float u, float v) {
-    const AccelManager& accel = ctx.engine->accel();
-    const InstanceFacts& facts = accel.instanceFacts(instID);
+void commitAfterTraversal(const PipelineContext& ctx, std::uint32_t lane, float t, std::uint32_t instID,
+                          std::uint32_t geomID, std::uint32_t primID, const vec3& objectNormal, float u, float v,
+                          CommittedHit& out, TraceCounters& counters) {
+    const InstanceFacts& facts = ctx.engine->accel().instanceFacts(instID);
     const vec3& d = ctx.rays[lane].direction;
     // dot(d, N n) = dot(N^T d, n) with N = normalFromObject (column-major mat3).
     const mat3& n = facts.normalFromObject;
@@ -251,11 +254,19 @@ void commitAfterTraversal(PipelineContext& ctx, std::uint32_t lane, std::uint32_
                          objectNormal.z * glm::dot(n[2], d);
     bool front = facing < 0.f;
     if (facts.frontCounterClockwise) front = !front;
-    ctx.committedHitKind[lane] = front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace;
-    ctx.committedRecord[lane] = ctx.engine->hitGroupRecord(ctx.args, instID, geomID);
-    ctx.committedAttributes[lane] = HitAttributes{};
-    ctx.committedAttributes[lane].values[0] = u;
-    ctx.committedAttributes[lane].values[1] = v;
+    const std::uint32_t type = ctx.args.rayContribution & 0xf;
+    ++counters.rays[type];
+    ++counters.hits[type];
+    out.hit = true;
+    out.t = t;
+    out.instanceIndex = instID;
+    out.geometryIndex = geomID;
+    out.primitiveIndex = primID;
+    out.hitKind = front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace;
+    out.hitGroupRecord = ctx.engine->hitGroupRecord(ctx.args, instID, geomID);
+    out.attributes = HitAttributes{};
+    out.attributes.values[0] = u;
+    out.attributes.values[1] = v;
 }
 
 RTCRayN* rayOf(const RTCIntersectFunctionNArguments* a) { return RTCRayHitN_RayN(a->rayhit, a->N); }
@@ -376,7 +387,7 @@ void finishLane(const PipelineContext& ctx, std::uint32_t lane, bool hit, float 
     out.primitiveIndex = primID;
     out.hitKind = ctx.committedHitKind[lane];
     out.hitGroupRecord = ctx.committedRecord[lane];
-    out.attributes = ctx.committedAttributes[lane];
+    out.attributes.values = ctx.committedAttributes[lane];
 }
 
 }  // namespace
@@ -447,39 +458,13 @@ void proceduralIntersectCallback(const RTCIntersectFunctionNArguments* args) { r
 void proceduralOccludedCallback(const RTCOccludedFunctionNArguments* args) { runIntersectionShader(args, true); }
 
 TraceEngine::TraceEngine(const AccelManager& accel, const ShaderTableView& shaders, std::uint32_t rayTypeCount)
-    : accel_(accel), shaders_(shaders), rayTypeCount_(rayTypeCount) {}
+    : accel_(accel), shaders_(shaders), rayTypeCount_(rayTypeCount), hitGroupCount_(shaders.hitGroupCount()) {}
 
-std::uint32_t TraceEngine::hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex,
-                                          std::uint32_t geometryIndex) const {
-    const ecs::InstanceSnapshot& inst = accel_.instance(instanceIndex);
-    const std::uint64_t instanceContribution = inst.hitGroupOffset == ecs::MeshInstance::kAutomatic
-                                                   ? std::uint64_t(accel_.geometrySlotBase(inst.mesh)) * rayTypeCount_
-                                                   : inst.hitGroupOffset;
-    const std::uint64_t record = (args.rayContribution & 0xf) + std::uint64_t(args.multiplier & 0xf) * geometryIndex +
-                                 instanceContribution;
-    if (record >= shaders_.hitGroupCount())
-        throw PipelineError("hit group record " + std::to_string(record) + " out of range (table has " +
-                            std::to_string(shaders_.hitGroupCount()) + "; instance " + std::to_string(instanceIndex) +
-                            ", geometry " + std::to_string(geometryIndex) + ")");
-    return static_cast<std::uint32_t>(record);
-}
-
-HitContext TraceEngine::hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit,
-                                   std::uint32_t depth) const {
-    HitContext hc;
-    hc.worldRayOrigin = ray.origin;
-    hc.worldRayDirection = ray.direction;
-    hc.rayTMin = ray.tMin;
-    hc.rayTCurrent = hit.t;
-    hc.rayFlags = args.rayFlags;
-    hc.instanceIndex = hit.instanceIndex;
-    hc.instance = &accel_.instance(hit.instanceIndex);
-    hc.instanceId = hc.instance->instanceId;
-    hc.geometryIndex = hit.geometryIndex;
-    hc.primitiveIndex = hit.primitiveIndex;
-    hc.hitKind = hit.hitKind;
-    hc.recursionDepth = depth;
-    return hc;
+void TraceEngine::throwRecordOutOfRange(std::uint64_t record, std::uint32_t instanceIndex,
+                                        std::uint32_t geometryIndex) const {
+    throw PipelineError("hit group record " + std::to_string(record) + " out of range (table has " +
+                        std::to_string(hitGroupCount_) + "; instance " + std::to_string(instanceIndex) +
+                        ", geometry " + std::to_string(geometryIndex) + ")");
 }
 
 CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void* payload, std::uint32_t depth,
@@ -523,9 +508,11 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(accel_.tlas(), &ctx.embree, &rh);
     if (ctx.error) std::rethrow_exception(ctx.error);
-    if (ctx.filterFree && rh.hit.geomID != RTC_INVALID_GEOMETRY_ID)
-        commitAfterTraversal(ctx, 0, rh.hit.instID[0], rh.hit.geomID, vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z),
-                             rh.hit.u, rh.hit.v);
+    if (ctx.filterFree && rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        commitAfterTraversal(ctx, 0, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID, rh.hit.primID,
+                             vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.hit.u, rh.hit.v, out, counters);
+        return out;
+    }
     finishLane(ctx, 0, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID,
                rh.hit.primID, out, counters);
     return out;
@@ -567,11 +554,18 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
         }
         rtcIntersect8(valid, accel_.tlas(), &ctx.embree, &rh);
         if (ctx.error) std::rethrow_exception(ctx.error);
-        if (ctx.filterFree)
-            for (int i = 0; i < kMaxLanes; ++i)
+        if (ctx.filterFree) {
+            for (int i = 0; i < kMaxLanes; ++i) {
+                if (!active[i]) continue;
                 if (valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID)
-                    commitAfterTraversal(ctx, i, rh.hit.instID[0][i], rh.hit.geomID[i],
-                                         vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.hit.u[i], rh.hit.v[i]);
+                    commitAfterTraversal(ctx, i, rh.ray.tfar[i], rh.hit.instID[0][i], rh.hit.geomID[i],
+                                         rh.hit.primID[i], vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]),
+                                         rh.hit.u[i], rh.hit.v[i], out[i], counters);
+                else
+                    finishLane(ctx, i, false, 0.f, 0, 0, 0, out[i], counters);
+            }
+            return;
+        }
     }
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i])

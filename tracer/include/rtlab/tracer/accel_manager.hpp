@@ -67,6 +67,8 @@ struct InstanceFacts {
     bool mayBeNonOpaque = false; // some geometry is non-opaque after instance flags
     bool hasProcedural = false;
     bool frontCounterClockwise = false;  // InstanceFlag::TriangleFrontCounterClockwise
+    std::uint32_t geometrySlotBase = 0;  // geometrySlotBase(instance's mesh)
+    std::uint32_t hitGroupOffset = 0;    // the instance's InstanceContributionToHitGroupIndex (or kAutomatic)
 };
 
 // Owns the Embree device.

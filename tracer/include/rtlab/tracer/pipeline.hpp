@@ -139,17 +139,46 @@ public:
                 std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const;
 
     // The hit-group record for a hit; throws PipelineError when out of range.
-    std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex, std::uint32_t geometryIndex) const;
-    HitContext hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit, std::uint32_t depth) const;
+    std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex, std::uint32_t geometryIndex) const {
+        const InstanceFacts& facts = accel_.instanceFacts(instanceIndex);
+        const std::uint64_t instanceContribution = facts.hitGroupOffset == ecs::MeshInstance::kAutomatic
+                                                       ? std::uint64_t(facts.geometrySlotBase) * rayTypeCount_
+                                                       : facts.hitGroupOffset;
+        const std::uint64_t record = (args.rayContribution & 0xf) +
+                                     std::uint64_t(args.multiplier & 0xf) * geometryIndex + instanceContribution;
+        if (record >= hitGroupCount_) [[unlikely]]
+            throwRecordOutOfRange(record, instanceIndex, geometryIndex);
+        return static_cast<std::uint32_t>(record);
+    }
+    HitContext hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit, std::uint32_t depth) const {
+        HitContext hc;
+        hc.worldRayOrigin = ray.origin;
+        hc.worldRayDirection = ray.direction;
+        hc.rayTMin = ray.tMin;
+        hc.rayTCurrent = hit.t;
+        hc.rayFlags = args.rayFlags;
+        hc.instanceIndex = hit.instanceIndex;
+        hc.instance = &accel_.instance(hit.instanceIndex);
+        hc.instanceId = hc.instance->instanceId;
+        hc.geometryIndex = hit.geometryIndex;
+        hc.primitiveIndex = hit.primitiveIndex;
+        hc.hitKind = hit.hitKind;
+        hc.recursionDepth = depth;
+        return hc;
+    }
 
     const AccelManager& accel() const { return accel_; }
     const ShaderTableView& shaders() const { return shaders_; }
     std::uint32_t rayTypeCount() const { return rayTypeCount_; }
 
 private:
+    [[noreturn]] void throwRecordOutOfRange(std::uint64_t record, std::uint32_t instanceIndex,
+                                            std::uint32_t geometryIndex) const;
+
     const AccelManager& accel_;
     const ShaderTableView& shaders_;
     std::uint32_t rayTypeCount_;
+    std::size_t hitGroupCount_;  // the shader table is fixed for the engine's lifetime
 };
 
 // Per-thread state of the ray-tracing call stack (recursion depth and the
@@ -228,19 +257,23 @@ public:
         return forEachTile(width, height, [&](const Tile& tile) {
             TraceScope& scope = currentTraceScope();
             TraceCounters& counters = *scope.counters;
+            // Per-tile scratch, reused by every packet of the tile: trace8
+            // writes every active lane's hit, inactive lanes get an empty ray.
+            std::array<Payload, 8> payloads;
+            std::array<RayDesc, 8> rays;
+            std::array<void*, 8> payloadPtrs;
+            std::array<bool, 8> active;
+            std::array<CommittedHit, 8> hits;
+            for (int lane = 0; lane < 8; ++lane) payloadPtrs[lane] = &payloads[lane];
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x0 = tile.x0; x0 < tile.x1; x0 += 8) {
-                    // No value-initialisation of the ray and hit arrays: every
-                    // lane is written below (inactive lanes get an empty ray).
-                    std::array<Payload, 8> payloads{};
-                    std::array<RayDesc, 8> rays;
-                    std::array<void*, 8> payloadPtrs;
-                    std::array<bool, 8> active;
-                    std::array<CommittedHit, 8> hits;  // trace8 writes every active lane
                     for (int lane = 0; lane < 8; ++lane) {
                         active[lane] = x0 + lane < tile.x1;
-                        payloadPtrs[lane] = &payloads[lane];
-                        rays[lane] = active[lane] ? makeRay(x0 + lane, y, payloads[lane]) : RayDesc{};
+                        payloads[lane] = Payload{};
+                        if (active[lane])
+                            rays[lane] = makeRay(x0 + lane, y, payloads[lane]);
+                        else
+                            rays[lane] = RayDesc{};
                     }
                     engine_.trace8(args, rays.data(), payloadPtrs.data(), active.data(), 1, hits.data(), counters);
                     const DepthGuard guard(scope, 1);
