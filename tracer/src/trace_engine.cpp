@@ -1,11 +1,10 @@
 // TraceRay semantics on Embree. Every candidate hit goes through one context
-// filter (RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION on every scene) which applies,
-// in DXR order: the open (TMin, TMax) interval, SKIP_TRIANGLES, face culling
-// (with instance flags), opacity (geometry flag, instance and ray overrides),
-// CULL_OPAQUE / CULL_NON_OPAQUE, then the any-hit shader for non-opaque hits,
-// and ACCEPT_FIRST_HIT_AND_END_SEARCH. The instance mask is Embree's ray mask.
-// Procedural primitives call the intersection shader from Embree's user
-// geometry callbacks; ReportHit() runs the same filter via rtcFilterIntersection.
+// filter (RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION on every scene) which hands
+// it to the shared CandidateFilter (candidate_filter.hpp: the DXR rules and
+// the any-hit shader). The instance mask is Embree's ray mask. Procedural
+// primitives run the intersection shader from Embree's user geometry
+// callbacks; an accepted ReportHit() is committed into Embree's ray/hit.
+#include <rtlab/tracer/candidate_filter.hpp>
 #include <rtlab/tracer/pipeline.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
 
@@ -46,34 +45,6 @@ namespace {
 
 constexpr int kMaxLanes = 8;
 
-// RTCIntersectContext extended with the state of one trace call. Embree
-// hands the context to every callback; the lane is recovered from ray.id.
-struct PipelineContext {
-    RTCIntersectContext embree;  // must stay first
-    const TraceEngine* engine = nullptr;
-    TraceArgs args;
-    std::uint32_t depth = 0;
-    bool occlusion = false;
-    TraceCounters* counters = nullptr;
-    const RayDesc* rays = nullptr;     // world-space rays, per lane
-    void* const* payloads = nullptr;   // per lane
-    std::array<bool, kMaxLanes> ended{};
-    // Written on commit, read only for committed lanes: plain floats so that
-    // the context is not zero-filled per trace.
-    std::array<std::array<float, 8>, kMaxLanes> committedAttributes;
-    std::array<std::uint32_t, kMaxLanes> committedHitKind{};
-    std::array<std::uint32_t, kMaxLanes> committedRecord{};
-    std::array<bool, kMaxLanes> committedAny{};  // RayTCurrent is TMax until the first commit
-    // Set by ReportHit() for the procedural candidate being filtered.
-    std::uint32_t pendingHitKind = 0;
-    HitAttributes pendingAttributes;
-    std::exception_ptr error;  // first exception from a shader or a bad record
-    // No candidate needs a decision (all geometry opaque triangles, no culling
-    // flags): Embree runs without the filter and the committed hit's HitKind
-    // and record are computed once, after traversal.
-    bool filterFree = false;
-};
-
 // Ray flags whose rules need a per-candidate decision.
 constexpr std::uint32_t kCandidateFlags = RayFlag::CullBackFacingTriangles | RayFlag::CullFrontFacingTriangles |
                                           RayFlag::SkipTriangles | RayFlag::CullOpaque | RayFlag::CullNonOpaque |
@@ -81,149 +52,56 @@ constexpr std::uint32_t kCandidateFlags = RayFlag::CullBackFacingTriangles | Ray
 
 void contextFilter(const RTCFilterFunctionNArguments* args);
 
+// RTCIntersectContext extended with the state of one trace call. Embree
+// hands the context to every callback; the lane is recovered from ray.id.
+struct PipelineContext {
+    RTCIntersectContext embree;  // must stay first
+    std::array<LaneCommitState, kMaxLanes> lanes;
+    CandidateFilter filter;
+    bool occlusion = false;
+    // No candidate needs a decision (all geometry opaque triangles, no culling
+    // flags): Embree runs without the filter and the committed hit's HitKind
+    // and record are computed once, after traversal.
+    bool filterFree = false;
+
+    PipelineContext(const TraceEngine& engine, const TraceArgs& args, std::uint32_t depth, TraceCounters& counters,
+                    const RayDesc* rays, void* const* payloads, bool coherent)
+        : filter(engine, args, depth, counters, rays, payloads, lanes.data()) {
+        rtcInitIntersectContext(&embree);
+        embree.filter = contextFilter;
+        embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+        // A shadow-style query (first hit ends the search, no closest-hit) is an
+        // occlusion query: Embree stops at the first committed hit.
+        occlusion =
+            (args.rayFlags & RayFlag::AcceptFirstHitAndEndSearch) && (args.rayFlags & RayFlag::SkipClosestHitShader);
+        // ACCEPT_FIRST_HIT on a closest-hit query still needs the filter to stop
+        // at the first hit; as an occlusion query Embree stops by itself.
+        const bool needsFirstHitStop = (args.rayFlags & RayFlag::AcceptFirstHitAndEndSearch) && !occlusion;
+        // Without any-hit shaders a non-opaque candidate is simply accepted, as an
+        // opaque one is: opacity then only matters to the CULL_*/FORCE_NON_OPAQUE flags.
+        const AccelManager& accel = engine.accel();
+        const bool opaqueInEffect = accel.allOpaque() || !engine.shaders().anyHitGroupHasAnyHit();
+        filterFree =
+            opaqueInEffect && !accel.anyProcedural() && !(args.rayFlags & kCandidateFlags) && !needsFirstHitStop;
+        if (filterFree) embree.filter = nullptr;
+    }
+};
+
 bool isPipelineContext(const RTCIntersectContext* c) { return c && c->filter == contextFilter; }
-
-// Opacity: geometry flag, then instance overrides, then ray overrides.
-bool isOpaque(const GeometryInfo& geo, const ecs::InstanceSnapshot& inst, std::uint32_t rayFlags) {
-    bool opaque = geo.opaque;
-    if (inst.flags & InstanceFlag::ForceOpaque) opaque = true;
-    if (inst.flags & InstanceFlag::ForceNonOpaque) opaque = false;
-    if (rayFlags & RayFlag::ForceOpaque) opaque = true;
-    if (rayFlags & RayFlag::ForceNonOpaque) opaque = false;
-    return opaque;
-}
-
-bool culledByOpacity(bool opaque, std::uint32_t rayFlags) {
-    return opaque ? (rayFlags & RayFlag::CullOpaque) != 0 : (rayFlags & RayFlag::CullNonOpaque) != 0;
-}
-
-// The DXR decision for one candidate hit; returns true when committed.
-bool filterCandidate(PipelineContext& ctx, std::uint32_t lane, float t, std::uint32_t instanceIndex,
-                     std::uint32_t geometryIndex, std::uint32_t primitiveIndex, const vec3& objectDirection,
-                     const vec3& geometricNormal, float u, float v) {
-    if (ctx.ended[lane] || ctx.error) return false;
-    const RayDesc& ray = ctx.rays[lane];
-    // Step: the ray is the open interval (TMin, TMax).
-    if (!(t > ray.tMin && t < ray.tMax)) return false;
-    const AccelManager& accel = ctx.engine->accel();
-    const ecs::InstanceSnapshot& inst = accel.instance(instanceIndex);
-    const GeometryInfo& geo = accel.geometryInfo(inst.mesh, geometryIndex);
-    const std::uint32_t flags = ctx.args.rayFlags;
-
-    std::uint32_t hitKind = 0;
-    if (!geo.procedural) {
-        // Step: triangles — skipping and face culling.
-        if (flags & RayFlag::SkipTriangles) return false;
-        // DXR: front face = clockwise seen from the ray origin in a left-handed
-        // frame, i.e. dot(direction, (v1-v0)x(v2-v0)) < 0 numerically.
-        bool front = glm::dot(objectDirection, geometricNormal) < 0.f;
-        if (inst.flags & InstanceFlag::TriangleFrontCounterClockwise) front = !front;
-        hitKind = front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace;
-        if (!(inst.flags & InstanceFlag::TriangleCullDisable)) {
-            if ((flags & RayFlag::CullBackFacingTriangles) && !front) return false;
-            if ((flags & RayFlag::CullFrontFacingTriangles) && front) return false;
-        }
-    } else {
-        if (flags & RayFlag::SkipProceduralPrimitives) return false;
-        hitKind = ctx.pendingHitKind;
-    }
-
-    // Step: opacity — geometry flag, then instance overrides, then ray overrides.
-    const bool opaque = isOpaque(geo, inst, flags);
-    if (culledByOpacity(opaque, flags)) return false;
-
-    std::uint32_t record = 0;
-    try {
-        record = ctx.engine->hitGroupRecord(ctx.args, instanceIndex, geometryIndex);
-    } catch (...) {
-        ctx.error = std::current_exception();
-        return false;
-    }
-    HitAttributes attributes;
-    if (geo.procedural) {
-        attributes = ctx.pendingAttributes;
-    } else {
-        attributes.values[0] = u;
-        attributes.values[1] = v;
-    }
-
-    // Step: any-hit for non-opaque candidates.
-    bool endSearch = (flags & RayFlag::AcceptFirstHitAndEndSearch) != 0;
-    const ShaderTableView& shaders = ctx.engine->shaders();
-    if (!opaque && shaders.hasAnyHit(record)) {
-        ++ctx.counters->anyHitInvocations;
-        HitContext hc;
-        hc.worldRayOrigin = ray.origin;
-        hc.worldRayDirection = ray.direction;
-        hc.rayTMin = ray.tMin;
-        hc.rayTCurrent = t;
-        hc.rayFlags = flags;
-        hc.instanceIndex = instanceIndex;
-        hc.instanceId = inst.instanceId;
-        hc.geometryIndex = geometryIndex;
-        hc.primitiveIndex = primitiveIndex;
-        hc.hitKind = hitKind;
-        hc.recursionDepth = ctx.depth;
-        hc.instance = &inst;
-        AnyHitResult result = AnyHitResult::Ignore;
-        try {
-            result = shaders.anyHit(record, hc, ctx.payloads[lane], attributes);
-        } catch (...) {
-            ctx.error = std::current_exception();
-            return false;
-        }
-        if (result == AnyHitResult::Ignore) return false;
-        if (result == AnyHitResult::AcceptAndEndSearch) endSearch = true;
-    }
-
-    // Step: commit.
-    ctx.committedAttributes[lane] = attributes.values;
-    ctx.committedHitKind[lane] = hitKind;
-    ctx.committedRecord[lane] = record;
-    ctx.committedAny[lane] = true;
-    if (endSearch) ctx.ended[lane] = true;
-    return true;
-}
 
 void contextFilter(const RTCFilterFunctionNArguments* a) {
     auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->valid[i] == 0) continue;
         const std::uint32_t lane = RTCRayN_id(a->ray, a->N, i);
-        const bool keep = filterCandidate(
-            ctx, lane, RTCRayN_tfar(a->ray, a->N, i), RTCHitN_instID(a->hit, a->N, i, 0), RTCHitN_geomID(a->hit, a->N, i),
+        const bool keep = ctx.filter.triangle(
+            lane, RTCRayN_tfar(a->ray, a->N, i), RTCHitN_instID(a->hit, a->N, i, 0), RTCHitN_geomID(a->hit, a->N, i),
             RTCHitN_primID(a->hit, a->N, i),
             vec3(RTCRayN_dir_x(a->ray, a->N, i), RTCRayN_dir_y(a->ray, a->N, i), RTCRayN_dir_z(a->ray, a->N, i)),
             vec3(RTCHitN_Ng_x(a->hit, a->N, i), RTCHitN_Ng_y(a->hit, a->N, i), RTCHitN_Ng_z(a->hit, a->N, i)),
             RTCHitN_u(a->hit, a->N, i), RTCHitN_v(a->hit, a->N, i));
         if (!keep) a->valid[i] = 0;
     }
-}
-
-void initContext(PipelineContext& ctx, const TraceEngine* engine, const TraceArgs& args, std::uint32_t depth,
-                 TraceCounters& counters, const RayDesc* rays, void* const* payloads, bool coherent) {
-    rtcInitIntersectContext(&ctx.embree);
-    ctx.embree.filter = contextFilter;
-    ctx.embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-    ctx.engine = engine;
-    ctx.args = args;
-    ctx.depth = depth;
-    ctx.counters = &counters;
-    ctx.rays = rays;
-    ctx.payloads = payloads;
-    // A shadow-style query (first hit ends the search, no closest-hit) is an
-    // occlusion query: Embree stops at the first committed hit.
-    ctx.occlusion = (args.rayFlags & RayFlag::AcceptFirstHitAndEndSearch) &&
-                    (args.rayFlags & RayFlag::SkipClosestHitShader);
-    // ACCEPT_FIRST_HIT on a closest-hit query still needs the filter to stop
-    // at the first hit; as an occlusion query Embree stops by itself.
-    const bool needsFirstHitStop = (args.rayFlags & RayFlag::AcceptFirstHitAndEndSearch) && !ctx.occlusion;
-    // Without any-hit shaders a non-opaque candidate is simply accepted, as an
-    // opaque one is: opacity then only matters to the CULL_*/FORCE_NON_OPAQUE flags.
-    const AccelManager& accel = engine->accel();
-    const bool opaqueInEffect = accel.allOpaque() || !engine->shaders().anyHitGroupHasAnyHit();
-    ctx.filterFree = opaqueInEffect && !accel.anyProcedural() && !(args.rayFlags & kCandidateFlags) && !needsFirstHitStop;
-    if (ctx.filterFree) ctx.embree.filter = nullptr;
 }
 
 // Embree accepts tnear <= t <= tfar; DXR's interval is open. Both inputs
@@ -246,15 +124,16 @@ float openIntervalEnd(float tMax) {
 void commitAfterTraversal(const PipelineContext& ctx, std::uint32_t lane, float t, std::uint32_t instID,
                           std::uint32_t geomID, std::uint32_t primID, const vec3& objectNormal, float u, float v,
                           CommittedHit& out, TraceCounters& counters) {
-    const InstanceFacts& facts = ctx.engine->accel().instanceFacts(instID);
-    const vec3& d = ctx.rays[lane].direction;
+    const TraceEngine& engine = ctx.filter.engine();
+    const InstanceFacts& facts = engine.accel().instanceFacts(instID);
+    const vec3& d = ctx.filter.ray(lane).direction;
     // dot(d, N n) = dot(N^T d, n) with N = normalFromObject (column-major mat3).
     const mat3& n = facts.normalFromObject;
     const float facing = objectNormal.x * glm::dot(n[0], d) + objectNormal.y * glm::dot(n[1], d) +
                          objectNormal.z * glm::dot(n[2], d);
     bool front = facing < 0.f;
     if (facts.frontCounterClockwise) front = !front;
-    const std::uint32_t type = ctx.args.rayContribution & 0xf;
+    const std::uint32_t type = ctx.filter.args().rayContribution & 0xf;
     ++counters.rays[type];
     ++counters.hits[type];
     out.hit = true;
@@ -263,7 +142,7 @@ void commitAfterTraversal(const PipelineContext& ctx, std::uint32_t lane, float 
     out.geometryIndex = geomID;
     out.primitiveIndex = primID;
     out.hitKind = front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace;
-    out.hitGroupRecord = ctx.engine->hitGroupRecord(ctx.args, instID, geomID);
+    out.hitGroupRecord = engine.hitGroupRecord(ctx.filter.args(), instID, geomID);
     out.attributes = HitAttributes{};
     out.attributes.values[0] = u;
     out.attributes.values[1] = v;
@@ -280,114 +159,47 @@ void runIntersectionShader(const Args* a, bool occlusion) {
     if (!isPipelineContext(a->context)) return;  // non-pipeline traces see no procedural hits
     auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
     RTCRayN* rayN = rayOf(a);
+    const std::uint32_t instanceIndex = a->context->instID[0];
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->valid[i] == 0) continue;
-        const std::uint32_t lane = RTCRayN_id(rayN, a->N, i);
-        if (ctx.ended[lane] || ctx.error) continue;
-        if (ctx.args.rayFlags & RayFlag::SkipProceduralPrimitives) continue;
-        const std::uint32_t instanceIndex = a->context->instID[0];
-        const AccelManager& accel = ctx.engine->accel();
-        const ecs::InstanceSnapshot& inst = accel.instance(instanceIndex);
-        // DXR culls a procedural primitive by opacity before its intersection shader runs.
-        if (culledByOpacity(isOpaque(accel.geometryInfo(inst.mesh, a->geomID), inst, ctx.args.rayFlags),
-                            ctx.args.rayFlags))
-            continue;
-        std::uint32_t record = 0;
-        try {
-            record = ctx.engine->hitGroupRecord(ctx.args, instanceIndex, a->geomID);
-            if (!ctx.engine->shaders().hasIntersection(record))
-                throw PipelineError("hit group " + std::to_string(record) +
-                                    " has no intersection shader but is used by procedural geometry");
-        } catch (...) {
-            ctx.error = std::current_exception();
-            continue;
-        }
-        const RayDesc& ray = ctx.rays[lane];
-        IntersectionContext ic;
-        ic.worldRayOrigin = ray.origin;
-        ic.worldRayDirection = ray.direction;
-        ic.rayTMin = ray.tMin;
-        // Embree's tfar sits one float below TMax until the first commit (open interval).
-        ic.rayTCurrent = ctx.committedAny[lane] ? RTCRayN_tfar(rayN, a->N, i) : ray.tMax;
-        ic.rayFlags = ctx.args.rayFlags;
-        ic.instanceIndex = instanceIndex;
-        ic.instanceId = inst.instanceId;
-        ic.geometryIndex = a->geomID;
-        ic.primitiveIndex = a->primID;
-        ic.recursionDepth = ctx.depth;
-        ic.instance = &inst;
-
-        // ReportHit(): filter the candidate like a triangle hit, then commit.
-        struct ReportState {
+        // An accepted ReportHit() commits into Embree's ray/hit so that
+        // traversal shrinks the interval.
+        struct Commit {
             const Args* a;
-            PipelineContext* ctx;
             RTCRayN* rayN;
             unsigned i;
             std::uint32_t lane;
             std::uint32_t instanceIndex;
             bool occlusion;
-            IntersectionContext* ic;
-        } state{a, &ctx, rayN, i, lane, instanceIndex, occlusion, &ic};
-        ic.bind(&state, [](void* p, float t, std::uint32_t hitKind, const HitAttributes& attrs) -> bool {
-            auto& s = *static_cast<ReportState*>(p);
-            PipelineContext& c = *s.ctx;
-            if (hitKind >= 128) {
-                if (!c.error) c.error = std::make_exception_ptr(PipelineError("ReportHit: hitKind must be < 128"));
-                return false;
+            const PipelineContext* ctx;
+        } commit{a, rayN, i, RTCRayN_id(rayN, a->N, i), instanceIndex, occlusion, &ctx};
+        CandidateFilter::ProceduralHooks hooks;
+        hooks.state = &commit;
+        hooks.currentT = [](void* p) -> float {
+            const auto& c = *static_cast<const Commit*>(p);
+            // Embree's tfar sits one float below TMax until the first commit (open interval).
+            return c.ctx->filter.lane(c.lane).committedAny ? RTCRayN_tfar(c.rayN, c.a->N, c.i)
+                                                           : c.ctx->filter.ray(c.lane).tMax;
+        };
+        hooks.commit = [](void* p, float t) {
+            const auto& c = *static_cast<const Commit*>(p);
+            if (c.occlusion) {
+                RTCRayN_tfar(c.rayN, c.a->N, c.i) = -kInfinity;  // Embree's "occluded"
+                return;
             }
-            const float tCurrent = c.committedAny[s.lane] ? RTCRayN_tfar(s.rayN, s.a->N, s.i) : c.rays[s.lane].tMax;
-            if (!(t > c.rays[s.lane].tMin && t < tCurrent) || c.ended[s.lane]) return false;
-            c.pendingHitKind = hitKind;
-            c.pendingAttributes = attrs;
-            const bool keep = filterCandidate(c, s.lane, t, s.instanceIndex, s.a->geomID, s.a->primID, vec3(0.f), vec3(0.f),
-                                              0.f, 0.f);
-            if (!keep) return false;
-            // Commit into Embree's ray/hit so traversal shrinks the interval.
-            if (s.occlusion) {
-                RTCRayN_tfar(s.rayN, s.a->N, s.i) = -kInfinity;  // Embree's "occluded"
-            } else {
-                RTCRayN_tfar(s.rayN, s.a->N, s.i) = t;
-                RTCHitN* hitN = hitOf(s.a);
-                RTCHitN_geomID(hitN, s.a->N, s.i) = s.a->geomID;
-                RTCHitN_primID(hitN, s.a->N, s.i) = s.a->primID;
-                RTCHitN_instID(hitN, s.a->N, s.i, 0) = s.instanceIndex;
-                RTCHitN_u(hitN, s.a->N, s.i) = 0.f;
-                RTCHitN_v(hitN, s.a->N, s.i) = 0.f;
-                RTCHitN_Ng_x(hitN, s.a->N, s.i) = 0.f;
-                RTCHitN_Ng_y(hitN, s.a->N, s.i) = 0.f;
-                RTCHitN_Ng_z(hitN, s.a->N, s.i) = 1.f;
-            }
-            s.ic->rayTCurrent = t;
-            return true;
-        });
-        ++ctx.counters->intersectionInvocations;
-        try {
-            ctx.engine->shaders().intersection(record, ic, ctx.payloads[lane]);
-        } catch (...) {
-            if (!ctx.error) ctx.error = std::current_exception();
-        }
+            RTCRayN_tfar(c.rayN, c.a->N, c.i) = t;
+            RTCHitN* hitN = hitOf(c.a);
+            RTCHitN_geomID(hitN, c.a->N, c.i) = c.a->geomID;
+            RTCHitN_primID(hitN, c.a->N, c.i) = c.a->primID;
+            RTCHitN_instID(hitN, c.a->N, c.i, 0) = c.instanceIndex;
+            RTCHitN_u(hitN, c.a->N, c.i) = 0.f;
+            RTCHitN_v(hitN, c.a->N, c.i) = 0.f;
+            RTCHitN_Ng_x(hitN, c.a->N, c.i) = 0.f;
+            RTCHitN_Ng_y(hitN, c.a->N, c.i) = 0.f;
+            RTCHitN_Ng_z(hitN, c.a->N, c.i) = 1.f;
+        };
+        ctx.filter.procedural(commit.lane, instanceIndex, a->geomID, a->primID, hooks);
     }
-}
-
-void finishLane(const PipelineContext& ctx, std::uint32_t lane, bool hit, float t, std::uint32_t instID,
-                std::uint32_t geomID, std::uint32_t primID, CommittedHit& out, TraceCounters& counters) {
-    const std::uint32_t type = ctx.args.rayContribution & 0xf;
-    ++counters.rays[type];
-    if (!hit) {
-        ++counters.misses[type];
-        out.hit = false;
-        out.t = kInfinity;
-        return;
-    }
-    ++counters.hits[type];
-    out.hit = true;
-    out.t = t;
-    out.instanceIndex = instID;
-    out.geometryIndex = geomID;
-    out.primitiveIndex = primID;
-    out.hitKind = ctx.committedHitKind[lane];
-    out.hitGroupRecord = ctx.committedRecord[lane];
-    out.attributes.values = ctx.committedAttributes[lane];
 }
 
 }  // namespace
@@ -429,7 +241,7 @@ void intersectWatertightTriangles(const Args* a, bool occlusion) {
         if (pipeline) {
             auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
             const std::uint32_t lane = RTCRayN_id(rayN, a->N, i);
-            if (!filterCandidate(ctx, lane, hit->t, instanceIndex, a->geomID, a->primID, d, ng, hit->b1, hit->b2))
+            if (!ctx.filter.triangle(lane, hit->t, instanceIndex, a->geomID, a->primID, d, ng, hit->b1, hit->b2))
                 continue;
         }
         if (occlusion) {
@@ -472,8 +284,7 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     CommittedHit out;
     void* payloads[1] = {payload};
     // A single ray is a one-lane trace; no packet overhead for Embree.
-    PipelineContext ctx;
-    initContext(ctx, this, args, depth, counters, &ray, payloads, false);
+    PipelineContext ctx(*this, args, depth, counters, &ray, payloads, false);
     const std::uint32_t type = args.rayContribution & 0xf;
     if (!isFinite(ray.origin) || !isFinite(ray.direction) || std::isnan(ray.tMin) || std::isnan(ray.tMax) ||
         !(ray.tMin >= 0.f) || !(ray.tMax >= ray.tMin) || !accel_.tlas()) {
@@ -491,10 +302,10 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
         r.mask = args.instanceInclusionMask & 0xff;
         r.id = 0;
         rtcOccluded1(accel_.tlas(), &ctx.embree, &r);
-        if (ctx.error) std::rethrow_exception(ctx.error);
+        ctx.filter.rethrowIfFailed();
         // Occlusion gives no hit details; the committed filter state does.
         const bool hit = r.tfar < 0.f;
-        finishLane(ctx, 0, hit, hit ? ray.tMin : kInfinity, 0, 0, 0, out, counters);
+        ctx.filter.finish(0, hit, hit ? ray.tMin : kInfinity, 0, 0, 0, out);
         return out;
     }
     RTCRayHit rh{};
@@ -507,21 +318,20 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(accel_.tlas(), &ctx.embree, &rh);
-    if (ctx.error) std::rethrow_exception(ctx.error);
+    ctx.filter.rethrowIfFailed();
     if (ctx.filterFree && rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
         commitAfterTraversal(ctx, 0, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID, rh.hit.primID,
                              vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.hit.u, rh.hit.v, out, counters);
         return out;
     }
-    finishLane(ctx, 0, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID,
-               rh.hit.primID, out, counters);
+    ctx.filter.finish(0, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID,
+               rh.hit.primID, out);
     return out;
 }
 
 void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
                          std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const {
-    PipelineContext ctx;
-    initContext(ctx, this, args, depth, counters, rays, payloads, true);
+    PipelineContext ctx(*this, args, depth, counters, rays, payloads, true);
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh{};
     bool any = false;
@@ -547,13 +357,13 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
             alignas(32) RTCRay8 r{};
             std::memcpy(&r, &rh.ray, sizeof r);
             rtcOccluded8(valid, accel_.tlas(), &ctx.embree, &r);
-            if (ctx.error) std::rethrow_exception(ctx.error);
+            ctx.filter.rethrowIfFailed();
             for (int i = 0; i < kMaxLanes; ++i)
-                if (active[i]) finishLane(ctx, i, valid[i] && r.tfar[i] < 0.f, rays[i].tMin, 0, 0, 0, out[i], counters);
+                if (active[i]) ctx.filter.finish(i, valid[i] && r.tfar[i] < 0.f, rays[i].tMin, 0, 0, 0, out[i]);
             return;
         }
         rtcIntersect8(valid, accel_.tlas(), &ctx.embree, &rh);
-        if (ctx.error) std::rethrow_exception(ctx.error);
+        ctx.filter.rethrowIfFailed();
         if (ctx.filterFree) {
             for (int i = 0; i < kMaxLanes; ++i) {
                 if (!active[i]) continue;
@@ -562,15 +372,15 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
                                          rh.hit.primID[i], vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]),
                                          rh.hit.u[i], rh.hit.v[i], out[i], counters);
                 else
-                    finishLane(ctx, i, false, 0.f, 0, 0, 0, out[i], counters);
+                    ctx.filter.finish(i, false, 0.f, 0, 0, 0, out[i]);
             }
             return;
         }
     }
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i])
-            finishLane(ctx, i, valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar[i], rh.hit.instID[0][i],
-                       rh.hit.geomID[i], rh.hit.primID[i], out[i], counters);
+            ctx.filter.finish(i, valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar[i], rh.hit.instID[0][i],
+                       rh.hit.geomID[i], rh.hit.primID[i], out[i]);
 }
 
 }  // namespace rtlab::tracer
