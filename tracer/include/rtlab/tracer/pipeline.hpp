@@ -21,7 +21,9 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rtlab::tracer {
@@ -181,6 +183,34 @@ private:
     std::size_t hitGroupCount_;  // the shader table is fixed for the engine's lifetime
 };
 
+// The seam between the pipeline and a traversal back end. The pipeline owns
+// the shader table and the DXR stages (ray generation, closest-hit, miss);
+// a back end finds the committed hit of each ray, calling the shared
+// CandidateFilter (candidate_filter.hpp) for every candidate so that ray
+// flags, instance flags, any-hit and intersection shaders mean the same on
+// every back end. Embree is built in (TraceEngine::trace / trace8, used when
+// a Pipeline has no back end set); the RT-core model (rtcore_sim) is the
+// other implementation.
+class TraversalBackend {
+public:
+    virtual ~TraversalBackend() = default;
+    virtual std::string_view name() const = 0;
+
+    // Traces rays[i] for every i < count with active[i] (one TraceRay each,
+    // same arguments, recursion depth `depth`), running any-hit and
+    // intersection shaders but not closest-hit/miss; writes out[i] for
+    // active lanes and adds to `counters`. Throws what shaders throw and
+    // PipelineError for bad records, after the batch.
+    virtual void trace(const TraceEngine& engine, const TraceArgs& args, const RayDesc* rays, void* const* payloads,
+                       const bool* active, std::size_t count, std::uint32_t depth, CommittedHit* out,
+                       TraceCounters& counters) = 0;
+
+    // True when results depend on the order of trace calls (a simulated clock):
+    // the pipeline then runs dispatches on the calling thread in tile order,
+    // so that results are identical for any thread count.
+    virtual bool orderDependent() const = 0;
+};
+
 // Per-thread state of the ray-tracing call stack (recursion depth and the
 // counters of the tile being worked on).
 struct TraceScope {
@@ -209,8 +239,10 @@ public:
         std::uint32_t rayTypeCount = 1;       // used for automatic InstanceContributionToHitGroupIndex
     };
 
-    Pipeline(const AccelManager& accel, Desc desc)
-        : desc_(std::move(desc)), engine_(accel, *this, desc_.rayTypeCount) {
+    // `backend` (optional, not owned) replaces Embree traversal, e.g. with the
+    // RT-core model; it must outlive the pipeline.
+    Pipeline(const AccelManager& accel, Desc desc, TraversalBackend* backend = nullptr)
+        : desc_(std::move(desc)), backend_(backend), engine_(accel, *this, desc_.rayTypeCount) {
         if (desc_.rayTypeCount == 0 || desc_.rayTypeCount > 16)
             throw PipelineError("rayTypeCount must be in [1, 16]");
         if (desc_.maxRecursionDepth == 0 || desc_.maxRecursionDepth > 31)
@@ -231,7 +263,14 @@ public:
                                 std::to_string(desc_.missShaders.size()) + ")");
         TraceCounters local;
         TraceCounters& counters = scope.counters ? *scope.counters : local;
-        const CommittedHit hit = engine_.trace(args, ray, &payload, depth, counters);
+        CommittedHit hit;
+        if (backend_) {
+            void* payloadPtr = &payload;
+            const bool active = true;
+            backend_->trace(engine_, args, &ray, &payloadPtr, &active, 1, depth, &hit, counters);
+        } else {
+            hit = engine_.trace(args, ray, &payload, depth, counters);
+        }
         const DepthGuard guard(scope, depth);
         finish(args, ray, hit, payload, depth, counters);
     }
@@ -249,11 +288,13 @@ public:
     // Coherent ray generation through 8-wide packets: makeRay(x, y, payload)
     // returns the ray of pixel (x, y) and initialises its payload; 8
     // horizontally adjacent pixels are traced as one packet; closest-hit/miss
-    // then run per lane; done(x, y, payload) receives the result.
+    // then run per lane; done(x, y, payload) receives the result. With a
+    // back end, each 16x16 tile's rays are traced as one batch.
     template <class MakeRay, class Done>
     TraceCounters dispatchCoherent(int width, int height, const TraceArgs& args, MakeRay&& makeRay, Done&& done) const {
         if (args.missIndex >= desc_.missShaders.size())
             throw PipelineError("miss shader index " + std::to_string(args.missIndex) + " out of range");
+        if (backend_) return dispatchBatches(width, height, args, makeRay, done);
         return forEachTile(width, height, [&](const Tile& tile) {
             TraceScope& scope = currentTraceScope();
             TraceCounters& counters = *scope.counters;
@@ -288,8 +329,39 @@ public:
 
     const Desc& desc() const { return desc_; }
     const TraceEngine& engine() const { return engine_; }
+    TraversalBackend* backend() const { return backend_; }
 
 private:
+    // dispatchCoherent on a back end: one batch per tile.
+    template <class MakeRay, class Done>
+    TraceCounters dispatchBatches(int width, int height, const TraceArgs& args, MakeRay& makeRay, Done& done) const {
+        return forEachTile(width, height, [&](const Tile& tile) {
+            TraceScope& scope = currentTraceScope();
+            TraceCounters& counters = *scope.counters;
+            const std::size_t n = std::size_t(tile.x1 - tile.x0) * std::size_t(tile.y1 - tile.y0);
+            std::vector<Payload> payloads(n);
+            std::vector<RayDesc> rays(n);
+            std::vector<void*> payloadPtrs(n);
+            const std::unique_ptr<bool[]> active(new bool[n]);
+            std::vector<CommittedHit> hits(n);
+            std::size_t i = 0;
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x = tile.x0; x < tile.x1; ++x, ++i) {
+                    payloadPtrs[i] = &payloads[i];
+                    active[i] = true;
+                    rays[i] = makeRay(x, y, payloads[i]);
+                }
+            backend_->trace(engine_, args, rays.data(), payloadPtrs.data(), active.get(), n, 1, hits.data(), counters);
+            const DepthGuard guard(scope, 1);
+            i = 0;
+            for (int y = tile.y0; y < tile.y1; ++y)
+                for (int x = tile.x0; x < tile.x1; ++x, ++i) {
+                    finish(args, rays[i], hits[i], payloads[i], 1, counters);
+                    done(x, y, payloads[i]);
+                }
+        });
+    }
+
     // Restores the depth on scope exit (closest-hit/miss may recurse).
     struct DepthGuard {
         DepthGuard(TraceScope& s, std::uint32_t depth) : scope(s), saved(s.depth) { s.depth = depth; }
@@ -318,7 +390,7 @@ private:
     TraceCounters forEachTile(int width, int height, TileFn&& fn) const {
         const std::vector<Tile> tiles = makeTiles(width, height, 16);
         std::vector<TraceCounters> perTile(tiles.size());
-        parallelForEach(tiles.size(), [&](std::size_t i) {
+        const auto runTile = [&](std::size_t i) {
             TraceScope& scope = currentTraceScope();
             const TraceScope saved = scope;
             scope = TraceScope{0, &perTile[i]};
@@ -329,7 +401,13 @@ private:
                 throw;
             }
             scope = saved;
-        });
+        };
+        // An order-dependent back end (a simulated clock) sees the tiles in
+        // order, on this thread.
+        if (backend_ && backend_->orderDependent())
+            for (std::size_t i = 0; i < tiles.size(); ++i) runTile(i);
+        else
+            parallelForEach(tiles.size(), runTile);
         TraceCounters total;
         for (const TraceCounters& c : perTile) total.add(c);
         return total;
@@ -352,6 +430,7 @@ private:
 
     Desc desc_;
     bool anyHitShaders_ = false;
+    TraversalBackend* backend_ = nullptr;
     TraceEngine engine_;
 };
 
