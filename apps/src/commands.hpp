@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace rtlab::app {
 
@@ -15,6 +16,9 @@ struct RenderOptions {
     int spp = 1;
     int frames = 1;
     std::string backend = "embree";
+    std::string rtcoreConfig;               // --rtcore-config FILE (JSON)
+    std::vector<std::string> rtcoreSet;     // --rtcore-set section.field=value, in order
+    bool verify = false;                    // --verify: trace every ray on both back ends
     int threads = 0;
     std::uint32_t seed = 0;
     std::string out = "out";

@@ -112,6 +112,11 @@ TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
         "render --scene /no/such/file.gltf --out " + out.string(),
         "render --scene builtin:cornell --width 0 --out " + out.string(),
         "render --scene builtin:cornell --backend warp --out " + out.string(),
+        "render --scene builtin:cornell --rtcore-set bvh.width=8 --out " + out.string(),  // embree back end
+        "render --scene builtin:cornell --verify --out " + out.string(),
+        "render --scene builtin:cornell --backend rtcore --rtcore-set bvh.width=5 --out " + out.string(),
+        "render --scene builtin:cornell --backend rtcore --rtcore-set nope.x=1 --out " + out.string(),
+        "render --scene builtin:cornell --backend rtcore --rtcore-config /no/such/rtcore.json --out " + out.string(),
         "render --bogus-flag",
         "frobnicate",
         "compare /no/a.exr /no/b.exr",
