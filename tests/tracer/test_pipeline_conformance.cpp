@@ -1235,7 +1235,9 @@ TEST(PacketPath, DispatchCoherentMatchesPerRayTraceRay) {
         EXPECT_EQ(cs.closestHitInvocations, cp.closestHitInvocations);
         EXPECT_EQ(cs.missInvocations, cp.missInvocations);
         // Packets exist on the Embree path only; a back end traces whole tiles.
-        if (!s.backend) EXPECT_EQ(cp.packetsTraced, 3u * kGridH);  // 2 full + 1 partial packet per row
+        if (!s.backend) {
+            EXPECT_EQ(cp.packetsTraced, 3u * kGridH);  // 2 full + 1 partial packet per row
+        }
         // Step: the scene is not trivial under any combination.
         EXPECT_GT(hits, 10) << "flags 0x" << std::hex << flags;
         EXPECT_LT(hits, kGridW * kGridH) << "flags 0x" << std::hex << flags;

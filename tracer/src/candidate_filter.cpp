@@ -36,13 +36,12 @@ bool CandidateFilter::triangle(std::uint32_t lane, float t, std::uint32_t instan
     HitAttributes attributes;
     attributes.values[0] = u;
     attributes.values[1] = v;
-    return decide(lane, t, instance, geometry, primitive, false,
-                  front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace, attributes);
+    return decide(lane, t, instance, geometry, primitive, front ? kHitKindTriangleFrontFace : kHitKindTriangleBackFace,
+                  attributes);
 }
 
 bool CandidateFilter::decide(std::uint32_t lane, float t, std::uint32_t instance, std::uint32_t geometry,
-                             std::uint32_t primitive, bool procedural, std::uint32_t hitKind,
-                             const HitAttributes& attributes) {
+                             std::uint32_t primitive, std::uint32_t hitKind, const HitAttributes& attributes) {
     const RayDesc& ray = rays_[lane];
     // Step: the ray is the open interval (TMin, TMax).
     if (!(t > ray.tMin && t < ray.tMax)) return false;
@@ -50,7 +49,6 @@ bool CandidateFilter::decide(std::uint32_t lane, float t, std::uint32_t instance
     const ecs::InstanceSnapshot& inst = accel.instance(instance);
     const GeometryInfo& geo = accel.geometryInfo(inst.mesh, geometry);
     const std::uint32_t flags = args_.rayFlags;
-    (void)procedural;
 
     // Step: opacity — geometry flag, then instance overrides, then ray overrides.
     const bool opaque = isOpaque(geo, inst, flags);
@@ -69,19 +67,14 @@ bool CandidateFilter::decide(std::uint32_t lane, float t, std::uint32_t instance
     const ShaderTableView& shaders = engine_->shaders();
     if (!opaque && shaders.hasAnyHit(record)) {
         ++counters_->anyHitInvocations;
-        HitContext hc;
-        hc.worldRayOrigin = ray.origin;
-        hc.worldRayDirection = ray.direction;
-        hc.rayTMin = ray.tMin;
-        hc.rayTCurrent = t;
-        hc.rayFlags = flags;
-        hc.instanceIndex = instance;
-        hc.instanceId = inst.instanceId;
-        hc.geometryIndex = geometry;
-        hc.primitiveIndex = primitive;
-        hc.hitKind = hitKind;
-        hc.recursionDepth = depth_;
-        hc.instance = &inst;
+        // Any-hit sees the candidate as closest-hit would see a committed hit.
+        CommittedHit candidate;
+        candidate.t = t;
+        candidate.instanceIndex = instance;
+        candidate.geometryIndex = geometry;
+        candidate.primitiveIndex = primitive;
+        candidate.hitKind = hitKind;
+        const HitContext hc = engine_->hitContext(args_, ray, candidate, depth_);
         AnyHitResult result = AnyHitResult::Ignore;
         try {
             result = shaders.anyHit(record, hc, payloads_[lane], attributes);
@@ -152,7 +145,7 @@ bool CandidateFilter::procedural(std::uint32_t lane, std::uint32_t instance, std
         }
         if (f.lanes_[s.lane].ended || f.error_) return false;
         if (!(t > f.rays_[s.lane].tMin && t < s.hooks->currentT(s.hooks->state))) return false;
-        if (!f.decide(s.lane, t, s.instance, s.geometry, s.primitive, true, hitKind, attributes)) return false;
+        if (!f.decide(s.lane, t, s.instance, s.geometry, s.primitive, hitKind, attributes)) return false;
         s.hooks->commit(s.hooks->state, t);
         s.ic->rayTCurrent = t;
         return true;

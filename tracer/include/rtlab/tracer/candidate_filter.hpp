@@ -74,8 +74,10 @@ public:
     TraceCounters& counters() const { return *counters_; }
 
 private:
+    // Interval, opacity, any-hit and commit: the part triangles and
+    // procedural reports share.
     bool decide(std::uint32_t lane, float t, std::uint32_t instance, std::uint32_t geometry, std::uint32_t primitive,
-                bool procedural, std::uint32_t hitKind, const HitAttributes& attributes);
+                std::uint32_t hitKind, const HitAttributes& attributes);
 
     const TraceEngine* engine_;
     TraceArgs args_;
