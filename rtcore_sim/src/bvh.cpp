@@ -147,6 +147,12 @@ Triangle triangleOf(const ecs::Geometry& g, std::uint32_t t) {
     return Triangle{{g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]], g.positions[g.indices[3 * t + 2]]}};
 }
 
+// A leaf slot's data: the triangle's vertices, or a procedural box's corners.
+Triangle leafSlotOf(const ecs::Geometry& g, std::uint32_t primitive) {
+    if (g.procedural()) return Triangle{{g.proceduralBoxes[primitive].lo, g.proceduralBoxes[primitive].hi, vec3(0.f)}};
+    return triangleOf(g, primitive);
+}
+
 // Spatial splits of mesh triangles: clip the triangle at the plane and keep
 // each side's part inside the reference's current box.
 class TriangleSplitter final : public PrimitiveSplitter {
@@ -154,6 +160,13 @@ public:
     explicit TriangleSplitter(const ecs::MeshAsset& mesh) : mesh_(mesh) {}
     void split(const PrimitiveRef& ref, const Aabb& bounds, int axis, float position, Aabb& left,
                Aabb& right) const override {
+        if (mesh_.geometries[ref.geometry].procedural()) {  // a box: cut it at the plane
+            left = bounds;
+            right = bounds;
+            left.hi[axis] = std::min(left.hi[axis], position);
+            right.lo[axis] = std::max(right.lo[axis], position);
+            return;
+        }
         const Triangle tri = triangleOf(mesh_.geometries[ref.geometry], ref.primitive);
         left = Aabb{};
         right = Aabb{};
@@ -284,10 +297,19 @@ Blas buildBlas(const BvhBuilder& builder, const ecs::MeshAsset& mesh, const BvhP
         const ecs::Geometry& geo = mesh.geometries[g];
         deformable = deformable || geo.deformable();
         if (geo.procedural()) {
+            // Procedural geometry: one reference per valid AABB (its box is the build bound).
             blas.triangleCounts.push_back(0);
+            blas.proceduralCounts.push_back(static_cast<std::uint32_t>(geo.proceduralBoxes.size()));
+            blas.hasProcedural = true;
+            for (std::uint32_t b = 0; b < geo.proceduralBoxes.size(); ++b) {
+                const Aabb& box = geo.proceduralBoxes[b];
+                if (box.empty() || !isFinite(box.lo) || !isFinite(box.hi)) continue;
+                prims.push_back(BuildPrimitive{box, PrimitiveRef{g, b}});
+            }
             continue;
         }
         blas.triangleCounts.push_back(static_cast<std::uint32_t>(geo.triangleCount()));
+        blas.proceduralCounts.push_back(0);
         for (std::uint32_t t = 0; t < geo.triangleCount(); ++t) {
             if (!finiteTriangle(geo, t)) continue;
             const Triangle tri = triangleOf(geo, t);
@@ -307,7 +329,7 @@ Blas buildBlas(const BvhBuilder& builder, const ecs::MeshAsset& mesh, const BvhP
 
     // Step: the leaves' triangle data, in reference order.
     blas.triangles.reserve(blas.bvh.refs.size());
-    for (const PrimitiveRef& r : blas.bvh.refs) blas.triangles.push_back(triangleOf(mesh.geometries[r.geometry], r.primitive));
+    for (const PrimitiveRef& r : blas.bvh.refs) blas.triangles.push_back(leafSlotOf(mesh.geometries[r.geometry], r.primitive));
     blas.buildSahCost = blas.bvh.sahCost(params.sahTraversalCost, params.sahIntersectionCost);
     return blas;
 }
@@ -315,8 +337,11 @@ Blas buildBlas(const BvhBuilder& builder, const ecs::MeshAsset& mesh, const BvhP
 void refitBlas(Blas& blas, const ecs::MeshAsset& mesh) {
     // Step: the topology must be the one the BVH was built for.
     bool sameTopology = mesh.geometries.size() == blas.triangleCounts.size();
-    for (std::size_t g = 0; sameTopology && g < mesh.geometries.size(); ++g)
-        sameTopology = (mesh.geometries[g].procedural() ? 0 : mesh.geometries[g].triangleCount()) == blas.triangleCounts[g];
+    for (std::size_t g = 0; sameTopology && g < mesh.geometries.size(); ++g) {
+        const ecs::Geometry& geo = mesh.geometries[g];
+        sameTopology = (geo.procedural() ? 0 : geo.triangleCount()) == blas.triangleCounts[g] &&
+                       (geo.procedural() ? geo.proceduralBoxes.size() : 0) == blas.proceduralCounts[g];
+    }
     if (!sameTopology) throw std::invalid_argument("refitBlas: mesh \"" + mesh.name + "\" changed topology; rebuild it");
 
     Bvh& bvh = blas.bvh;
@@ -327,8 +352,9 @@ void refitBlas(Blas& blas, const ecs::MeshAsset& mesh) {
         const BvhLeaf& leaf = bvh.leaves[l];
         for (std::uint32_t i = leaf.firstRef; i < leaf.firstRef + leaf.refCount; ++i) {
             const PrimitiveRef& r = bvh.refs[i];
-            blas.triangles[i] = triangleOf(mesh.geometries[r.geometry], r.primitive);
-            for (const vec3& v : blas.triangles[i].v) leafBounds[l].extend(v);
+            blas.triangles[i] = leafSlotOf(mesh.geometries[r.geometry], r.primitive);
+            if (blas.isProcedural(r)) leafBounds[l].extend(blas.proceduralBox(i));
+            else for (const vec3& v : blas.triangles[i].v) leafBounds[l].extend(v);
         }
     }
     // Step: children before parents (pre-order), so walk the nodes backwards.

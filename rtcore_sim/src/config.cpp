@@ -1,4 +1,5 @@
 #include <rtlab/rtcore_sim/config.hpp>
+#include <rtlab/rtcore_sim/scheduler.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -31,6 +32,15 @@ std::string listAllowed(const std::vector<nlohmann::json>& allowed) {
 template <class Fn>
 void forEachSection(Fn&& fn) {
     fn("bvh", &RtCoreConfig::bvh, bvhParamTable());
+    fn("core", &RtCoreConfig::core, coreParamTable());
+    fn("scheduler", &RtCoreConfig::scheduler, schedulerParamTable());
+    fn("traversal", &RtCoreConfig::traversal, traversalParamTable());
+    fn("triangle", &RtCoreConfig::triangle, triangleParamTable());
+    fn("transform", &RtCoreConfig::transform, transformParamTable());
+    fn("shader", &RtCoreConfig::shader, shaderParamTable());
+    fn("stack", &RtCoreConfig::stack, stackParamTable());
+    fn("cache", &RtCoreConfig::cache, cacheParamTable());
+    fn("memory", &RtCoreConfig::memory, memoryParamTable());
 }
 
 std::string knownSections() {
@@ -130,6 +140,144 @@ const ParamTable<BvhParams>& bvhParamTable() {
         return t;
     }();
     return table;
+}
+
+const ParamTable<CoreParams>& coreParamTable() {
+    static const ParamTable<CoreParams> table = [] {
+        ParamTable<CoreParams> t;
+        t.addUnsigned("warpWidth", &CoreParams::warpWidth, "rays per warp the shader side submits at once", 1, 64);
+        t.addUnsigned("inputQueueRays", &CoreParams::inputQueueRays,
+                      "input queue capacity in rays (a warp enters only when all its rays fit)", 1, 65536);
+        t.addUnsigned("raySlots", &CoreParams::raySlots, "rays traversing at once, each with its own short stack", 1, 4096);
+        t.addUnsigned("admitPerCycle", &CoreParams::admitPerCycle,
+                      "rays moved from the input queue into free ray slots per cycle", 1, 64);
+        t.addUnsigned("completionQueueRays", &CoreParams::completionQueueRays,
+                      "completion queue capacity in rays (a finished ray keeps its slot while it is full)", 1, 65536);
+        t.addUnsigned("completionPerCycle", &CoreParams::completionPerCycle,
+                      "results returned to the shader side per cycle", 1, 64);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<SchedulerParams>& schedulerParamTable() {
+    static const ParamTable<SchedulerParams> table = [] {
+        ParamTable<SchedulerParams> t;
+        t.addStringChoice("policy", &SchedulerParams::policy,
+                          "which ready ray issues next: fifo, oldestFirst or treelet (Aila & Karras 2010 treelet queues)",
+                          schedulerPolicyNames());
+        t.addUnsigned("issueWidth", &SchedulerParams::issueWidth, "traversal steps the scheduler issues per cycle", 1, 64);
+        t.addUnsigned("treeletBytes", &SchedulerParams::treeletBytes,
+                      "treelet policy: BVH memory per treelet (a treelet = an aligned block of this many bytes)", 64,
+                      1u << 24);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<TraversalUnitParams>& traversalParamTable() {
+    static const ParamTable<TraversalUnitParams> table = [] {
+        ParamTable<TraversalUnitParams> t;
+        t.addUnsigned("units", &TraversalUnitParams::units, "box-test (traversal) units", 1, 64);
+        t.addUnsigned("boxesPerCycle", &TraversalUnitParams::boxesPerCycle,
+                      "child boxes one unit tests per cycle (a node occupies it ceil(children / this) cycles)", 1, 64);
+        t.addUnsigned("latency", &TraversalUnitParams::latency, "cycles from a node's last issue cycle to its result", 1,
+                      1000);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<TriangleUnitParams>& triangleParamTable() {
+    static const ParamTable<TriangleUnitParams> table = [] {
+        ParamTable<TriangleUnitParams> t;
+        t.addUnsigned("units", &TriangleUnitParams::units,
+                      "primitive intersection units (watertight triangle tests, procedural AABB tests)", 1, 64);
+        t.addUnsigned("testsPerCycle", &TriangleUnitParams::testsPerCycle,
+                      "primitive tests one unit starts per cycle (a leaf occupies it ceil(tests / this) cycles)", 1, 64);
+        t.addUnsigned("latency", &TriangleUnitParams::latency, "cycles from a leaf's last issue cycle to its result", 1,
+                      1000);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<TransformUnitParams>& transformParamTable() {
+    static const ParamTable<TransformUnitParams> table = [] {
+        ParamTable<TransformUnitParams> t;
+        t.addUnsigned("units", &TransformUnitParams::units,
+                      "instance-transform units (one world-to-object ray transform per unit per cycle)", 1, 64);
+        t.addUnsigned("latency", &TransformUnitParams::latency, "cycles of one ray transform", 1, 1000);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<ShaderParams>& shaderParamTable() {
+    static const ParamTable<ShaderParams> table = [] {
+        ParamTable<ShaderParams> t;
+        t.addUnsigned("anyHitLatency", &ShaderParams::anyHitLatency,
+                      "cycles of one any-hit shader round trip to the programmable side", 0, 100000);
+        t.addUnsigned("intersectionLatency", &ShaderParams::intersectionLatency,
+                      "cycles of one intersection shader round trip to the programmable side", 0, 100000);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<StackParams>& stackParamTable() {
+    static const ParamTable<StackParams> table = [] {
+        ParamTable<StackParams> t;
+        t.addUnsigned("shortStackEntries", &StackParams::shortStackEntries,
+                      "on-chip stack entries per ray slot; deeper entries spill to memory", 1, 64);
+        t.addUnsigned("refillEntries", &StackParams::refillEntries,
+                      "spilled entries read back by one refill (at most shortStackEntries)", 1, 64);
+        t.addUnsigned("entryBytes", &StackParams::entryBytes, "bytes per stack entry in memory", 4, 64);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<CacheParams>& cacheParamTable() {
+    static const ParamTable<CacheParams> table = [] {
+        ParamTable<CacheParams> t;
+        t.addUnsigned("sizeBytes", &CacheParams::sizeBytes,
+                      "node cache capacity (a power-of-two number of sets of `ways` lines)", 16, 1u << 30);
+        t.addUnsignedOneOf("lineBytes", &CacheParams::lineBytes, "cache line size", {16, 32, 64, 128, 256});
+        t.addUnsigned("ways", &CacheParams::ways, "associativity (lines per set, LRU replacement)", 1, 64);
+        t.addUnsigned("hitLatency", &CacheParams::hitLatency, "cycles from a fetch to its data on a hit", 1, 1000);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<MemoryParams>& memoryParamTable() {
+    static const ParamTable<MemoryParams> table = [] {
+        ParamTable<MemoryParams> t;
+        t.addUnsigned("latency", &MemoryParams::latency,
+                      "cycles from the end of a request's transfer slot until its data arrives", 1, 100000);
+        t.addUnsigned("bytesPerCycle", &MemoryParams::bytesPerCycle,
+                      "memory channel bandwidth (a request of B bytes occupies it ceil(B / this) cycles)", 1, 4096);
+        return t;
+    }();
+    return table;
+}
+
+void RtCoreConfig::validate(const std::string& where) const {
+    if (core.inputQueueRays < core.warpWidth)
+        fail(where, "core.inputQueueRays",
+             "must be at least core.warpWidth (" + std::to_string(core.warpWidth) + ") so that a warp fits (got " +
+                 std::to_string(core.inputQueueRays) + ")");
+    if (stack.refillEntries > stack.shortStackEntries)
+        fail(where, "stack.refillEntries",
+             "must be at most stack.shortStackEntries (" + std::to_string(stack.shortStackEntries) + ") (got " +
+                 std::to_string(stack.refillEntries) + ")");
+    const std::uint64_t setBytes = std::uint64_t(cache.lineBytes) * cache.ways;
+    const std::uint64_t sets = cache.sizeBytes / setBytes;
+    if (cache.sizeBytes % setBytes != 0 || sets == 0 || (sets & (sets - 1)) != 0)
+        fail(where, "cache.sizeBytes",
+             "must be a power-of-two multiple of cache.lineBytes x cache.ways (" + std::to_string(setBytes) +
+                 " bytes) (got " + std::to_string(cache.sizeBytes) + ")");
 }
 
 RtCoreConfig RtCoreConfig::fromJson(const nlohmann::json& json, const std::string& where) {

@@ -13,6 +13,7 @@ void ModelScene::buildBlasOf(const ecs::MeshAsset& mesh, ecs::MeshId id) {
 
 ModelUpdateStats ModelScene::update(const ecs::SceneSnapshot& scene) {
     ModelUpdateStats stats;
+    ++generation_;
     const ecs::FrameUpdate& u = scene.update;
     const std::vector<ecs::MeshAsset>& meshes = *scene.meshes;
     std::vector<std::uint8_t> touched(meshes.size(), 0);

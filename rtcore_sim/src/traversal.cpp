@@ -1,8 +1,8 @@
-// Closest-hit traversal of the model's two-level BVH with one stack per ray.
+// The traversal step shared by the functional traversal and the timing model.
 #include <rtlab/rtcore_sim/traversal.hpp>
+#include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -14,118 +14,7 @@ constexpr float kMachineEpsilon = std::numeric_limits<float>::epsilon() * 0.5f;
 // gamma(n) of pbrt-v4: bound on the relative error of n rounded operations.
 constexpr float errorGamma(int n) { return (n * kMachineEpsilon) / (1.f - n * kMachineEpsilon); }
 
-// a*b - c*d with one rounding error (Kahan's algorithm, as pbrt-v4).
-float differenceOfProducts(float a, float b, float c, float d) {
-    const float cd = c * d;
-    const float difference = std::fma(a, b, -cd);
-    const float error = std::fma(-c, d, cd);
-    return difference + error;
-}
-
-int maxComponentIndex(const vec3& v) { return (v.x > v.y) ? (v.x > v.z ? 0 : 2) : (v.y > v.z ? 1 : 2); }
-float maxComponent(float a, float b, float c) { return std::max(a, std::max(b, c)); }
-
-// Stack entries: a node or leaf of the TLAS or of the current instance's
-// BLAS, or an instance still to enter.
-// Trivially constructible, so that the stack array costs nothing to create.
-enum class EntryKind : std::uint8_t { TlasRef, BlasRef, Instance };
-struct StackEntry {
-    std::uint32_t refBits;  // NodeRef bits of a node/leaf; the instance index for Instance
-    float tEntry;           // entry distance of its box (culls the entry once a closer hit exists)
-    EntryKind kind;
-    NodeRef ref() const { return NodeRef{refBits}; }
-};
-
-// Bound: (width - 1) entries per level of both trees (each <= 41 levels,
-// Embree's depth limit) plus one TLAS leaf's instances.
-constexpr std::size_t kStackCapacity = (kMaxBvhWidth - 1) * 2 * 41 + 32 + 1;
-
-class TraversalStack {
-public:
-    void push(const StackEntry& e, TraversalCounters& counters) {
-        if (size_ == entries_.size()) throw std::logic_error("rtcore_sim traversal stack overflow");
-        entries_[size_++] = e;
-        counters.maxStackDepth = std::max(counters.maxStackDepth, static_cast<std::uint32_t>(size_));
-    }
-    bool empty() const { return size_ == 0; }
-    StackEntry pop() { return entries_[--size_]; }
-
-private:
-    std::array<StackEntry, kStackCapacity> entries_;  // left uninitialised: only pushed entries are read
-    std::size_t size_ = 0;
-};
-
-// The ray in the space of the BVH being traversed.
-struct SpaceRay {
-    vec3 origin;
-    vec3 direction;
-    vec3 invDirection;
-};
-
 }  // namespace
-
-std::optional<TriangleHit> intersectTriangle(const vec3& origin, const vec3& direction, float tMax, const vec3& p0,
-                                             const vec3& p1, const vec3& p2) {
-    // Step: degenerate triangles never hit.
-    const vec3 n = glm::cross(p2 - p0, p1 - p0);
-    if (glm::dot(n, n) == 0.f) return std::nullopt;
-
-    // Step: translate to the ray origin, permute so that z is the direction's largest axis.
-    vec3 p0t = p0 - origin, p1t = p1 - origin, p2t = p2 - origin;
-    const int kz = maxComponentIndex(glm::abs(direction));
-    const int kx = kz == 2 ? 0 : kz + 1;
-    const int ky = kx == 2 ? 0 : kx + 1;
-    const vec3 d(direction[kx], direction[ky], direction[kz]);
-    p0t = vec3(p0t[kx], p0t[ky], p0t[kz]);
-    p1t = vec3(p1t[kx], p1t[ky], p1t[kz]);
-    p2t = vec3(p2t[kx], p2t[ky], p2t[kz]);
-
-    // Step: shear so that the ray points along +z.
-    const float sx = -d.x / d.z;
-    const float sy = -d.y / d.z;
-    const float sz = 1.f / d.z;
-    p0t.x += sx * p0t.z; p0t.y += sy * p0t.z;
-    p1t.x += sx * p1t.z; p1t.y += sy * p1t.z;
-    p2t.x += sx * p2t.z; p2t.y += sy * p2t.z;
-
-    // Step: edge functions; exactly zero ones are recomputed in double.
-    float e0 = differenceOfProducts(p1t.x, p2t.y, p1t.y, p2t.x);
-    float e1 = differenceOfProducts(p2t.x, p0t.y, p2t.y, p0t.x);
-    float e2 = differenceOfProducts(p0t.x, p1t.y, p0t.y, p1t.x);
-    if (e0 == 0.f || e1 == 0.f || e2 == 0.f) {
-        e0 = static_cast<float>(double(p1t.x) * double(p2t.y) - double(p1t.y) * double(p2t.x));
-        e1 = static_cast<float>(double(p2t.x) * double(p0t.y) - double(p2t.y) * double(p0t.x));
-        e2 = static_cast<float>(double(p0t.x) * double(p1t.y) - double(p0t.y) * double(p1t.x));
-    }
-
-    // Step: inside when all edge functions have the same sign (zero counts as either).
-    if ((e0 < 0.f || e1 < 0.f || e2 < 0.f) && (e0 > 0.f || e1 > 0.f || e2 > 0.f)) return std::nullopt;
-    const float det = e0 + e1 + e2;
-    if (det == 0.f) return std::nullopt;
-
-    // Step: scaled distance, tested against (0, tMax] without dividing.
-    p0t.z *= sz; p1t.z *= sz; p2t.z *= sz;
-    const float tScaled = e0 * p0t.z + e1 * p1t.z + e2 * p2t.z;
-    if (det < 0.f && (tScaled >= 0.f || tScaled < tMax * det)) return std::nullopt;
-    if (det > 0.f && (tScaled <= 0.f || tScaled > tMax * det)) return std::nullopt;
-
-    // Step: barycentrics and t.
-    const float invDet = 1.f / det;
-    const TriangleHit hit{tScaled * invDet, e0 * invDet, e1 * invDet, e2 * invDet};
-
-    // Step: reject t not conservatively greater than zero (error bounds of pbrt-v4).
-    const float maxZt = maxComponent(std::abs(p0t.z), std::abs(p1t.z), std::abs(p2t.z));
-    const float deltaZ = errorGamma(3) * maxZt;
-    const float maxXt = maxComponent(std::abs(p0t.x), std::abs(p1t.x), std::abs(p2t.x));
-    const float maxYt = maxComponent(std::abs(p0t.y), std::abs(p1t.y), std::abs(p2t.y));
-    const float deltaX = errorGamma(5) * (maxXt + maxZt);
-    const float deltaY = errorGamma(5) * (maxYt + maxZt);
-    const float deltaE = 2.f * (errorGamma(2) * maxXt * maxYt + deltaY * maxXt + deltaX * maxYt);
-    const float maxE = maxComponent(std::abs(e0), std::abs(e1), std::abs(e2));
-    const float deltaT = 3.f * (errorGamma(3) * maxE * maxZt + deltaE * maxZt + deltaZ * maxE) * std::abs(invDet);
-    if (hit.t <= deltaT) return std::nullopt;
-    return hit;
-}
 
 vec3 reciprocalDirection(const vec3& direction) { return vec3(1.f) / direction; }
 
@@ -149,114 +38,213 @@ std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec
     return tNear;
 }
 
-ModelHit traceClosestHit(const ModelScene& scene, const ModelRay& ray, TraversalCounters& counters) {
-    ModelHit hit;
+TraversalCounters& TraversalCounters::operator+=(const TraversalCounters& o) {
+    steps += o.steps;
+    nodeVisits += o.nodeVisits;
+    leafVisits += o.leafVisits;
+    boxTests += o.boxTests;
+    triangleTests += o.triangleTests;
+    proceduralTests += o.proceduralTests;
+    instanceTransitions += o.instanceTransitions;
+    anyHitCalls += o.anyHitCalls;
+    intersectionCalls += o.intersectionCalls;
+    maxStackDepth = std::max(maxStackDepth, o.maxStackDepth);
+    return *this;
+}
+
+// ---------------------------------------------------------------------------
+// RayTraversal
+
+void RayTraversal::begin(const ModelScene& scene, const SimRay& ray) {
+    scene_ = &scene;
+    ray_ = ray;
+    tClosest_ = ray.ray.tMax;
+    hit_ = ModelHit{};
+    counters_ = TraversalCounters{};
+    world_ = SpaceRay{ray.ray.origin, ray.ray.direction, reciprocalDirection(ray.ray.direction)};
+    object_ = world_;
+    blas_ = nullptr;
+    instanceIndex_ = 0;
+    mesh_ = 0;
+    size_ = 0;
     const Bvh& tlas = scene.tlas();
-    if (tlas.empty()) return hit;
-    float tClosest = ray.tMax;
+    finished_ = tlas.empty();
+    current_ = StackEntry{tlas.root.bits, ray.ray.tMin, EntryKind::TlasRef};  // the TLAS root box is not tested
+}
 
-    const SpaceRay world{ray.origin, ray.direction, reciprocalDirection(ray.direction)};
-    SpaceRay object = world;
-    const Blas* blas = nullptr;          // BLAS of the instance being traversed
-    std::uint32_t instanceIndex = 0;
+void RayTraversal::push(const StackEntry& e) {
+    if (size_ == stack_.size()) throw std::logic_error("rtcore_sim traversal stack overflow");
+    stack_[size_++] = e;
+    counters_.maxStackDepth = std::max(counters_.maxStackDepth, static_cast<std::uint32_t>(size_));
+}
 
-    TraversalStack stack;
-    StackEntry current{tlas.root.bits, ray.tMin, EntryKind::TlasRef};
-    bool haveCurrent = true;
-    for (;;) {
-        // Step: next entry — the nearest child kept from the last node, else
-        // the top of the stack unless a closer hit has been found meanwhile.
-        if (!haveCurrent) {
-            if (stack.empty()) break;
-            current = stack.pop();
-            if (current.tEntry > tClosest) continue;
-        }
-        haveCurrent = false;
-
-        // Step: instance transition — the ray into the instance's object space.
-        if (current.kind == EntryKind::Instance) {
-            instanceIndex = current.refBits;
-            const ModelInstance& inst = scene.instances()[instanceIndex];
-            blas = scene.blas(inst.mesh);
-            ++counters.instanceTransitions;
-            object.origin = vec3(inst.objectFromWorld * glm::dvec4(glm::dvec3(ray.origin), 1.0));
-            object.direction = vec3(glm::dmat3(inst.objectFromWorld) * glm::dvec3(ray.direction));
-            object.invDirection = reciprocalDirection(object.direction);
-            if (!blas || blas->bvh.empty()) continue;
-            current = StackEntry{blas->bvh.root.bits, current.tEntry, EntryKind::BlasRef};
-            haveCurrent = true;
-            continue;
-        }
-
-        const bool inTlas = current.kind == EntryKind::TlasRef;
-        const Bvh& bvh = inTlas ? tlas : blas->bvh;
-        const SpaceRay& space = inTlas ? world : object;
-
-        if (current.ref().isNode()) {
-            // Step: internal node — test every child box, visit the nearest
-            // next, push the others far-to-near (ties keep slot order).
-            ++counters.nodeVisits;
-            const BvhNode& node = bvh.nodes[current.ref().index()];
-            std::array<StackEntry, kMaxBvhWidth> hits;  // the first hitCount are written
-            std::uint32_t hitCount = 0;
-            for (std::uint32_t i = 0; i < node.childCount; ++i) {
-                ++counters.boxTests;
-                const std::optional<float> tEntry =
-                    intersectBox(node.childBounds[i], space.origin, space.invDirection, ray.tMin, tClosest);
-                if (!tEntry) continue;
-                // Insertion sort by entry distance, nearest first.
-                std::uint32_t k = hitCount++;
-                while (k > 0 && hits[k - 1].tEntry > *tEntry) {
-                    hits[k] = hits[k - 1];
-                    --k;
-                }
-                hits[k] = StackEntry{node.children[i].bits, *tEntry, current.kind};
-            }
-            if (hitCount == 0) continue;
-            for (std::uint32_t k = hitCount; k-- > 1;) stack.push(hits[k], counters);
-            current = hits[0];
-            haveCurrent = true;
-            continue;
-        }
-
-        // Step: leaf.
-        ++counters.leafVisits;
-        const BvhLeaf& leaf = bvh.leaves[current.ref().index()];
-        if (inTlas) {
-            // TLAS leaf: instances passing the mask are entered in reference
-            // order (later ones wait on the stack).
-            std::array<std::uint32_t, 32> entered;
-            std::uint32_t enteredCount = 0;
-            for (std::uint32_t r = leaf.firstRef; r < leaf.firstRef + leaf.refCount; ++r) {
-                const std::uint32_t index = bvh.refs[r].primitive;
-                if ((ray.mask & scene.instances()[index].mask) != 0) entered[enteredCount++] = index;
-            }
-            if (enteredCount == 0) continue;
-            for (std::uint32_t k = enteredCount; k-- > 1;)
-                stack.push(StackEntry{entered[k], current.tEntry, EntryKind::Instance}, counters);
-            current = StackEntry{entered[0], current.tEntry, EntryKind::Instance};
-            haveCurrent = true;
-            continue;
-        }
-        // BLAS leaf: test every triangle; the closest one so far is committed.
-        for (std::uint32_t r = leaf.firstRef; r < leaf.firstRef + leaf.refCount; ++r) {
-            ++counters.triangleTests;
-            const Triangle& tri = blas->triangles[r];
-            const std::optional<TriangleHit> h =
-                intersectTriangle(object.origin, object.direction, tClosest, tri.v[0], tri.v[1], tri.v[2]);
-            if (!h || !(h->t > ray.tMin && h->t < tClosest)) continue;
-            tClosest = h->t;
-            hit.hit = true;
-            hit.t = h->t;
-            hit.instanceIndex = instanceIndex;
-            hit.geometryIndex = blas->bvh.refs[r].geometry;
-            hit.primitiveIndex = blas->bvh.refs[r].primitive;
-            hit.b0 = h->b0;
-            hit.b1 = h->b1;
-            hit.b2 = h->b2;
-        }
+void RayTraversal::selectNext(StepInfo& info) {
+    // The top of the stack, unless a closer hit has been found since it was pushed.
+    while (size_ > 0) {
+        const StackEntry& e = stack_[--size_];
+        ++info.pops;
+        if (e.tEntry > tClosest_) continue;
+        current_ = e;
+        return;
     }
-    return hit;
+    finished_ = true;
+}
+
+void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo& info) {
+    info = StepInfo{};
+    ++counters_.steps;
+    const StackEntry current = current_;
+
+    // Step: instance transition — the ray into the instance's object space.
+    if (current.kind == EntryKind::Instance) {
+        info.kind = StepKind::Instance;
+        info.index = current.refBits;
+        instanceIndex_ = current.refBits;
+        const ModelInstance& inst = scene_->instances()[instanceIndex_];
+        blas_ = scene_->blas(inst.mesh);
+        mesh_ = inst.mesh;
+        info.mesh = mesh_;
+        ++counters_.instanceTransitions;
+        object_.origin = vec3(inst.objectFromWorld * glm::dvec4(glm::dvec3(world_.origin), 1.0));
+        object_.direction = vec3(glm::dmat3(inst.objectFromWorld) * glm::dvec3(world_.direction));
+        object_.invDirection = reciprocalDirection(object_.direction);
+        if (!blas_ || blas_->bvh.empty()) return selectNext(info);
+        current_ = StackEntry{blas_->bvh.root.bits, current.tEntry, EntryKind::BlasRef};
+        return;
+    }
+
+    const bool inTlas = current.kind == EntryKind::TlasRef;
+    const Bvh& bvh = inTlas ? scene_->tlas() : blas_->bvh;
+    const SpaceRay& space = inTlas ? world_ : object_;
+    info.tlas = inTlas;
+    info.mesh = inTlas ? 0 : mesh_;
+    info.index = current.ref().index();
+
+    if (current.ref().isNode()) {
+        // Step: internal node — test every child box, visit the nearest next,
+        // push the others far-to-near (ties keep slot order).
+        info.kind = StepKind::Node;
+        ++counters_.nodeVisits;
+        const BvhNode& node = bvh.nodes[current.ref().index()];
+        std::array<StackEntry, kMaxBvhWidth> hits;  // the first hitCount are written
+        std::uint32_t hitCount = 0;
+        info.boxTests = node.childCount;
+        counters_.boxTests += node.childCount;
+        for (std::uint32_t i = 0; i < node.childCount; ++i) {
+            const std::optional<float> tEntry =
+                intersectBox(node.childBounds[i], space.origin, space.invDirection, ray_.ray.tMin, tClosest_);
+            if (!tEntry) continue;
+            // Insertion sort by entry distance, nearest first.
+            std::uint32_t k = hitCount++;
+            while (k > 0 && hits[k - 1].tEntry > *tEntry) {
+                hits[k] = hits[k - 1];
+                --k;
+            }
+            hits[k] = StackEntry{node.children[i].bits, *tEntry, current.kind};
+        }
+        if (hitCount == 0) return selectNext(info);
+        for (std::uint32_t k = hitCount; k-- > 1;) push(hits[k]);
+        info.pushes = hitCount - 1;
+        current_ = hits[0];
+        return;
+    }
+
+    ++counters_.leafVisits;
+    const BvhLeaf& leaf = bvh.leaves[current.ref().index()];
+    if (inTlas) {
+        // Step: TLAS leaf — instances passing the mask are entered in
+        // reference order (later ones wait on the stack).
+        info.kind = StepKind::TlasLeaf;
+        std::array<std::uint32_t, 32> entered;
+        std::uint32_t enteredCount = 0;
+        for (std::uint32_t r = leaf.firstRef; r < leaf.firstRef + leaf.refCount; ++r) {
+            const std::uint32_t index = bvh.refs[r].primitive;
+            if ((ray_.ray.mask & scene_->instances()[index].mask) != 0) entered[enteredCount++] = index;
+        }
+        if (enteredCount == 0) return selectNext(info);
+        for (std::uint32_t k = enteredCount; k-- > 1;) push(StackEntry{entered[k], current.tEntry, EntryKind::Instance});
+        info.pushes = enteredCount - 1;
+        current_ = StackEntry{entered[0], current.tEntry, EntryKind::Instance};
+        return;
+    }
+    info.kind = StepKind::BlasLeaf;
+    blasLeaf(leaf, side, rayIndex, info);
+    if (!finished_) selectNext(info);
+}
+
+void RayTraversal::blasLeaf(const BvhLeaf& leaf, ProgrammableSide& side, std::uint32_t rayIndex, StepInfo& info) {
+    // Step: BLAS leaf — every primitive in reference order; a candidate the
+    // side commits becomes the closest hit, later tests use its t.
+    const Blas& blas = *blas_;
+    for (std::uint32_t r = leaf.firstRef; r < leaf.firstRef + leaf.refCount; ++r) {
+        const PrimitiveRef ref = blas.bvh.refs[r];
+        if (blas.isProcedural(ref)) {
+            if (ray_.skipProcedural) continue;
+            ++info.primitiveTests;
+            ++counters_.proceduralTests;
+            if (!intersectBox(blas.proceduralBox(r), object_.origin, object_.invDirection, ray_.ray.tMin, tClosest_))
+                continue;
+            const ProceduralVerdict v =
+                side.procedural(rayIndex, ProceduralCandidate{instanceIndex_, ref.geometry, ref.primitive, tClosest_});
+            if (v.shaderRan) {
+                ++info.intersectionCalls;
+                ++counters_.intersectionCalls;
+            }
+            if (v.commit) {
+                tClosest_ = v.t;
+                hit_ = ModelHit{true, v.t, instanceIndex_, ref.geometry, ref.primitive, 0.f, 0.f, 0.f, true};
+            }
+            if (v.endSearch) return endSearch();
+            continue;
+        }
+        if (ray_.skipTriangles) continue;
+        ++info.primitiveTests;
+        ++counters_.triangleTests;
+        const Triangle& tri = blas.triangles[r];
+        const std::optional<tracer::TriangleHit> h = tracer::intersectTriangleWatertight(
+            object_.origin, object_.direction, tri.v[0], tri.v[1], tri.v[2], ray_.ray.tMin, tClosest_);
+        if (!h) continue;
+        TriangleCandidate c;
+        c.instance = instanceIndex_;
+        c.geometry = ref.geometry;
+        c.primitive = ref.primitive;
+        c.t = h->t;
+        c.u = h->b1;
+        c.v = h->b2;
+        c.objectDirection = object_.direction;
+        c.objectGeometricNormal = glm::cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]);
+        const CandidateVerdict v = side.triangle(rayIndex, c);
+        if (v.shaderRan) {
+            ++info.anyHitCalls;
+            ++counters_.anyHitCalls;
+        }
+        if (v.commit) {
+            tClosest_ = h->t;
+            hit_ = ModelHit{true, h->t, instanceIndex_, ref.geometry, ref.primitive, 1.f - h->b1 - h->b2, h->b1, h->b2,
+                            false};
+        }
+        if (v.endSearch) return endSearch();
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Functional traversal
+
+ModelHit traceRay(const ModelScene& scene, const SimRay& ray, ProgrammableSide& side, std::uint32_t rayIndex,
+                  TraversalCounters& counters) {
+    RayTraversal traversal;
+    traversal.begin(scene, ray);
+    StepInfo info;
+    while (!traversal.finished()) traversal.step(side, rayIndex, info);
+    counters += traversal.counters();
+    return traversal.hit();
+}
+
+ModelHit traceClosestHit(const ModelScene& scene, const ModelRay& ray, TraversalCounters& counters) {
+    OpaqueSide side;
+    SimRay simRay;
+    simRay.ray = ray;
+    return traceRay(scene, simRay, side, 0, counters);
 }
 
 }  // namespace rtlab::rtcore_sim

@@ -5,6 +5,7 @@
 #include <rtlab/ecs/assets.hpp>
 #include <rtlab/rtcore_sim/model_scene.hpp>
 #include <rtlab/rtcore_sim/traversal.hpp>
+#include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <string>
 
@@ -46,7 +47,7 @@ inline ecs::MeshAsset makeSoupMesh(std::uint32_t count, std::uint32_t seed, floa
 }
 
 // Closest hit by testing every triangle of every instance, with the same
-// object-space ray and triangle test as the traversal.
+// object-space ray and triangle test (the tracer's watertight test) as the traversal.
 inline ModelHit bruteForceClosestHit(const ModelScene& scene, const std::vector<ecs::MeshAsset>& meshes,
                                      const ModelRay& ray) {
     ModelHit best;
@@ -60,12 +61,12 @@ inline ModelHit bruteForceClosestHit(const ModelScene& scene, const std::vector<
         for (std::uint32_t g = 0; g < mesh.geometries.size(); ++g) {
             const ecs::Geometry& geo = mesh.geometries[g];
             for (std::uint32_t t = 0; t < geo.triangleCount(); ++t) {
-                const std::optional<TriangleHit> h =
-                    intersectTriangle(origin, direction, tClosest, geo.positions[geo.indices[3 * t]],
-                                      geo.positions[geo.indices[3 * t + 1]], geo.positions[geo.indices[3 * t + 2]]);
-                if (!h || !(h->t > ray.tMin && h->t < tClosest)) continue;
+                const std::optional<tracer::TriangleHit> h = tracer::intersectTriangleWatertight(
+                    origin, direction, geo.positions[geo.indices[3 * t]], geo.positions[geo.indices[3 * t + 1]],
+                    geo.positions[geo.indices[3 * t + 2]], ray.tMin, tClosest);
+                if (!h) continue;
                 tClosest = h->t;
-                best = ModelHit{true, h->t, i, g, t, h->b0, h->b1, h->b2};
+                best = ModelHit{true, h->t, i, g, t, 1.f - h->b1 - h->b2, h->b1, h->b2, false};
             }
         }
     }

@@ -98,9 +98,10 @@ TEST(RtCoreConfig, UnknownKeysAreInputErrorsNamingTheKey) {
     EXPECT_NE(unknownField.find("bvh.widht"), std::string::npos) << unknownField;
     EXPECT_NE(unknownField.find("width"), std::string::npos) << unknownField;  // lists the known ones
 
-    const std::string unknownSection = inputErrorOf([] { RtCoreConfig::fromJson(json{{"cache", json::object()}}, "cfg.json"); });
+    const std::string unknownSection = inputErrorOf([] { RtCoreConfig::fromJson(json{{"cahce", json::object()}}, "cfg.json"); });
+    EXPECT_NE(unknownSection.find("cahce"), std::string::npos) << unknownSection;
+    EXPECT_NE(unknownSection.find("bvh"), std::string::npos) << unknownSection;    // lists the known sections
     EXPECT_NE(unknownSection.find("cache"), std::string::npos) << unknownSection;
-    EXPECT_NE(unknownSection.find("bvh"), std::string::npos) << unknownSection;
 
     RtCoreConfig config;
     const std::string unknownSet = inputErrorOf([&] { config.set("bvh.depth=3"); });

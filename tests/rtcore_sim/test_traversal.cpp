@@ -6,6 +6,7 @@
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/traversal.hpp>
+#include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <gtest/gtest.h>
 
@@ -16,6 +17,7 @@ using namespace rtlab::rtcore_sim;
 using rtlab::rtcore_sim::test_support::bruteForceClosestHit;
 using rtlab::rtcore_sim::test_support::makeSoupMesh;
 using rtlab::rtcore_sim::test_support::TestRandom;
+using rtlab::tracer::intersectTriangleWatertight;
 
 namespace {
 
@@ -42,13 +44,13 @@ ModelRay makeRay(const vec3& origin, const vec3& direction, float tMin = 0.f, fl
 // Triangle and box tests.
 
 TEST(RtCoreTraversal, LiteralOneTriangleOneRay) {
-    // Ray straight down the z axis onto the triangle (0,0,0) (1,0,0) (0,1,0):
-    // hit at (0.25, 0.25, 0), t = 1, barycentrics (0.5, 0.25, 0.25), all exact.
-    const std::optional<TriangleHit> hit = intersectTriangle(vec3(0.25f, 0.25f, 1.f), vec3(0.f, 0.f, -1.f), kInfinity,
-                                                             vec3(0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 1.f, 0.f));
+    // The model tests triangles with the tracer's watertight test (the Embree
+    // back end's). Ray straight down the z axis onto the triangle (0,0,0)
+    // (1,0,0) (0,1,0): hit at (0.25, 0.25, 0), t = 1, (u, v) = (0.25, 0.25), all exact.
+    const auto hit = intersectTriangleWatertight(vec3(0.25f, 0.25f, 1.f), vec3(0.f, 0.f, -1.f), vec3(0.f),
+                                                 vec3(1.f, 0.f, 0.f), vec3(0.f, 1.f, 0.f), 0.f, kInfinity);
     ASSERT_TRUE(hit);
     EXPECT_EQ(hit->t, 1.f);
-    EXPECT_EQ(hit->b0, 0.5f);
     EXPECT_EQ(hit->b1, 0.25f);
     EXPECT_EQ(hit->b2, 0.25f);
 }
@@ -93,16 +95,20 @@ TEST(RtCoreTraversal, LiteralOneTriangleThroughTheTwoLevelBvh) {
 TEST(RtCoreTraversal, TriangleTestIntervalsFacesAndDegenerates) {
     const vec3 p0(0.f), p1(1.f, 0.f, 0.f), p2(0.f, 1.f, 0.f);
     const vec3 origin(0.25f, 0.25f, 1.f), down(0.f, 0.f, -1.f);
-    EXPECT_TRUE(intersectTriangle(origin, down, 1.f, p0, p1, p2));          // t == tMax is inside (0, tMax]
-    EXPECT_FALSE(intersectTriangle(origin, down, 0.999f, p0, p1, p2));      // beyond tMax
-    EXPECT_FALSE(intersectTriangle(origin, -down, kInfinity, p0, p1, p2));  // behind the origin
-    EXPECT_TRUE(intersectTriangle(vec3(0.25f, 0.25f, -1.f), -down, kInfinity, p0, p1, p2));  // back face: no culling
-    EXPECT_FALSE(intersectTriangle(vec3(0.75f, 0.75f, 1.f), down, kInfinity, p0, p1, p2));   // outside the hypotenuse
-    EXPECT_FALSE(intersectTriangle(vec3(0.25f, 0.25f, 0.f), vec3(1.f, 0.f, 0.f), kInfinity, p0, p1, p2));  // in-plane
-    EXPECT_FALSE(intersectTriangle(origin, down, kInfinity, p0, p1, vec3(2.f, 0.f, 0.f)));    // degenerate (collinear)
+    const auto test = [&](const vec3& o, const vec3& d, float tMin, float tMax, const vec3& q2) {
+        return intersectTriangleWatertight(o, d, p0, p1, q2, tMin, tMax).has_value();
+    };
+    EXPECT_TRUE(test(origin, down, 0.f, 1.001f, p2));
+    EXPECT_FALSE(test(origin, down, 0.f, 1.f, p2));            // t == tMax is outside (tMin, tMax)
+    EXPECT_FALSE(test(origin, down, 1.f, kInfinity, p2));      // t == tMin is outside too
+    EXPECT_FALSE(test(origin, -down, 0.f, kInfinity, p2));     // behind the origin
+    EXPECT_TRUE(test(vec3(0.25f, 0.25f, -1.f), -down, 0.f, kInfinity, p2));  // back face: no culling
+    EXPECT_FALSE(test(vec3(0.75f, 0.75f, 1.f), down, 0.f, kInfinity, p2));   // outside the hypotenuse
+    EXPECT_FALSE(test(vec3(0.25f, 0.25f, 0.f), vec3(1.f, 0.f, 0.f), 0.f, kInfinity, p2));  // in-plane
+    EXPECT_FALSE(test(origin, down, 0.f, kInfinity, vec3(2.f, 0.f, 0.f)));  // degenerate (collinear)
     // Exactly on a vertex and on an edge: hit (edge functions of zero count as inside).
-    EXPECT_TRUE(intersectTriangle(vec3(0.f, 0.f, 1.f), down, kInfinity, p0, p1, p2));
-    EXPECT_TRUE(intersectTriangle(vec3(0.5f, 0.5f, 1.f), down, kInfinity, p0, p1, p2));
+    EXPECT_TRUE(test(vec3(0.f, 0.f, 1.f), down, 0.f, kInfinity, p2));
+    EXPECT_TRUE(test(vec3(0.5f, 0.5f, 1.f), down, 0.f, kInfinity, p2));
 }
 
 TEST(RtCoreTraversal, TriangleTestIsWatertightOnAClosedMesh) {
@@ -118,9 +124,9 @@ TEST(RtCoreTraversal, TriangleTestIsWatertightOnAClosedMesh) {
         ++rays;
         bool hit = false;
         for (std::size_t t = 0; t < sphere.triangleCount() && !hit; ++t)
-            hit = intersectTriangle(origin, direction, kInfinity, sphere.positions[sphere.indices[3 * t]],
-                                    sphere.positions[sphere.indices[3 * t + 1]],
-                                    sphere.positions[sphere.indices[3 * t + 2]])
+            hit = intersectTriangleWatertight(origin, direction, sphere.positions[sphere.indices[3 * t]],
+                                              sphere.positions[sphere.indices[3 * t + 1]],
+                                              sphere.positions[sphere.indices[3 * t + 2]], 0.f, kInfinity)
                       .has_value();
         misses += hit ? 0 : 1;
     }
@@ -232,9 +238,10 @@ TEST(RtCoreTraversal, EqualsBruteForceOnRandomScenes) {
                         const ecs::Geometry& g = (*snapshot.meshes)[inst.mesh].geometries[got.geometryIndex];
                         const vec3 o = vec3(inst.objectFromWorld * glm::dvec4(glm::dvec3(ray.origin), 1.0));
                         const vec3 d = vec3(glm::dmat3(inst.objectFromWorld) * glm::dvec3(ray.direction));
-                        const auto check = intersectTriangle(o, d, kInfinity, g.positions[g.indices[3 * got.primitiveIndex]],
-                                                             g.positions[g.indices[3 * got.primitiveIndex + 1]],
-                                                             g.positions[g.indices[3 * got.primitiveIndex + 2]]);
+                        const auto check = intersectTriangleWatertight(
+                            o, d, g.positions[g.indices[3 * got.primitiveIndex]],
+                            g.positions[g.indices[3 * got.primitiveIndex + 1]],
+                            g.positions[g.indices[3 * got.primitiveIndex + 2]], ray.tMin, kInfinity);
                         ASSERT_TRUE(check);
                         EXPECT_EQ(check->t, got.t);
                     } else {

@@ -118,26 +118,34 @@ private:
     RTCDevice device_;
 };
 
-// A triangle's object-space vertices, as a leaf fetch reads them.
+// A leaf slot's data as a leaf fetch reads it: a triangle's object-space
+// vertices, or for a procedural reference its AABB (v[0] = lo, v[1] = hi,
+// v[2] unused).
 struct Triangle {
     std::array<vec3, 3> v;
 };
 
-// One mesh's bottom-level BVH: triangles of every non-procedural geometry.
-// Procedural geometries are not in the model yet (docs/rtcore-model.md).
+// One mesh's bottom-level BVH: the triangles of its triangle geometries and
+// the AABBs of its procedural geometries (leaf references (geometry index,
+// box index)); a leaf may hold both kinds.
 struct Blas {
     Bvh bvh;
     std::vector<Triangle> triangles;  // one per bvh.refs entry (same order)
-    std::vector<std::uint32_t> triangleCounts;  // per geometry at build time (0 for procedural)
+    std::vector<std::uint32_t> triangleCounts;    // per geometry at build time (0 for procedural)
+    std::vector<std::uint32_t> proceduralCounts;  // per geometry: AABB count at build time (0 for triangles)
+    bool hasProcedural = false;                   // some geometry is procedural
     double buildSahCost = 0.0;
     bool spatialSplits = false;
+
+    bool isProcedural(const PrimitiveRef& ref) const { return hasProcedural && proceduralCounts[ref.geometry] != 0; }
+    Aabb proceduralBox(std::size_t refIndex) const { return Aabb{triangles[refIndex].v[0], triangles[refIndex].v[1]}; }
 };
 
 BuildSettings blasBuildSettings(const BvhParams& params);
 BuildSettings tlasBuildSettings(const BvhParams& params);
 
-// Builds the BLAS of `mesh`. Triangles with non-finite vertices are left
-// out (Embree ignores them too). Spatial splits (High) apply to rigid meshes
+// Builds the BLAS of `mesh`. Triangles with non-finite vertices and empty or
+// non-finite procedural boxes are left out (Embree ignores them too). Spatial splits (High) apply to rigid meshes
 // only: a deformable mesh is built as Medium so that refits stay tight.
 Blas buildBlas(const BvhBuilder& builder, const ecs::MeshAsset& mesh, const BvhParams& params);
 

@@ -72,6 +72,13 @@ public:
         ParamInfo info{std::move(name), std::move(description), ParamKind::Real, {}, double(min), double(max), {}};
         return add(std::move(info), member);
     }
+    // A string chosen from a fixed list (e.g. a registry's names).
+    ParamTable& addStringChoice(std::string name, std::string Params::*member, std::string description,
+                                const std::vector<std::string>& allowed) {
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Choice, {}, 0.0, 0.0, {}};
+        for (const std::string& a : allowed) info.allowed.emplace_back(a);
+        return add(std::move(info), member);
+    }
     ParamTable& addBoolean(std::string name, bool Params::*member, std::string description) {
         ParamInfo info{std::move(name), std::move(description), ParamKind::Boolean, {}, 0.0, 0.0, {}};
         return add(std::move(info), member);
@@ -138,13 +145,100 @@ struct BvhParams {
 };
 const ParamTable<BvhParams>& bvhParamTable();
 
+// The timing model's units (docs/rtcore-model.md, "Timing model"). Every
+// latency is in core cycles; every queue capacity in rays.
+
+// Submission, ray slots and the completion path (section "core").
+struct CoreParams {
+    std::uint32_t warpWidth = 32;            // rays per submitted warp
+    std::uint32_t inputQueueRays = 128;      // input queue capacity (a warp enters only whole)
+    std::uint32_t raySlots = 128;            // rays traversing at once, each with its short stack
+    std::uint32_t admitPerCycle = 4;         // rays moved from the input queue into free ray slots per cycle
+    std::uint32_t completionQueueRays = 64;  // completion queue capacity
+    std::uint32_t completionPerCycle = 4;    // results returned to the shader side per cycle
+};
+const ParamTable<CoreParams>& coreParamTable();
+
+// The ray scheduler (section "scheduler").
+struct SchedulerParams {
+    std::string policy = "fifo";        // a name in the policy registry (scheduler.hpp)
+    std::uint32_t issueWidth = 2;       // traversal steps issued per cycle
+    std::uint32_t treeletBytes = 4096;  // treelet policy: bytes of BVH memory per treelet
+};
+const ParamTable<SchedulerParams>& schedulerParamTable();
+
+// Box-test (traversal) units (section "traversal").
+struct TraversalUnitParams {
+    std::uint32_t units = 2;          // number of units
+    std::uint32_t boxesPerCycle = 6;  // child boxes one unit tests per cycle
+    std::uint32_t latency = 4;        // cycles from a unit's last issue cycle to its result
+};
+const ParamTable<TraversalUnitParams>& traversalParamTable();
+
+// Primitive intersection units: watertight triangle tests and procedural AABB
+// tests (section "triangle").
+struct TriangleUnitParams {
+    std::uint32_t units = 2;
+    std::uint32_t testsPerCycle = 1;  // primitive tests one unit starts per cycle
+    std::uint32_t latency = 8;
+};
+const ParamTable<TriangleUnitParams>& triangleParamTable();
+
+// Instance-transform units (section "transform"): one world->object ray transform per unit per cycle.
+struct TransformUnitParams {
+    std::uint32_t units = 1;
+    std::uint32_t latency = 4;
+};
+const ParamTable<TransformUnitParams>& transformParamTable();
+
+// Round trips to the programmable side (section "shader").
+struct ShaderParams {
+    std::uint32_t anyHitLatency = 100;        // cycles per any-hit shader invocation
+    std::uint32_t intersectionLatency = 100;  // cycles per intersection shader invocation
+};
+const ParamTable<ShaderParams>& shaderParamTable();
+
+// Per-ray traversal stack (section "stack"): a short on-chip stack that
+// spills its bottom entries to memory and refills from it.
+struct StackParams {
+    std::uint32_t shortStackEntries = 8;  // on-chip entries per ray slot
+    std::uint32_t refillEntries = 4;      // entries read back per refill
+    std::uint32_t entryBytes = 8;         // bytes per stack entry in memory
+};
+const ParamTable<StackParams>& stackParamTable();
+
+// Set-associative LRU node cache for BVH nodes, leaves and instances (section "cache").
+struct CacheParams {
+    std::uint32_t sizeBytes = 32768;
+    std::uint32_t lineBytes = 64;
+    std::uint32_t ways = 4;
+    std::uint32_t hitLatency = 4;
+};
+const ParamTable<CacheParams>& cacheParamTable();
+
+// Memory behind the cache (section "memory"): one channel, requests served in order.
+struct MemoryParams {
+    std::uint32_t latency = 200;       // cycles after a request's transfer until its data arrives
+    std::uint32_t bytesPerCycle = 32;  // channel bandwidth
+};
+const ParamTable<MemoryParams>& memoryParamTable();
+
 // ---------------------------------------------------------------------------
 // The whole configuration.
 
 struct RtCoreConfig {
     BvhParams bvh;
-    // Later units add their parameter structs here and one section line in
-    // config.cpp (forEachSection).
+    CoreParams core;
+    SchedulerParams scheduler;
+    TraversalUnitParams traversal;
+    TriangleUnitParams triangle;
+    TransformUnitParams transform;
+    ShaderParams shader;
+    StackParams stack;
+    CacheParams cache;
+    MemoryParams memory;
+    // A unit's parameters: a struct and table above, a member here and one
+    // section line in config.cpp (forEachSection).
 
     // A JSON object {"section": {"field": value, ...}, ...}; absent fields
     // keep their defaults. `where` names the source in error messages.
@@ -157,6 +251,12 @@ struct RtCoreConfig {
     // One override "section.field=value"; value is JSON (8, 1.5, true) or a
     // bare word for choices (bvh.buildQuality=high).
     void set(const std::string& assignment, const std::string& where = "--rtcore-set");
+
+    // Rules across fields (checked when an RtCore is built, and by the CLI
+    // once all overrides are applied): core.inputQueueRays >= core.warpWidth,
+    // stack.refillEntries <= stack.shortStackEntries, cache.sizeBytes a
+    // power-of-two number of sets of cache.ways lines. Throws InputError.
+    void validate(const std::string& where) const;
 
     // The resolved configuration, every field present.
     nlohmann::json toJson() const;

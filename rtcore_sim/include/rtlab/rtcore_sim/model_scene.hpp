@@ -53,6 +53,11 @@ public:
     const std::vector<ModelInstance>& instances() const { return instances_; }
     // The BLAS of `mesh`, or nullptr when it was never built.
     const Blas* blas(ecs::MeshId mesh) const { return mesh < blases_.size() ? blases_[mesh].get() : nullptr; }
+    // One more than the largest MeshId that has (or had) a BLAS slot.
+    std::size_t meshSlots() const { return blases_.size(); }
+    // Incremented by every update(): anything derived from the BVHs (the
+    // timing model's memory layout, its node cache) is stale once it changes.
+    std::uint64_t generation() const { return generation_; }
 
 private:
     void buildBlasOf(const ecs::MeshAsset& mesh, ecs::MeshId id);
@@ -65,6 +70,7 @@ private:
     std::vector<ModelInstance> instances_;
     Bvh tlas_;
     bool tlasBuilt_ = false;
+    std::uint64_t generation_ = 0;
 };
 
 }  // namespace rtlab::rtcore_sim

@@ -1,0 +1,68 @@
+#pragma once
+// The cycle-counted RT core (docs/rtcore-model.md, "Timing model"):
+//
+//   shader side --warps--> input queue --> ray slots --scheduler--> units --> completion queue --> shader side
+//
+// Rays are submitted in warps, wait in a bounded input queue, are admitted
+// into ray slots, and traverse step by step (RayTraversal::step, the same
+// step the functional traversal runs): each step fetches its node, leaf or
+// instance through the node cache, then uses a box-test, primitive or
+// instance-transform unit, round trips to the programmable side for shaders,
+// and spills/refills its short stack. Finished rays leave through a bounded
+// completion queue. Simulation is event driven (no cycle-by-cycle sweep over
+// rays), single threaded and deterministic: the same inputs give the same
+// cycles and stats.
+#include <rtlab/rtcore_sim/config.hpp>
+#include <rtlab/rtcore_sim/model_scene.hpp>
+#include <rtlab/rtcore_sim/traversal.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <span>
+
+namespace rtlab::rtcore_sim {
+
+struct SimRayResult {
+    ModelHit hit;
+    std::uint32_t cycles = 0;  // submission (warp enters the input queue) -> completion (result returned)
+    TraversalCounters work;
+    std::uint32_t stackSpills = 0;   // entries this ray spilled from its short stack
+    std::uint32_t stackRefills = 0;  // refills (memory reads) it needed
+};
+
+class RtCore {
+public:
+    // `scene` must outlive the core and be built with config.bvh (checked:
+    // std::invalid_argument otherwise). Cross-field rules of the config are
+    // checked (RtCoreConfig::validate, InputError).
+    RtCore(const RtCoreConfig& config, const ModelScene& scene);
+    ~RtCore();
+    RtCore(const RtCore&) = delete;
+    RtCore& operator=(const RtCore&) = delete;
+
+    // Simulates one batch, submitted in order as warps of config.core.warpWidth;
+    // continues the core's clock (a frame is several batches) and returns when
+    // every result is back. Fills results[i] for rays[i] (sizes must match).
+    // Side callbacks receive the index into `rays`. A scene update since the
+    // last batch (ModelScene::generation) relays out memory and invalidates
+    // the node cache.
+    void run(std::span<const SimRay> rays, ProgrammableSide& side, std::span<SimRayResult> results);
+
+    // The stats tree, with "config" = the resolved configuration; derived
+    // rates are computed here.
+    nlohmann::json statsJson() const;
+    // Start of a frame: zeroes the statistics (the clock and the cache stay).
+    void resetStats();
+    // Cold start: clock 0, empty cache and memory channel, statistics zeroed.
+    void reset();
+    std::uint64_t cycle() const;
+    const RtCoreConfig& config() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rtlab::rtcore_sim

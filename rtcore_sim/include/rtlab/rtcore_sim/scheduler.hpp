@@ -1,0 +1,56 @@
+#pragma once
+// Ray scheduling policies of the timing model (docs/rtcore-model.md,
+// "Scheduler"). Each cycle the scheduler picks up to scheduler.issueWidth
+// ready rays and issues their next traversal step; a policy decides which.
+//
+// Adding a policy is one new file in rtcore_sim/src/policies/: it defines
+//
+//   const SchedulerPolicyEntry& rtcoreSimPolicy_<file stem>();
+//
+// returning its configuration name, a one-line description and a factory.
+// rtcore_sim/CMakeLists.txt lists the files of that folder (sorted) into the
+// registry at configure time, so the name is accepted by scheduler.policy
+// once cmake has been re-run.
+#include <rtlab/rtcore_sim/config.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rtlab::rtcore_sim {
+
+// A ray that is ready to issue its next step.
+struct ReadyRay {
+    std::uint32_t slot = 0;     // ray slot index
+    std::uint64_t age = 0;      // submission order across the core's life (smaller = older)
+    std::uint64_t address = 0;  // byte address of the node, leaf or instance its next step fetches
+};
+
+// Holds the ready rays; pop() chooses the next one to issue. Must be
+// deterministic: the same push/pop sequence gives the same choices.
+class SchedulerPolicy {
+public:
+    virtual ~SchedulerPolicy() = default;
+    virtual void push(const ReadyRay& ray) = 0;
+    // The ray to issue next; false when none is ready.
+    virtual bool pop(ReadyRay& out) = 0;
+    virtual std::size_t size() const = 0;
+    // Policy-specific counters for the stats tree (may be empty).
+    virtual void addStats(nlohmann::json& out) const { (void)out; }
+    virtual void resetStats() {}
+};
+
+struct SchedulerPolicyEntry {
+    std::string name;
+    std::string description;
+    std::unique_ptr<SchedulerPolicy> (*create)(const SchedulerParams& params) = nullptr;
+};
+
+// Every registered policy, sorted by file name.
+const std::vector<const SchedulerPolicyEntry*>& schedulerPolicies();
+std::vector<std::string> schedulerPolicyNames();
+// Throws InputError naming the known policies when `name` is not registered.
+std::unique_ptr<SchedulerPolicy> makeSchedulerPolicy(const SchedulerParams& params);
+
+}  // namespace rtlab::rtcore_sim

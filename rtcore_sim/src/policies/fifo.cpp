@@ -1,0 +1,33 @@
+// In-order FIFO: rays issue in the order they became ready.
+#include <rtlab/rtcore_sim/scheduler.hpp>
+
+#include <deque>
+
+namespace rtlab::rtcore_sim {
+namespace {
+
+class FifoPolicy final : public SchedulerPolicy {
+public:
+    void push(const ReadyRay& ray) override { queue_.push_back(ray); }
+    bool pop(ReadyRay& out) override {
+        if (queue_.empty()) return false;
+        out = queue_.front();
+        queue_.pop_front();
+        return true;
+    }
+    std::size_t size() const override { return queue_.size(); }
+
+private:
+    std::deque<ReadyRay> queue_;
+};
+
+}  // namespace
+
+const SchedulerPolicyEntry& rtcoreSimPolicy_fifo() {
+    static const SchedulerPolicyEntry entry{
+        "fifo", "rays issue in the order they became ready",
+        [](const SchedulerParams&) -> std::unique_ptr<SchedulerPolicy> { return std::make_unique<FifoPolicy>(); }};
+    return entry;
+}
+
+}  // namespace rtlab::rtcore_sim
