@@ -1,0 +1,201 @@
+// Invariants of the timing model on real scenes: resource bounds,
+// utilizations, conservation of rays, the latency breakdown adding up, and
+// determinism across runs and thread limits.
+#include "rtcore_timing_helpers.hpp"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+
+using namespace rtlab;
+using namespace rtlab::rtcore_sim;
+using namespace rtlab::rtcore_sim::test_support;
+using nlohmann::json;
+
+namespace {
+
+// Showcase primary rays (two ray types) in a few batches; returns the stats.
+json runShowcase(const RtCoreConfig& config, std::vector<SimRayResult>* resultsOut = nullptr) {
+    MicroScene scene;
+    loadScene(scene, "builtin:showcase", config.bvh);
+    std::vector<SimRay> rays = primaryRays(scene.snapshot.camera, 80, 60);
+    for (std::size_t i = 0; i < rays.size(); ++i) rays[i].rayType = static_cast<std::uint32_t>(i % 2);
+    RtCore core(config, *scene.model);
+    std::vector<SimRayResult> results(rays.size());
+    OpaqueSide side;
+    for (std::size_t first = 0; first < rays.size(); first += 1000) {
+        const std::size_t n = std::min<std::size_t>(1000, rays.size() - first);
+        core.run(std::span(rays).subspan(first, n), side, std::span(results).subspan(first, n));
+    }
+    if (resultsOut) *resultsOut = results;
+    return core.statsJson();
+}
+
+void expectInvariants(const json& s, const RtCoreConfig& config) {
+    const double cycles = s["frame"]["cycles"].get<double>();
+    ASSERT_GT(cycles, 0.0);
+    // Rays in = rays out.
+    EXPECT_EQ(s["rays"]["submitted"], s["rays"]["completed"]);
+    EXPECT_EQ(s["rays"]["latency"]["count"], s["rays"]["completed"]);
+    // Every unit's work fits in the cycles: cycles >= busy / units.
+    for (const char* unit : {"traversalUnits", "triangleUnits", "transformUnits"}) {
+        const double busy = s[unit]["busyCycles"].get<double>(), units = s[unit]["units"].get<double>();
+        EXPECT_GE(cycles, busy / units) << unit;
+        const double u = s[unit]["utilization"].get<double>();
+        EXPECT_GE(u, 0.0) << unit;
+        EXPECT_LE(u, 1.0) << unit;
+    }
+    // Throughput bounds: boxes, tests, issues, memory bytes.
+    EXPECT_GE(cycles, s["traversalUnits"]["boxTests"].get<double>() /
+                          (config.traversal.units * config.traversal.boxesPerCycle));
+    EXPECT_GE(cycles, (s["triangleUnits"]["triangleTests"].get<double>() + s["triangleUnits"]["proceduralTests"].get<double>()) /
+                          (config.triangle.units * config.triangle.testsPerCycle));
+    EXPECT_GE(cycles, s["scheduler"]["issued"].get<double>() / config.scheduler.issueWidth);
+    EXPECT_GE(cycles, (s["memory"]["readBytes"].get<double>() + s["memory"]["writeBytes"].get<double>()) /
+                          config.memory.bytesPerCycle);
+    for (const char* rate : {"utilization"}) {
+        for (const char* unit : {"scheduler", "memory"}) {
+            EXPECT_GE(s[unit][rate].get<double>(), 0.0) << unit;
+            EXPECT_LE(s[unit][rate].get<double>(), 1.0) << unit;
+        }
+    }
+    EXPECT_LE(s["raySlots"]["utilization"].get<double>(), 1.0);
+    EXPECT_LE(s["cache"]["hitRate"].get<double>(), 1.0);
+    EXPECT_EQ(s["cache"]["accesses"], s["cache"]["hits"].get<std::uint64_t>() + s["cache"]["misses"].get<std::uint64_t>());
+    EXPECT_LE(s["simd"]["efficiency"].get<double>(), 1.0);
+    EXPECT_GT(s["simd"]["efficiency"].get<double>(), 0.0);
+    // Queue occupancies stay within capacity; their histograms cover every cycle.
+    EXPECT_LE(s["submission"]["inputQueue"]["occupancy"]["max"].get<double>(), config.core.inputQueueRays);
+    EXPECT_LE(s["completion"]["occupancy"]["max"].get<double>(), config.core.completionQueueRays);
+    EXPECT_LE(s["raySlots"]["occupancy"]["max"].get<double>(), config.core.raySlots);
+    EXPECT_EQ(s["raySlots"]["occupancy"]["count"].get<double>(), cycles);
+    EXPECT_EQ(s["scheduler"]["readyRays"]["count"].get<double>(), cycles);
+    // The latency breakdown adds up to the rays' latencies.
+    std::uint64_t parts = 0;
+    for (const auto& [name, value] : s["rays"]["latencyBreakdown"].items()) parts += value.get<std::uint64_t>();
+    EXPECT_EQ(double(parts), s["rays"]["latency"]["mean"].get<double>() * s["rays"]["latency"]["count"].get<double>());
+    // Per ray type: counts add up, active cycles within the frame.
+    std::uint64_t typed = 0;
+    for (const auto& [type, t] : s["rayTypes"].items()) {
+        typed += t["rays"].get<std::uint64_t>();
+        EXPECT_LE(t["activeCycles"].get<double>(), cycles) << type;
+    }
+    EXPECT_EQ(typed, s["rays"]["completed"].get<std::uint64_t>());
+    // The resolved configuration is echoed.
+    EXPECT_EQ(s["config"], config.toJson());
+}
+
+}  // namespace
+
+TEST(RtCoreInvariants, HoldForDefaultAndStressedConfigurations) {
+    RtCoreConfig defaults;
+    expectInvariants(runShowcase(defaults), defaults);
+
+    // Everything scarce: queues, slots, units, bandwidth, short stack, cache.
+    RtCoreConfig scarce;
+    scarce.core.warpWidth = 8;
+    scarce.core.inputQueueRays = 8;
+    scarce.core.raySlots = 16;
+    scarce.core.completionQueueRays = 2;
+    scarce.core.completionPerCycle = 1;
+    scarce.scheduler.issueWidth = 1;
+    scarce.traversal.units = 1;
+    scarce.traversal.boxesPerCycle = 2;
+    scarce.triangle.units = 1;
+    scarce.stack.shortStackEntries = 2;
+    scarce.stack.refillEntries = 1;
+    scarce.cache.sizeBytes = 2048;
+    scarce.cache.ways = 2;
+    scarce.memory.bytesPerCycle = 4;
+    scarce.scheduler.policy = "treelet";
+    const json s = runShowcase(scarce);
+    expectInvariants(s, scarce);
+    EXPECT_GT(s["stack"]["spilledEntries"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(s["stack"]["refills"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(s["stalls"]["blockedCycles"]["inputQueueFull"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(s["stalls"]["blockedCycles"]["noFreeRaySlot"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(s["stalls"]["rayCycles"]["boxUnitBusy"].get<std::uint64_t>(), 0u);
+    EXPECT_GT(s["memory"]["queueCycles"].get<std::uint64_t>(), 0u);
+}
+
+TEST(RtCoreInvariants, IdenticalAcrossRunsAndThreadLimits) {
+    RtCoreConfig config;
+    config.scheduler.policy = "treelet";
+    std::vector<SimRayResult> first, second, third;
+    const json a = runShowcase(config, &first);
+    const json b = runShowcase(config, &second);
+    json c;
+    {
+        // The whole pipeline (BVH build, simulation) under a different TBB limit and inside a 4-thread arena.
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+        c = runShowcase(config, &third);
+    }
+    json d;
+    tbb::task_arena arena(4);
+    arena.execute([&] { d = runShowcase(config); });
+    EXPECT_EQ(a, b);
+    EXPECT_EQ(a, c);
+    EXPECT_EQ(a, d);
+    ASSERT_EQ(first.size(), second.size());
+    for (std::size_t i = 0; i < first.size(); ++i) {
+        ASSERT_EQ(first[i].cycles, second[i].cycles) << i;
+        ASSERT_EQ(first[i].cycles, third[i].cycles) << i;
+        ASSERT_TRUE(sameHit(first[i].hit, third[i].hit)) << i;
+    }
+}
+
+TEST(RtCoreInvariants, ConfigurationErrorsAndMismatchedScenes) {
+    RtCoreConfig config;
+    config.core.warpWidth = 64;
+    config.core.inputQueueRays = 32;
+    EXPECT_THROW(config.validate("cfg"), InputError);
+    config.core.inputQueueRays = 64;
+    config.cache.sizeBytes = 3 * 64 * 4;  // 3 sets
+    EXPECT_THROW(config.validate("cfg"), InputError);
+    config.cache.sizeBytes = 4096;
+    config.stack.refillEntries = 9;
+    EXPECT_THROW(config.validate("cfg"), InputError);
+    config.stack.refillEntries = 4;
+    EXPECT_NO_THROW(config.validate("cfg"));
+
+    MicroScene scene;
+    makeOneTriangleScene(scene, BvhParams{});
+    RtCoreConfig other;
+    other.bvh.width = 4;  // the scene was built with width 6
+    EXPECT_THROW(RtCore(other, *scene.model), std::invalid_argument);
+    RtCoreConfig bad;
+    bad.core.inputQueueRays = 1;
+    EXPECT_THROW(RtCore(bad, *scene.model), InputError);
+
+    // Empty batches and empty scenes.
+    RtCore core(RtCoreConfig{}, *scene.model);
+    EXPECT_NO_THROW(runBatch(core, {}));
+    EXPECT_EQ(core.cycle(), 0u);
+    MicroScene empty;
+    empty.world.addMaterial({});
+    empty.build(BvhParams{});
+    RtCore emptyCore(RtCoreConfig{}, *empty.model);
+    const auto results = runBatch(emptyCore, std::vector<SimRay>(3, simRay(makeModelRay(vec3(0.f), vec3(0.f, 0.f, -1.f)))));
+    for (const auto& r : results) {
+        EXPECT_FALSE(r.hit.hit);
+        EXPECT_EQ(r.work.steps, 0u);
+    }
+    EXPECT_EQ(emptyCore.statsJson()["rays"]["completed"], 3);
+}
+
+TEST(RtCoreInvariants, ResetStatsStartsAFrameAndResetGoesCold) {
+    RtCoreConfig config;
+    MicroScene scene;
+    makeOneTriangleScene(scene, config.bvh);
+    RtCore core(config, *scene.model);
+    const SimRay ray = simRay(makeModelRay(vec3(0.25f, 0.25f, 1.f), vec3(0.f, 0.f, -1.f)));
+    const std::uint32_t cold = runBatch(core, {ray})[0].cycles;
+    runBatch(core, {ray});
+    EXPECT_EQ(core.statsJson()["frame"]["batches"], 2);
+    core.resetStats();
+    EXPECT_EQ(core.statsJson()["frame"]["cycles"], 0);
+    EXPECT_EQ(core.statsJson()["rays"]["completed"], 0);
+    core.reset();
+    EXPECT_EQ(core.cycle(), 0u);
+    EXPECT_EQ(runBatch(core, {ray})[0].cycles, cold);
+}

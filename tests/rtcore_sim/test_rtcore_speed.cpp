@@ -1,0 +1,133 @@
+// Host speed of the timing model: simulated rays per host-second on one
+// thread for showcase primary rays plus one diffuse bounce per hit, next to
+// the functional traversal and Embree's rtcIntersect1 on the same rays.
+// Prints the numbers (the acceptance benchmark lives in perf/); asserts only
+// that all three agree on the hits.
+#include "rtcore_timing_helpers.hpp"
+
+#include <rtlab/core/rng.hpp>
+#include <rtlab/tracer/accel_manager.hpp>
+
+#include <gtest/gtest.h>
+
+#include <embree3/rtcore.h>
+
+#include <chrono>
+#include <iostream>
+
+using namespace rtlab;
+using namespace rtlab::rtcore_sim;
+using namespace rtlab::rtcore_sim::test_support;
+
+namespace {
+
+double seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
+}
+
+// One cosine-weighted diffuse bounce from every primary hit (hash-seeded).
+std::vector<SimRay> diffuseBounces(const ecs::SceneSnapshot& snapshot, const std::vector<SimRay>& primary,
+                                   const std::vector<ModelHit>& hits) {
+    std::vector<SimRay> out;
+    for (std::size_t i = 0; i < primary.size(); ++i) {
+        const ModelHit& h = hits[i];
+        if (!h.hit) continue;
+        const ecs::InstanceSnapshot& inst = snapshot.instances[h.instanceIndex];
+        const ecs::Geometry& g = (*snapshot.meshes)[inst.mesh].geometries[h.geometryIndex];
+        const vec3 p0 = g.positions[g.indices[3 * h.primitiveIndex]];
+        const vec3 p1 = g.positions[g.indices[3 * h.primitiveIndex + 1]];
+        const vec3 p2 = g.positions[g.indices[3 * h.primitiveIndex + 2]];
+        vec3 n = glm::normalize(glm::transpose(glm::inverse(mat3(inst.worldFromObject))) * glm::cross(p1 - p0, p2 - p0));
+        const vec3 d = primary[i].ray.direction;
+        if (glm::dot(n, d) > 0.f) n = -n;
+        const vec3 p = primary[i].ray.origin + h.t * d;
+        // Cosine-weighted direction around n.
+        const float u1 = float(pcgHash(std::uint32_t(2 * i + 1)) >> 8) / 16777216.f;
+        const float u2 = float(pcgHash(std::uint32_t(2 * i + 2) ^ 0x9e3779b9u) >> 8) / 16777216.f;
+        const float r = std::sqrt(u1), phi = 6.2831853f * u2;
+        const vec3 a = std::abs(n.x) > 0.5f ? vec3(0.f, 1.f, 0.f) : vec3(1.f, 0.f, 0.f);
+        const vec3 tx = glm::normalize(glm::cross(a, n)), ty = glm::cross(n, tx);
+        const vec3 dir = glm::normalize(r * std::cos(phi) * tx + r * std::sin(phi) * ty + std::sqrt(1.f - u1) * n);
+        ModelRay ray;
+        ray.origin = p + n * (1e-4f * (1.f + glm::length(p)));
+        ray.direction = dir;
+        out.push_back(simRay(ray, 1));
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST(RtCoreSpeed, ShowcasePrimaryAndDiffuseRaysPerHostSecond) {
+    const RtCoreConfig config;
+    MicroScene scene;
+    loadScene(scene, "builtin:showcase", config.bvh);
+    std::vector<SimRay> rays = primaryRays(scene.snapshot.camera, 320, 240, 0);
+    std::vector<ModelHit> primaryHits(rays.size());
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        TraversalCounters c;
+        primaryHits[i] = traceClosestHit(*scene.model, rays[i].ray, c);
+    }
+    const std::vector<SimRay> bounces = diffuseBounces(scene.snapshot, rays, primaryHits);
+    rays.insert(rays.end(), bounces.begin(), bounces.end());
+
+    // Functional traversal.
+    std::vector<ModelHit> functional(rays.size());
+    auto t0 = std::chrono::steady_clock::now();
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        TraversalCounters c;
+        functional[i] = traceClosestHit(*scene.model, rays[i].ray, c);
+    }
+    auto t1 = std::chrono::steady_clock::now();
+    const double functionalRate = double(rays.size()) / seconds(t0, t1);
+
+    // Timing model: batches of 1024 rays (a frame of several batches).
+    RtCore core(config, *scene.model);
+    std::vector<SimRayResult> results(rays.size());
+    OpaqueSide side;
+    t0 = std::chrono::steady_clock::now();
+    for (std::size_t first = 0; first < rays.size(); first += 1024) {
+        const std::size_t n = std::min<std::size_t>(1024, rays.size() - first);
+        core.run(std::span(rays).subspan(first, n), side, std::span(results).subspan(first, n));
+    }
+    t1 = std::chrono::steady_clock::now();
+    const double simulatedRate = double(rays.size()) / seconds(t0, t1);
+
+    // Embree, single rays.
+    tracer::AccelManager accel;
+    accel.update(scene.snapshot);
+    std::uint64_t embreeHits = 0;
+    t0 = std::chrono::steady_clock::now();
+    for (const SimRay& r : rays) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRayHit rh{};
+        rh.ray.org_x = r.ray.origin.x; rh.ray.org_y = r.ray.origin.y; rh.ray.org_z = r.ray.origin.z;
+        rh.ray.dir_x = r.ray.direction.x; rh.ray.dir_y = r.ray.direction.y; rh.ray.dir_z = r.ray.direction.z;
+        rh.ray.tnear = r.ray.tMin;
+        rh.ray.tfar = r.ray.tMax;
+        rh.ray.mask = 0xff;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(accel.tlas(), &ctx, &rh);
+        embreeHits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    t1 = std::chrono::steady_clock::now();
+    const double embreeRate = double(rays.size()) / seconds(t0, t1);
+
+    std::uint64_t same = 0, modelHits = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        same += sameHit(results[i].hit, functional[i]);
+        modelHits += results[i].hit.hit;
+    }
+    EXPECT_EQ(same, rays.size());
+    const auto stats = core.statsJson();
+    std::cout << "[ rtcore   ] showcase 320x240 primary + diffuse bounce: " << rays.size() << " rays ("
+              << bounces.size() << " bounces), model hits " << modelHits << ", Embree hits " << embreeHits << "\n"
+              << "[ rtcore   ] host rays/s on one thread: timing model " << simulatedRate << ", functional "
+              << functionalRate << ", Embree rtcIntersect1 " << embreeRate << " (timing model / Embree = "
+              << simulatedRate / embreeRate << ")\n"
+              << "[ rtcore   ] simulated: " << stats["frame"]["cycles"] << " cycles, "
+              << stats["frame"]["raysPerCycle"] << " rays/cycle, cache hit rate " << stats["cache"]["hitRate"]
+              << ", box unit utilization " << stats["traversalUnits"]["utilization"] << ", mean latency "
+              << stats["rays"]["latency"]["mean"] << " cycles\n";
+}
