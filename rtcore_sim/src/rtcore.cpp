@@ -41,15 +41,13 @@ public:
     EventWheel() : buckets_(kSize) {}
 
     void schedule(std::uint64_t cycle, std::uint32_t event) {
-        if (cycle < base_) throw std::logic_error("rtcore_sim: event scheduled in the past");
-        if (cycle < base_ + kSize) {
+        if (cycle - base_ < kSize) [[likely]] {  // also false for cycle < base_ (wraps around)
             const std::size_t b = cycle & (kSize - 1);
             buckets_[b].push_back(event);
             bits_[b >> 6] |= std::uint64_t(1) << (b & 63);
             ++inWheel_;
         } else {
-            overflow_.push_back(Far{cycle, seq_++, event});
-            std::push_heap(overflow_.begin(), overflow_.end(), Later{});
+            scheduleFar(cycle, event);
         }
     }
     // The window moves to [cycle, cycle + kSize); overflow events now inside
@@ -97,6 +95,11 @@ public:
         return false;
     }
     bool empty() const { return inWheel_ == 0 && overflow_.empty(); }
+    [[gnu::noinline]] void scheduleFar(std::uint64_t cycle, std::uint32_t event) {
+        if (cycle < base_) throw std::logic_error("rtcore_sim: event scheduled in the past");
+        overflow_.push_back(Far{cycle, seq_++, event});
+        std::push_heap(overflow_.begin(), overflow_.end(), Later{});
+    }
     void clear() {
         for (auto& b : buckets_) b.clear();
         bits_.fill(0);
@@ -169,8 +172,9 @@ struct RayTypeStats {
 // ---------------------------------------------------------------------------
 
 struct RtCore::Impl {
+    // The small fields first: with the traversal state's header right after
+    // them, a step touches a few consecutive cache lines of its slot.
     struct Slot {
-        RayTraversal trav;
         StepInfo step;
         std::uint32_t rayIndex = 0;
         std::uint32_t warp = 0;
@@ -180,6 +184,7 @@ struct RtCore::Impl {
         std::uint32_t onChip = 0, spilled = 0;              // short stack model
         std::uint32_t spillEntries = 0, refillEntries = 0;  // of the step in flight
         std::uint32_t spills = 0, refills = 0;              // of the ray
+        RayTraversal trav;                                  // ends with the (large) traversal stack
     };
     struct Delivery {
         std::uint32_t rayIndex;
@@ -194,6 +199,8 @@ struct RtCore::Impl {
     MemoryChannel memory;
     UnitPool boxUnits, triangleUnits, transformUnits;
     std::unique_ptr<SchedulerPolicy> policy;
+    bool policyUsesAddress = true;
+    std::size_t readyCount = 0;  // rays held by the policy
     EventWheel wheel;
     std::vector<Slot> slots;
     std::vector<std::uint32_t> freeSlots;  // LIFO
@@ -246,6 +253,7 @@ struct RtCore::Impl {
           transformUnits(cfg.transform.units, cfg.transform.latency), policy(makeSchedulerPolicy(cfg.scheduler)),
           slots(cfg.core.raySlots), inputQueueOcc(cfg.core.inputQueueRays), slotOcc(cfg.core.raySlots),
           readyOcc(cfg.core.raySlots), completionOcc(cfg.core.completionQueueRays) {
+        policyUsesAddress = policy->usesAddress();
         resetSlots();
     }
 
@@ -284,8 +292,8 @@ struct RtCore::Impl {
         Slot& s = slots[slot];
         s.readyCycle = c;
         if (s.trav.finished()) return finish(slot, c);
-        policy->push(ReadyRay{slot, s.age, nextAddress(s)});
-        readyOcc.set(policy->size(), c);
+        policy->push(ReadyRay{slot, s.age, policyUsesAddress ? nextAddress(s) : 0});
+        readyOcc.set(++readyCount, c);
     }
 
     void issue(std::uint32_t slot, std::uint64_t c) {
@@ -537,14 +545,15 @@ struct RtCore::Impl {
     void issueRays(std::uint64_t c) {
         std::uint32_t issuedNow = 0;
         ReadyRay r;
-        while (issuedNow < config.scheduler.issueWidth && policy->pop(r)) {
+        while (readyCount > 0 && issuedNow < config.scheduler.issueWidth && policy->pop(r)) {
+            --readyCount;
             issue(r.slot, c);
             ++issuedNow;
         }
         if (issuedNow) {
             stats.issued += issuedNow;
             ++stats.issueCycles;
-            readyOcc.set(policy->size(), c);
+            readyOcc.set(readyCount, c);
         }
     }
 
@@ -585,7 +594,7 @@ struct RtCore::Impl {
                 issueRays(c);
                 if (delivered == rays.size()) break;
                 // Step: the next cycle with something to do.
-                const bool busy = policy->size() > 0 || !completionQueue.empty() ||
+                const bool busy = readyCount > 0 || !completionQueue.empty() ||
                                   (admitted < submitted && !freeSlots.empty()) || pendingWarpFits();
                 std::uint64_t next = c + 1;
                 if (!busy && !wheel.nextAfter(c, next))
@@ -611,6 +620,7 @@ struct RtCore::Impl {
     void abortBatch() {
         wheel.clear();
         policy = makeSchedulerPolicy(config.scheduler);
+        readyCount = 0;
         completionQueue.clear();
         blockedFinishers.clear();
         resetSlots();

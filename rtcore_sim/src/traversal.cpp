@@ -14,11 +14,10 @@ constexpr float kMachineEpsilon = std::numeric_limits<float>::epsilon() * 0.5f;
 // gamma(n) of pbrt-v4: bound on the relative error of n rounded operations.
 constexpr float errorGamma(int n) { return (n * kMachineEpsilon) / (1.f - n * kMachineEpsilon); }
 
-}  // namespace
-
-vec3 reciprocalDirection(const vec3& direction) { return vec3(1.f) / direction; }
-
-std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax) {
+// The slab test, inlined into the traversal step: true with the entry
+// distance in tEntry when the box is hit.
+inline bool slabTest(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax,
+                     float& tEntry) {
     constexpr float kFarScale = 1.f + 2.f * errorGamma(3);
     float tNear = tMin;
     float tFar = tMax;
@@ -34,8 +33,18 @@ std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec
         tNear = tA > tNear ? tA : tNear;
         tFar = tB < tFar ? tB : tFar;
     }
-    if (!(tNear <= tFar)) return std::nullopt;
-    return tNear;
+    tEntry = tNear;
+    return tNear <= tFar;
+}
+
+}  // namespace
+
+vec3 reciprocalDirection(const vec3& direction) { return vec3(1.f) / direction; }
+
+std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax) {
+    float tEntry;
+    if (!slabTest(box, origin, invDirection, tMin, tMax, tEntry)) return std::nullopt;
+    return tEntry;
 }
 
 TraversalCounters& TraversalCounters::operator+=(const TraversalCounters& o) {
@@ -131,16 +140,16 @@ void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo
         info.boxTests = node.childCount;
         counters_.boxTests += node.childCount;
         for (std::uint32_t i = 0; i < node.childCount; ++i) {
-            const std::optional<float> tEntry =
-                intersectBox(node.childBounds[i], space.origin, space.invDirection, ray_.ray.tMin, tClosest_);
-            if (!tEntry) continue;
+            float tEntry;
+            if (!slabTest(node.childBounds[i], space.origin, space.invDirection, ray_.ray.tMin, tClosest_, tEntry))
+                continue;
             // Insertion sort by entry distance, nearest first.
             std::uint32_t k = hitCount++;
-            while (k > 0 && hits[k - 1].tEntry > *tEntry) {
+            while (k > 0 && hits[k - 1].tEntry > tEntry) {
                 hits[k] = hits[k - 1];
                 --k;
             }
-            hits[k] = StackEntry{node.children[i].bits, *tEntry, current.kind};
+            hits[k] = StackEntry{node.children[i].bits, tEntry, current.kind};
         }
         if (hitCount == 0) return selectNext(info);
         for (std::uint32_t k = hitCount; k-- > 1;) push(hits[k]);
@@ -182,7 +191,8 @@ void RayTraversal::blasLeaf(const BvhLeaf& leaf, ProgrammableSide& side, std::ui
             if (ray_.skipProcedural) continue;
             ++info.primitiveTests;
             ++counters_.proceduralTests;
-            if (!intersectBox(blas.proceduralBox(r), object_.origin, object_.invDirection, ray_.ray.tMin, tClosest_))
+            float tEntry;
+            if (!slabTest(blas.proceduralBox(r), object_.origin, object_.invDirection, ray_.ray.tMin, tClosest_, tEntry))
                 continue;
             const ProceduralVerdict v =
                 side.procedural(rayIndex, ProceduralCandidate{instanceIndex_, ref.geometry, ref.primitive, tClosest_});

@@ -15,6 +15,7 @@ public:
         queue_.pop_front();
         return true;
     }
+    bool usesAddress() const override { return false; }
     std::size_t size() const override { return queue_.size(); }
 
 private:

@@ -16,6 +16,7 @@ public:
         heap_.pop();
         return true;
     }
+    bool usesAddress() const override { return false; }
     std::size_t size() const override { return heap_.size(); }
 
 private:

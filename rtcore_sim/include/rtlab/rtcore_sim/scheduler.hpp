@@ -24,7 +24,7 @@ namespace rtlab::rtcore_sim {
 struct ReadyRay {
     std::uint32_t slot = 0;     // ray slot index
     std::uint64_t age = 0;      // submission order across the core's life (smaller = older)
-    std::uint64_t address = 0;  // byte address of the node, leaf or instance its next step fetches
+    std::uint64_t address = 0;  // byte address of the node, leaf or instance its next step fetches (0 unless usesAddress())
 };
 
 // Holds the ready rays; pop() chooses the next one to issue. Must be
@@ -36,6 +36,8 @@ public:
     // The ray to issue next; false when none is ready.
     virtual bool pop(ReadyRay& out) = 0;
     virtual std::size_t size() const = 0;
+    // Whether push() needs ReadyRay::address (computing it costs a lookup per step).
+    virtual bool usesAddress() const { return true; }
     // Policy-specific counters for the stats tree (may be empty).
     virtual void addStats(nlohmann::json& out) const { (void)out; }
     virtual void resetStats() {}
