@@ -134,3 +134,45 @@ TEST(RtCoreConfig, OutOfRangeAndMistypedValuesAreInputErrorsNamingTheKey) {
     EXPECT_NE(inputErrorOf([&] { config.set("bvh.buildQuality=fast"); }).find("bvh.buildQuality"), std::string::npos);
     EXPECT_EQ(config.bvh.width, 6u);  // failed overrides change nothing
 }
+
+TEST(RtCoreConfig, EveryTimingSectionHasDescribedDefaultsAndChecksRanges) {
+    const json dumped = RtCoreConfig{}.toJson();
+    const json described = RtCoreConfig::describe();
+    for (const char* section :
+         {"bvh", "core", "scheduler", "traversal", "triangle", "transform", "shader", "stack", "cache", "memory"}) {
+        ASSERT_TRUE(dumped.contains(section)) << section;
+        ASSERT_TRUE(described.contains(section)) << section;
+        EXPECT_EQ(dumped[section].size(), described[section].size()) << section;
+        for (const auto& [field, d] : described[section].items()) {
+            EXPECT_FALSE(d["description"].get<std::string>().empty()) << section << "." << field;
+            EXPECT_EQ(d["default"], dumped[section][field]) << section << "." << field;
+            EXPECT_TRUE(d.contains("range") || d.contains("allowed")) << section << "." << field;
+        }
+    }
+    EXPECT_EQ(dumped.size(), 10u);
+    EXPECT_EQ(dumped["core"]["warpWidth"], 32);
+    EXPECT_EQ(dumped["scheduler"]["policy"], "fifo");
+    EXPECT_EQ(dumped["cache"]["lineBytes"], 64);
+
+    // JSON and overrides reach the new sections; bad values name the key.
+    RtCoreConfig config = RtCoreConfig::fromJson(
+        json{{"cache", {{"ways", 8}, {"sizeBytes", 65536}}}, {"scheduler", {{"policy", "treelet"}}}}, "cfg.json");
+    EXPECT_EQ(config.cache.ways, 8u);
+    EXPECT_EQ(config.scheduler.policy, "treelet");
+    config.set("memory.latency=350");
+    config.set("scheduler.policy=oldestFirst");
+    EXPECT_EQ(config.memory.latency, 350u);
+    EXPECT_EQ(config.scheduler.policy, "oldestFirst");
+    EXPECT_NE(inputErrorOf([&] { config.set("cache.lineBytes=48"); }).find("cache.lineBytes"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("core.warpWidth=0"); }).find("[1, 64]"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("scheduler.policy=random"); }).find("fifo, oldestFirst, treelet"),
+              std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { config.set("traversal.speed=2"); }).find("traversal.speed"), std::string::npos);
+    // Rules across fields are checked by validate().
+    config.set("core.warpWidth=64");
+    config.set("core.inputQueueRays=32");
+    const std::string queue = inputErrorOf([&] { config.validate("cfg.json"); });
+    EXPECT_NE(queue.find("core.inputQueueRays"), std::string::npos) << queue;
+    config.set("core.inputQueueRays=64");
+    EXPECT_EQ(inputErrorOf([&] { config.validate("cfg.json"); }), "");
+}
