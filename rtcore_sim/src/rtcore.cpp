@@ -201,6 +201,7 @@ struct RtCore::Impl {
     std::unique_ptr<SchedulerPolicy> policy;
     bool policyUsesAddress = true;
     std::size_t readyCount = 0;  // rays held by the policy
+    bool everyCycle = false;     // debug: visit every cycle instead of jumping to the next event
     EventWheel wheel;
     std::vector<Slot> slots;
     std::vector<std::uint32_t> freeSlots;  // LIFO
@@ -597,7 +598,9 @@ struct RtCore::Impl {
                 const bool busy = readyCount > 0 || !completionQueue.empty() ||
                                   (admitted < submitted && !freeSlots.empty()) || pendingWarpFits();
                 std::uint64_t next = c + 1;
-                if (!busy && !wheel.nextAfter(c, next))
+                if (!busy && !everyCycle && !wheel.nextAfter(c, next))
+                    throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
+                if (everyCycle && !busy && wheel.empty())
                     throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
                 // Step: conditions that hold through the skipped cycles.
                 if (submitted < rays.size() && !pendingWarpFits()) stats.inputQueueFull += next - c - 1;
@@ -854,6 +857,7 @@ void RtCore::reset() {
 }
 
 std::uint64_t RtCore::cycle() const { return impl_->now; }
+void RtCore::simulateEveryCycle(bool on) { impl_->everyCycle = on; }
 const RtCoreConfig& RtCore::config() const { return impl_->config; }
 
 }  // namespace rtlab::rtcore_sim

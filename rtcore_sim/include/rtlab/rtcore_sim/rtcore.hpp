@@ -59,6 +59,9 @@ public:
     void reset();
     std::uint64_t cycle() const;
     const RtCoreConfig& config() const;
+    // Debug aid: visit every cycle instead of jumping over cycles in which
+    // nothing can happen. Results and statistics must not change (tested).
+    void simulateEveryCycle(bool on);
 
 private:
     struct Impl;
