@@ -207,7 +207,8 @@ struct RtCore::Impl {
     std::vector<std::uint32_t> freeSlots;  // LIFO
     std::deque<Delivery> completionQueue;
     std::deque<std::uint32_t> blockedFinishers;  // finished rays waiting for a completion-queue entry (slots)
-    std::uint64_t now = 0;
+    std::uint64_t now = 0;    // the clock between batches
+    std::uint64_t clock = 0;  // the cycle being simulated during a batch
     std::uint64_t nextAge = 0;
 
     // The batch being simulated.
@@ -236,7 +237,7 @@ struct RtCore::Impl {
         std::uint64_t issued = 0, issueCycles = 0;
         // Work by unit.
         std::uint64_t nodes = 0, boxes = 0, leaves = 0, triangleTestCount = 0, proceduralTestCount = 0, transforms = 0,
-                      tlasLeaves = 0, fetches = 0, fetchBytes = 0;
+                      fetches = 0, fetchBytes = 0;
         std::uint64_t anyHitCalls = 0, intersectionCalls = 0;
         // Stack.
         std::uint64_t pushes = 0, pops = 0, spilledEntries = 0, spillWrites = 0, refills = 0, refilledEntries = 0;
@@ -371,7 +372,7 @@ struct RtCore::Impl {
                 t = g.done;
                 break;
             }
-            case StepKind::TlasLeaf: ++stats.tlasLeaves; break;
+            case StepKind::TlasLeaf: break;  // mask tests only
         }
         // Step: shader round trips, one after the other.
         const std::uint64_t shaderCycles = std::uint64_t(st.anyHitCalls) * config.shader.anyHitLatency +
@@ -585,7 +586,8 @@ struct RtCore::Impl {
         ++stats.batches;
 
         try {
-            std::uint64_t c = now;
+            std::uint64_t& c = clock;
+            c = now;
             wheel.advance(c);
             for (;;) {
                 processEvents(c);
@@ -619,8 +621,9 @@ struct RtCore::Impl {
         side = nullptr;
     }
 
-    // A side callback threw: drop the batch's rays (the clock stays).
+    // A side callback threw: drop the batch's rays; the clock stays at the cycle reached.
     void abortBatch() {
+        now = std::max(clock, memory.nextFree());
         wheel.clear();
         policy = makeSchedulerPolicy(config.scheduler);
         readyCount = 0;

@@ -221,3 +221,31 @@ TEST(RtCoreInvariants, ResetStatsStartsAFrameAndResetGoesCold) {
     EXPECT_EQ(core.cycle(), 0u);
     EXPECT_EQ(runBatch(core, {ray})[0].cycles, cold);
 }
+
+TEST(RtCoreInvariants, ASideThatThrowsLeavesTheCoreUsable) {
+    struct ThrowingSide final : ProgrammableSide {
+        int calls = 0;
+        CandidateVerdict triangle(std::uint32_t, const TriangleCandidate&) override {
+            if (++calls == 10) throw std::runtime_error("shader failed");
+            return {};
+        }
+        ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return {}; }
+    };
+    RtCoreConfig config;
+    MicroScene scene;
+    loadScene(scene, "builtin:cornell", config.bvh);
+    const std::vector<SimRay> rays = primaryRays(scene.snapshot.camera, 16, 16);
+    RtCore core(config, *scene.model);
+    ThrowingSide side;
+    std::vector<SimRayResult> results(rays.size());
+    EXPECT_THROW(core.run(rays, side, results), std::runtime_error);
+    const std::uint64_t reached = core.cycle();
+    EXPECT_GT(reached, 0u);
+    // The next batch runs normally from there and finds the functional hits.
+    const std::vector<SimRayResult> again = runBatch(core, rays);
+    EXPECT_GT(core.cycle(), reached);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        TraversalCounters work;
+        ASSERT_TRUE(sameHit(again[i].hit, traceClosestHit(*scene.model, rays[i].ray, work))) << i;
+    }
+}

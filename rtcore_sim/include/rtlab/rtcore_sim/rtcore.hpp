@@ -47,7 +47,9 @@ public:
     // every result is back. Fills results[i] for rays[i] (sizes must match).
     // Side callbacks receive the index into `rays`. A scene update since the
     // last batch (ModelScene::generation) relays out memory and invalidates
-    // the node cache.
+    // the node cache. If a side callback throws, the batch's rays are
+    // dropped, the exception propagates, and the core stays usable (its
+    // clock at the cycle reached).
     void run(std::span<const SimRay> rays, ProgrammableSide& side, std::span<SimRayResult> results);
 
     // The stats tree, with "config" = the resolved configuration; derived
