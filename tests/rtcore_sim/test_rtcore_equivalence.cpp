@@ -68,7 +68,7 @@ TEST(RtCoreEquivalence, PoliciesGiveTheSameHitsButDifferentCycles) {
 
     std::map<std::string, std::uint64_t> cycles;
     std::vector<SimRayResult> reference;
-    for (const std::string& policy : {"fifo", "oldestFirst", "treelet"}) {
+    for (const std::string policy : {"fifo", "oldestFirst", "treelet"}) {
         config.scheduler.policy = policy;
         RtCore core(config, *scene.model);
         const std::vector<SimRayResult> results = runBatch(core, rays);
