@@ -56,8 +56,8 @@ int runRender(const RenderOptions& o) {
     }
     if (o.backend == "rtcore") {
         (void)resolveRtCoreConfig(o);  // validate first: a bad key is the clearer error
-        throw InputError("--backend", "'rtcore' is not available yet in this build: the RT-core timing model is "
-                                      "being built (docs/rtcore-model.md); use embree");
+        throw InputError("--backend", "'rtcore' is not available yet in this build: the RT-core model is not "
+                                      "wired into the pipeline yet (docs/rtcore-model.md); use embree");
     }
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
