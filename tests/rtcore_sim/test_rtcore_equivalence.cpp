@@ -16,8 +16,19 @@ using namespace rtlab::rtcore_sim::test_support;
 
 namespace {
 
-// Timed hits == functional hits (and work) for `source`'s primary rays.
-void expectTimedEqualsFunctional(const std::string& source) {
+// One comparison of timed against functional traversal.
+struct Comparison {
+    std::string label;            // width and policy
+    std::size_t rays = 0;
+    std::uint64_t functionalHits = 0;
+    std::uint64_t differentHits = 0;
+    std::uint64_t differentWork = 0;
+};
+
+// Timed vs functional hits (and work) for `source`'s primary rays, for
+// widths 2, 4, 8 and every scheduling policy.
+std::vector<Comparison> compareTimedWithFunctional(const std::string& source) {
+    std::vector<Comparison> out;
     for (std::uint32_t width : {2u, 4u, 8u}) {
         RtCoreConfig config;
         config.bvh.width = width;
@@ -31,28 +42,42 @@ void expectTimedEqualsFunctional(const std::string& source) {
             functional[i] = traceClosestHit(*scene.model, rays[i].ray, work[i]);
             hits += functional[i].hit;
         }
-        EXPECT_GT(hits, rays.size() / 2);
         for (const std::string& policy : schedulerPolicyNames()) {
-            SCOPED_TRACE(source + " width " + std::to_string(width) + " policy " + policy);
             config.scheduler.policy = policy;
             RtCore core(config, *scene.model);
             const std::vector<SimRayResult> results = runBatch(core, rays);
-            std::uint64_t differentHits = 0, differentWork = 0;
+            Comparison c{source + " width " + std::to_string(width) + " policy " + policy, rays.size(), hits, 0, 0};
             for (std::size_t i = 0; i < rays.size(); ++i) {
-                differentHits += !sameHit(results[i].hit, functional[i]);
-                differentWork += !sameWork(results[i].work, work[i]);
+                c.differentHits += !sameHit(results[i].hit, functional[i]);
+                c.differentWork += !sameWork(results[i].work, work[i]);
             }
-            EXPECT_EQ(differentHits, 0u);
-            EXPECT_EQ(differentWork, 0u);
+            out.push_back(c);
         }
     }
+    return out;
 }
 
 }  // namespace
 
-TEST(RtCoreEquivalence, ShowcasePrimaryRaysEveryPolicyAndWidth) { expectTimedEqualsFunctional("builtin:showcase"); }
+TEST(RtCoreEquivalence, ShowcasePrimaryRaysEveryPolicyAndWidth) {
+    const std::vector<Comparison> comparisons = compareTimedWithFunctional("builtin:showcase");
+    ASSERT_EQ(comparisons.size(), 3 * schedulerPolicyNames().size());
+    for (const Comparison& c : comparisons) {
+        EXPECT_GT(c.functionalHits, c.rays / 2) << c.label;  // the rays see the scene
+        EXPECT_EQ(c.differentHits, 0u) << c.label;
+        EXPECT_EQ(c.differentWork, 0u) << c.label;
+    }
+}
 
-TEST(RtCoreEquivalence, CornellPrimaryRaysEveryPolicyAndWidth) { expectTimedEqualsFunctional("builtin:cornell"); }
+TEST(RtCoreEquivalence, CornellPrimaryRaysEveryPolicyAndWidth) {
+    const std::vector<Comparison> comparisons = compareTimedWithFunctional("builtin:cornell");
+    ASSERT_EQ(comparisons.size(), 3 * schedulerPolicyNames().size());
+    for (const Comparison& c : comparisons) {
+        EXPECT_GT(c.functionalHits, c.rays / 2) << c.label;
+        EXPECT_EQ(c.differentHits, 0u) << c.label;
+        EXPECT_EQ(c.differentWork, 0u) << c.label;
+    }
+}
 
 TEST(RtCoreEquivalence, PoliciesGiveTheSameHitsButDifferentCycles) {
     // A scheduler-bound configuration (one issue per cycle, many rays in

@@ -1,6 +1,7 @@
 // The functional traversal: the watertight triangle test, the slab test, and
 // closest hits through the two-level BVH against a brute-force reference.
 #include "rtcore_test_helpers.hpp"
+#include "rtcore_timing_helpers.hpp"
 
 #include <rtlab/ecs/load/mesh_builders.hpp>
 #include <rtlab/ecs/snapshot.hpp>
@@ -19,26 +20,8 @@ using rtlab::rtcore_sim::test_support::makeSoupMesh;
 using rtlab::rtcore_sim::test_support::TestRandom;
 using rtlab::tracer::intersectTriangleWatertight;
 
-namespace {
-
-ecs::Geometry oneTriangle(const vec3& p0, const vec3& p1, const vec3& p2) {
-    ecs::Geometry g;
-    g.positions = {p0, p1, p2};
-    g.normals.assign(3, vec3(0.f, 0.f, 1.f));
-    g.indices = {0, 1, 2};
-    return g;
-}
-
-ModelRay makeRay(const vec3& origin, const vec3& direction, float tMin = 0.f, float tMax = kInfinity) {
-    ModelRay r;
-    r.origin = origin;
-    r.direction = direction;
-    r.tMin = tMin;
-    r.tMax = tMax;
-    return r;
-}
-
-}  // namespace
+using rtlab::rtcore_sim::test_support::makeModelRay;
+using rtlab::rtcore_sim::test_support::oneTriangleGeometry;
 
 // ---------------------------------------------------------------------------
 // Triangle and box tests.
@@ -61,7 +44,7 @@ TEST(RtCoreTraversal, LiteralOneTriangleThroughTheTwoLevelBvh) {
     ecs::World world;
     world.addMaterial({});
     const ecs::MeshId mesh =
-        world.addMesh(ecs::load::makeMesh("tri", oneTriangle(vec3(0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 1.f, 0.f))));
+        world.addMesh(ecs::load::makeMesh("tri", oneTriangleGeometry(vec3(0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 1.f, 0.f))));
     const ecs::Entity e = world.create("tri");
     world.emplace(e, ecs::LocalTransform{vec3(0.f, 0.f, -2.f), quat(1, 0, 0, 0), vec3(2.f, 1.f, 1.f)});
     world.emplace(e, ecs::MeshInstance{mesh});
@@ -69,7 +52,7 @@ TEST(RtCoreTraversal, LiteralOneTriangleThroughTheTwoLevelBvh) {
     model.update(ecs::makeSnapshot(world, world.update(0.f)));
 
     TraversalCounters counters;
-    const ModelHit hit = traceClosestHit(model, makeRay(vec3(0.5f, 0.25f, 1.f), vec3(0.f, 0.f, -1.f)), counters);
+    const ModelHit hit = traceClosestHit(model, makeModelRay(vec3(0.5f, 0.25f, 1.f), vec3(0.f, 0.f, -1.f)), counters);
     ASSERT_TRUE(hit.hit);
     EXPECT_EQ(hit.t, 3.f);
     EXPECT_EQ(hit.instanceIndex, 0u);
@@ -88,7 +71,7 @@ TEST(RtCoreTraversal, LiteralOneTriangleThroughTheTwoLevelBvh) {
 
     // Missing it beside the triangle still costs the same work.
     TraversalCounters missCounters;
-    EXPECT_FALSE(traceClosestHit(model, makeRay(vec3(1.5f, 0.75f, 1.f), vec3(0.f, 0.f, -1.f)), missCounters).hit);
+    EXPECT_FALSE(traceClosestHit(model, makeModelRay(vec3(1.5f, 0.75f, 1.f), vec3(0.f, 0.f, -1.f)), missCounters).hit);
     EXPECT_EQ(missCounters.triangleTests, 1u);
 }
 
@@ -169,7 +152,7 @@ TEST(RtCoreTraversal, InstanceMaskSkipsInstances) {
     ModelScene model;
     model.update(ecs::makeSnapshot(world, world.update(0.f)));
 
-    ModelRay ray = makeRay(vec3(0.1f, 0.2f, 1.f), vec3(0.f, 0.f, -1.f));
+    ModelRay ray = makeModelRay(vec3(0.1f, 0.2f, 1.f), vec3(0.f, 0.f, -1.f));
     TraversalCounters counters;
     ModelHit hit = traceClosestHit(model, ray, counters);
     ASSERT_TRUE(hit.hit);
@@ -214,7 +197,7 @@ TEST(RtCoreTraversal, EqualsBruteForceOnRandomScenes) {
                 const ecs::SceneSnapshot snapshot = ecs::makeSnapshot(world, world.update(0.f));
                 model.update(snapshot);
                 for (int r = 0; r < 300; ++r) {
-                    ModelRay ray = makeRay(rng.point(-6.f, 6.f), rng.point(-1.f, 1.f));
+                    ModelRay ray = makeModelRay(rng.point(-6.f, 6.f), rng.point(-1.f, 1.f));
                     if (r % 2 == 0) ray.direction = rng.point(-2.f, 2.f) - ray.origin;  // aimed into the cluster
                     if (r % 5 == 0) ray.tMin = rng.range(0.f, 2.f);
                     if (r % 7 == 0) ray.tMax = rng.range(2.f, 8.f);
@@ -269,7 +252,7 @@ TEST(RtCoreTraversal, CountersAreDeterministicAndOrderingCullsWork) {
     }
     ModelScene model;
     model.update(ecs::makeSnapshot(world, world.update(0.f)));
-    const ModelRay ray = makeRay(vec3(0.1f, 0.2f, 5.f), vec3(0.f, 0.f, -1.f));
+    const ModelRay ray = makeModelRay(vec3(0.1f, 0.2f, 5.f), vec3(0.f, 0.f, -1.f));
     TraversalCounters first, second;
     const ModelHit a = traceClosestHit(model, ray, first);
     const ModelHit b = traceClosestHit(model, ray, second);
