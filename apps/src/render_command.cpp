@@ -8,6 +8,7 @@
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/config.hpp>
+#include <rtlab/rtcore_sim/rtcore_backend.hpp>
 #include <rtlab/shaders_cpp/preview_shading.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 
@@ -16,6 +17,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
+#include <stdexcept>
 
 namespace rtlab::app {
 
@@ -44,8 +47,67 @@ rtcore_sim::RtCoreConfig resolveRtCoreConfig(const RenderOptions& o) {
     rtcore_sim::RtCoreConfig config =
         o.rtcoreConfig.empty() ? rtcore_sim::RtCoreConfig{} : rtcore_sim::RtCoreConfig::loadFile(o.rtcoreConfig);
     for (const std::string& assignment : o.rtcoreSet) config.set(assignment);
+    config.validate(o.rtcoreConfig.empty() ? "--rtcore-set" : o.rtcoreConfig);
     return config;
 }
+
+namespace {
+
+nlohmann::json hitJson(const tracer::CommittedHit& h) {
+    if (!h.hit) return {{"hit", false}};
+    return {{"hit", true}, {"t", h.t}, {"instance", h.instanceIndex}, {"geometry", h.geometryIndex},
+            {"primitive", h.primitiveIndex}};
+}
+
+nlohmann::json verifyJson(const rtcore_sim::VerifyStats& v) {
+    nlohmann::json examples = nlohmann::json::array();
+    for (const rtcore_sim::HitMismatch& m : v.examples)
+        examples.push_back({{"rayType", m.rayType},
+                            {"depth", m.depth},
+                            {"origin", {m.ray.origin.x, m.ray.origin.y, m.ray.origin.z}},
+                            {"direction", {m.ray.direction.x, m.ray.direction.y, m.ray.direction.z}},
+                            {"rtcore", hitJson(m.model)},
+                            {"embree", hitJson(m.embree)}});
+    return {{"rays", v.rays},
+            {"mismatches", v.mismatches},
+            {"hitOnlyRays", v.anyHitOnlyRays},
+            {"maxRelativeTDifference", v.maxRelativeTDifference},
+            {"examples", examples}};
+}
+
+// Per-pixel heatmaps of the primary rays the model traced: EXR layers
+// rtcore.cycles / rtcore.nodeVisits and a false-colour PNG of the cycles
+// (scale: the 99th percentile, so one slow ray cannot flatten the map).
+nlohmann::json writeHeatmaps(const std::filesystem::path& base, int width, int height,
+                             const std::vector<std::uint32_t>& rayPixels,
+                             const std::vector<rtcore_sim::PrimaryRayRecord>& records) {
+    if (rayPixels.size() != records.size())
+        throw std::logic_error("heatmap: " + std::to_string(rayPixels.size()) + " primary rays generated but " +
+                               std::to_string(records.size()) + " traced by the model");
+    Image heat(width, height);
+    float* cycles = heat.addChannel("rtcore.cycles");
+    float* nodes = heat.addChannel("rtcore.nodeVisits");
+    for (std::size_t i = 0; i < records.size(); ++i) {
+        cycles[rayPixels[i]] += static_cast<float>(records[i].cycles);
+        nodes[rayPixels[i]] += static_cast<float>(records[i].nodeVisits);
+    }
+    const float cyclesScale = quantile(cycles, heat.pixelCount(), 0.99);
+    const float nodesScale = quantile(nodes, heat.pixelCount(), 0.99);
+    std::vector<vec3> cyclesRgb(heat.pixelCount()), nodesRgb(heat.pixelCount());
+    for (std::size_t p = 0; p < heat.pixelCount(); ++p) {
+        cyclesRgb[p] = falseColour(cycles[p], cyclesScale);
+        nodesRgb[p] = falseColour(nodes[p], nodesScale);
+    }
+    Image cyclesImage(width, height), nodesImage(width, height);
+    cyclesImage.addRgbLayer("", cyclesRgb);
+    nodesImage.addRgbLayer("", nodesRgb);
+    writeExr(base.string() + "_rtcore.exr", heat, ExrPixelType::Float);
+    writePng(base.string() + "_rtcore_cycles.png", cyclesImage);
+    writePng(base.string() + "_rtcore_nodes.png", nodesImage);
+    return {{"cyclesScaleMax", cyclesScale}, {"nodeVisitsScaleMax", nodesScale}};
+}
+
+}  // namespace
 
 int runRender(const RenderOptions& o) {
     // Step: options that only mean something for the RT-core model.
@@ -54,10 +116,12 @@ int runRender(const RenderOptions& o) {
         if (!o.rtcoreSet.empty()) throw InputError("--rtcore-set", "only applies to --backend rtcore");
         if (o.verify) throw InputError("--verify", "only applies to --backend rtcore");
     }
+    // Step: the RT-core model, configured before anything is loaded (a bad key is the clearer error).
+    std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
     if (o.backend == "rtcore") {
-        (void)resolveRtCoreConfig(o);  // validate first: a bad key is the clearer error
-        throw InputError("--backend", "'rtcore' is not available yet in this build: the RT-core model is not "
-                                      "wired into the pipeline yet (docs/rtcore-model.md); use embree");
+        rtcore = std::make_unique<rtcore_sim::RtCoreBackend>(resolveRtCoreConfig(o));
+        rtcore->recordPrimaryRays(true);
+        rtcore->setVerify(o.verify);
     }
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
@@ -76,7 +140,9 @@ int runRender(const RenderOptions& o) {
     nlohmann::json stats;
     stats["scene"] = o.scene;
     stats["settings"] = {{"width", o.width}, {"height", o.height}, {"spp", o.spp}, {"frames", o.frames},
-                         {"backend", o.backend}, {"seed", o.seed}};
+                         {"backend", o.backend}, {"seed", o.seed}, {"verify", o.verify}};
+    if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
+    std::uint64_t totalMismatches = 0, totalVerified = 0;
     stats["timing"] = {{"loadMs", loadMs}};
     stats["frames"] = nlohmann::json::array();
 
@@ -86,8 +152,18 @@ int runRender(const RenderOptions& o) {
         const ecs::FrameUpdate update = world.update(f == 0 ? 0.f : world.settings().frameSeconds);
         const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, update);
         const tracer::AccelUpdateStats accelStats = accel.update(scene);
+        shaders::PreviewSettings preview{o.width, o.height};
+        rtcore_sim::ModelUpdateStats modelStats;
+        const Stopwatch modelClock;
+        if (rtcore) {
+            modelStats = rtcore->update(scene);
+            rtcore->beginFrame();
+            preview.backend = rtcore.get();
+            preview.recordRayOrder = true;
+        }
+        const double modelBuildMs = modelClock.elapsedMs();
         const Stopwatch renderClock;
-        const shaders::PreviewResult frame = shaders::renderPreview(accel, scene, {o.width, o.height});
+        const shaders::PreviewResult frame = shaders::renderPreview(accel, scene, preview);
         const double renderMs = renderClock.elapsedMs();
 
         char name[32];
@@ -95,6 +171,8 @@ int runRender(const RenderOptions& o) {
         const std::filesystem::path base = std::filesystem::path(o.out) / name;
         writeExr(base.string() + ".exr", frame.image, ExrPixelType::Float);
         writePng(base.string() + ".png", frame.image);
+        nlohmann::json heatmap;
+        if (rtcore) heatmap = writeHeatmaps(base, o.width, o.height, frame.primaryRayPixels, rtcore->primaryRays());
 
         nlohmann::json fj;
         fj["frame"] = f;
@@ -118,13 +196,39 @@ int runRender(const RenderOptions& o) {
                          {"closestHit", c.closestHitInvocations},
                          {"miss", c.missInvocations},
                          {"packets", c.packetsTraced}};
+        if (rtcore) {
+            nlohmann::json r = rtcore->statsJson();
+            r.erase("config");  // echoed once, at the top level
+            r["bvhUpdate"] = {{"blasRebuilt", modelStats.blasRebuilt},
+                              {"blasRebuiltForQuality", modelStats.blasRebuiltForQuality},
+                              {"blasRefit", modelStats.blasRefit},
+                              {"blasReused", modelStats.blasReused},
+                              {"worstRefitDegradation", modelStats.worstRefitDegradation},
+                              {"tlasBuilds", modelStats.tlasBuilds},
+                              {"instancesMoved", modelStats.instancesMoved}};
+            r["heatmap"] = heatmap;
+            if (o.verify) {
+                const rtcore_sim::VerifyStats& v = rtcore->verifyStats();
+                r["verify"] = verifyJson(v);
+                totalMismatches += v.mismatches;
+                totalVerified += v.rays;
+            }
+            fj["rtcore"] = std::move(r);
+        }
         // Timings vary run to run; everything outside "timing" is deterministic.
         fj["timing"] = {{"accelBuildMs", accelStats.buildMs}, {"renderMs", renderMs}};
+        if (rtcore) fj["timing"]["rtcoreBvhUpdateMs"] = modelBuildMs;
         stats["frames"].push_back(fj);
     }
     progress("");
     writeTextFileAtomically(std::filesystem::path(o.out) / "stats.json", stats.dump(2) + "\n");
     std::cerr << "rtlab: wrote " << o.frames << " frame(s) to " << o.out << "\n";
+    if (o.verify) {
+        std::cerr << "rtlab: verify: " << totalVerified << " rays traced on rtcore and embree, " << totalMismatches
+                  << " mismatch(es)\n";
+        // A mismatch is the model's bug, not the input's: internal error.
+        if (totalMismatches > 0) return static_cast<int>(ExitCode::Internal);
+    }
     return 0;
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <stdexcept>
 
 namespace rtlab::shaders {
 namespace {
@@ -17,10 +18,7 @@ struct PreviewPayload {
     float depth = 0.f;
 };
 
-float srgbToLinear(std::uint8_t v) {
-    const float c = v / 255.f;
-    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
+float srgb8ToLinear(std::uint8_t v) { return srgbToLinear(v / 255.f); }
 
 }  // namespace
 
@@ -44,7 +42,7 @@ vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>&
             const int x = std::clamp(static_cast<int>(fu * t.width), 0, t.width - 1);
             const int y = std::clamp(static_cast<int>(fv * t.height), 0, t.height - 1);
             const std::uint8_t* px = &t.rgba8[(static_cast<std::size_t>(y) * t.width + x) * 4];
-            const vec3 rgb = t.srgb ? vec3(srgbToLinear(px[0]), srgbToLinear(px[1]), srgbToLinear(px[2]))
+            const vec3 rgb = t.srgb ? vec3(srgb8ToLinear(px[0]), srgb8ToLinear(px[1]), srgb8ToLinear(px[2]))
                                     : vec3(px[0], px[1], px[2]) / 255.f;
             c *= vec4(rgb, px[3] / 255.f);
         }
@@ -93,12 +91,20 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
             return group;
         });
     desc.missShaders.push_back([](const tracer::MissContext&, PreviewPayload& p) { p = PreviewPayload{}; });
-    const Pipeline pipeline(accel, std::move(desc));
+    const Pipeline pipeline(accel, std::move(desc), settings.backend);
 
     // Step: coherent primary rays through 8-wide packets.
+    std::vector<std::uint32_t> rayOrder;
+    if (settings.recordRayOrder) {
+        if (!settings.backend || !settings.backend->orderDependent())
+            throw std::invalid_argument("renderPreview: recordRayOrder needs an order-dependent back end");
+        rayOrder.reserve(beauty.size());
+    }
     const tracer::TraceCounters counters = pipeline.dispatchCoherent(
         w, h, tracer::TraceArgs{},
         [&](int x, int y, PreviewPayload&) {
+            // The dispatch runs on one thread, tiles in order (order-dependent back end).
+            if (settings.recordRayOrder) rayOrder.push_back(static_cast<std::uint32_t>(y) * w + x);
             const CameraRay ray = cameraRay(scene.camera, w, h, x + 0.5f, y + 0.5f);
             return tracer::RayDesc{ray.origin, 0.f, ray.direction, kInfinity};
         },
@@ -118,6 +124,7 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     float* z = result.image.addChannel("depth.Z");
     std::copy(depth.begin(), depth.end(), z);
     result.counters = counters;
+    result.primaryRayPixels = std::move(rayOrder);
     result.primaryRays = counters.rays[0];
     result.hits = counters.hits[0];
     result.misses = counters.misses[0];

@@ -5,7 +5,7 @@
 // that all three agree on the hits.
 #include "rtcore_timing_helpers.hpp"
 
-#include <rtlab/core/rng.hpp>
+#include <rtlab/rtcore_sim/workloads.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 
 #include <gtest/gtest.h>
@@ -25,37 +25,6 @@ double seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_cloc
     return std::chrono::duration<double>(b - a).count();
 }
 
-// One cosine-weighted diffuse bounce from every primary hit (hash-seeded).
-std::vector<SimRay> diffuseBounces(const ecs::SceneSnapshot& snapshot, const std::vector<SimRay>& primary,
-                                   const std::vector<ModelHit>& hits) {
-    std::vector<SimRay> out;
-    for (std::size_t i = 0; i < primary.size(); ++i) {
-        const ModelHit& h = hits[i];
-        if (!h.hit) continue;
-        const ecs::InstanceSnapshot& inst = snapshot.instances[h.instanceIndex];
-        const ecs::Geometry& g = (*snapshot.meshes)[inst.mesh].geometries[h.geometryIndex];
-        const vec3 p0 = g.positions[g.indices[3 * h.primitiveIndex]];
-        const vec3 p1 = g.positions[g.indices[3 * h.primitiveIndex + 1]];
-        const vec3 p2 = g.positions[g.indices[3 * h.primitiveIndex + 2]];
-        vec3 n = glm::normalize(glm::transpose(glm::inverse(mat3(inst.worldFromObject))) * glm::cross(p1 - p0, p2 - p0));
-        const vec3 d = primary[i].ray.direction;
-        if (glm::dot(n, d) > 0.f) n = -n;
-        const vec3 p = primary[i].ray.origin + h.t * d;
-        // Cosine-weighted direction around n.
-        const float u1 = float(pcgHash(std::uint32_t(2 * i + 1)) >> 8) / 16777216.f;
-        const float u2 = float(pcgHash(std::uint32_t(2 * i + 2) ^ 0x9e3779b9u) >> 8) / 16777216.f;
-        const float r = std::sqrt(u1), phi = 6.2831853f * u2;
-        const vec3 a = std::abs(n.x) > 0.5f ? vec3(0.f, 1.f, 0.f) : vec3(1.f, 0.f, 0.f);
-        const vec3 tx = glm::normalize(glm::cross(a, n)), ty = glm::cross(n, tx);
-        const vec3 dir = glm::normalize(r * std::cos(phi) * tx + r * std::sin(phi) * ty + std::sqrt(1.f - u1) * n);
-        ModelRay ray;
-        ray.origin = p + n * (1e-4f * (1.f + glm::length(p)));
-        ray.direction = dir;
-        out.push_back(simRay(ray, 1));
-    }
-    return out;
-}
-
 }  // namespace
 
 TEST(RtCoreSpeed, ShowcasePrimaryAndDiffuseRaysPerHostSecond) {
@@ -68,7 +37,7 @@ TEST(RtCoreSpeed, ShowcasePrimaryAndDiffuseRaysPerHostSecond) {
         TraversalCounters c;
         primaryHits[i] = traceClosestHit(*scene.model, rays[i].ray, c);
     }
-    const std::vector<SimRay> bounces = diffuseBounces(scene.snapshot, rays, primaryHits);
+    const std::vector<SimRay> bounces = diffuseBounceRays(scene.snapshot, rays, primaryHits);
     rays.insert(rays.end(), bounces.begin(), bounces.end());
 
     // Functional traversal.

@@ -11,8 +11,13 @@
 #include <rtlab/tracer/candidate_filter.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
 
+#ifdef RTLAB_CONFORMANCE_WITH_RTCORE
+#include <rtlab/rtcore_sim/rtcore_backend.hpp>
+#endif
+
 #include <cstdlib>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 namespace rtlab::tracer::testing {
@@ -114,6 +119,14 @@ private:
 inline std::unique_ptr<TraversalBackend> makeConformanceBackend(const ecs::SceneSnapshot& scene) {
     const char* name = std::getenv("RTLAB_CONFORMANCE_BACKEND");
     if (name && std::string(name) == "reference") return std::make_unique<ReferenceBackend>(scene);
+#ifdef RTLAB_CONFORMANCE_WITH_RTCORE
+    if (name && std::string(name) == "rtcore") {
+        auto backend = std::make_unique<rtcore_sim::RtCoreBackend>(rtcore_sim::RtCoreConfig{});
+        backend->update(scene);
+        return backend;
+    }
+#endif
+    if (name && *name) throw std::invalid_argument(std::string("RTLAB_CONFORMANCE_BACKEND: unknown back end ") + name);
     return nullptr;
 }
 

@@ -64,6 +64,14 @@ Image readExr(const std::filesystem::path& path);
 void writePng(const std::filesystem::path& path, const Image& image, const std::string& layer = "",
               float exposure = 0.f);
 
+// False colour for a heatmap (e.g. cycles per pixel): 0 -> black, then blue,
+// cyan, green, yellow, red, white at `scaleMax` and above; linear RGB, so
+// writePng shows the intended colours. Non-finite values map to black.
+vec3 falseColour(float value, float scaleMax);
+// The q-quantile (0..1) of the finite values (nearest rank; 0 when none):
+// a heatmap scale that one outlier cannot flatten. Deterministic.
+float quantile(const float* values, std::size_t count, double q);
+
 // Writes `path` by calling write(tmpPath) for a temporary sibling file, then
 // renaming it over `path`; the temporary file is removed if write throws. So a
 // reader never sees a half-written output.

@@ -21,6 +21,9 @@ using quat = glm::quat;
 inline constexpr float kPi = 3.14159265358979323846f;
 inline constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
+// The sRGB transfer function's inverse: display value (0..1) -> linear.
+inline float srgbToLinear(float c) { return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f); }
+
 inline bool isFinite(float v) { return std::isfinite(v); }
 inline bool isFinite(const vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 inline bool isFinite(const vec4& v) { return isFinite(vec3(v)) && std::isfinite(v.w); }

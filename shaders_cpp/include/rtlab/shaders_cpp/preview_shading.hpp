@@ -10,12 +10,18 @@
 #include <rtlab/tracer/pipeline.hpp>
 
 #include <cstdint>
+#include <vector>
 
 namespace rtlab::shaders {
 
 struct PreviewSettings {
     int width = 640;
     int height = 360;
+    // Traversal back end (not owned); nullptr = Embree. See tracer::TraversalBackend.
+    tracer::TraversalBackend* backend = nullptr;
+    // Fill PreviewResult::primaryRayPixels (which pixel each primary ray belongs
+    // to, in the order the rays were generated and traced).
+    bool recordRayOrder = false;
 };
 
 struct PreviewResult {
@@ -24,6 +30,10 @@ struct PreviewResult {
     std::uint64_t hits = 0;
     std::uint64_t misses = 0;
     tracer::TraceCounters counters;
+    // With PreviewSettings::recordRayOrder: pixel index (y * width + x) of
+    // every primary ray in generation order. With an order-dependent back end
+    // (the RT-core model) this is also the order in which rays were traced.
+    std::vector<std::uint32_t> primaryRayPixels;
 };
 
 PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene,

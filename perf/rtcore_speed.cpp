@@ -1,0 +1,129 @@
+// Host speed of the RT-core timing model against raw Embree on the same rays:
+// builtin:showcase primary rays at 320x240 (argument 0) and one
+// cosine-weighted diffuse bounce from every primary hit (argument 1).
+//   BM_RtCoreTimingModel  RtCore::run, batches of 1024 rays, cold core per iteration
+//   BM_RtCoreFunctional   the model's functional traversal (no timing)
+//   BM_EmbreeIntersect1   rtcIntersect1 per ray on the same scene (Embree's TLAS)
+// All on one thread; perf/summarize.py turns rays_per_s into
+// rtcore_speed_vs_embree_{primary,bounce} (issue goal: >= 0.125).
+#include "bench_scenes.hpp"
+
+#include <rtlab/rtcore_sim/rtcore.hpp>
+#include <rtlab/rtcore_sim/workloads.hpp>
+
+#include <benchmark/benchmark.h>
+#include <embree3/rtcore.h>
+
+#include <memory>
+#include <span>
+
+namespace {
+
+using namespace rtlab;
+using namespace rtlab::rtcore_sim;
+constexpr int kWidth = 320, kHeight = 240;
+constexpr std::size_t kBatch = 1024;
+
+struct Workload {
+    bench::LoadedScene scene{"builtin:showcase"};
+    RtCoreConfig config;
+    std::unique_ptr<ModelScene> model;
+    std::vector<SimRay> primary, bounce;
+
+    Workload() {
+        model = std::make_unique<ModelScene>(config.bvh);
+        model->update(scene.snapshot);
+        for (int y = 0; y < kHeight; ++y)
+            for (int x = 0; x < kWidth; ++x) {
+                const tracer::RayDesc r = scene.primaryRay(x, y, kWidth, kHeight);
+                SimRay s;
+                s.ray.origin = r.origin;
+                s.ray.direction = r.direction;
+                primary.push_back(s);
+            }
+        std::vector<ModelHit> hits(primary.size());
+        for (std::size_t i = 0; i < primary.size(); ++i) {
+            TraversalCounters c;
+            hits[i] = traceClosestHit(*model, primary[i].ray, c);
+        }
+        bounce = diffuseBounceRays(scene.snapshot, primary, hits);
+    }
+    const std::vector<SimRay>& rays(std::int64_t which) const { return which == 0 ? primary : bounce; }
+};
+
+const Workload& workload() {
+    static const Workload w;
+    return w;
+}
+
+void setRate(benchmark::State& state, std::size_t rays) {
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * rays));
+    state.counters["rays_per_s"] =
+        benchmark::Counter(static_cast<double>(rays), benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_RtCoreTimingModel(benchmark::State& state) {
+    const Workload& w = workload();
+    const std::vector<SimRay>& rays = w.rays(state.range(0));
+    RtCore core(w.config, *w.model);
+    std::vector<SimRayResult> results(rays.size());
+    OpaqueSide side;
+    for (auto _ : state) {
+        core.reset();
+        for (std::size_t first = 0; first < rays.size(); first += kBatch) {
+            const std::size_t n = std::min(kBatch, rays.size() - first);
+            core.run(std::span(rays).subspan(first, n), side, std::span(results).subspan(first, n));
+        }
+        benchmark::DoNotOptimize(results.data());
+    }
+    setRate(state, rays.size());
+    state.counters["cycles"] = static_cast<double>(core.cycle());
+}
+
+void BM_RtCoreFunctional(benchmark::State& state) {
+    const Workload& w = workload();
+    const std::vector<SimRay>& rays = w.rays(state.range(0));
+    for (auto _ : state) {
+        std::uint64_t hits = 0;
+        for (const SimRay& r : rays) {
+            TraversalCounters c;
+            hits += traceClosestHit(*w.model, r.ray, c).hit;
+        }
+        benchmark::DoNotOptimize(hits);
+    }
+    setRate(state, rays.size());
+}
+
+void BM_EmbreeIntersect1(benchmark::State& state) {
+    const Workload& w = workload();
+    const std::vector<SimRay>& rays = w.rays(state.range(0));
+    for (auto _ : state) {
+        std::uint64_t hits = 0;
+        for (const SimRay& r : rays) {
+            RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            RTCRayHit rh{};
+            rh.ray.org_x = r.ray.origin.x;
+            rh.ray.org_y = r.ray.origin.y;
+            rh.ray.org_z = r.ray.origin.z;
+            rh.ray.dir_x = r.ray.direction.x;
+            rh.ray.dir_y = r.ray.direction.y;
+            rh.ray.dir_z = r.ray.direction.z;
+            rh.ray.tnear = r.ray.tMin;
+            rh.ray.tfar = r.ray.tMax;
+            rh.ray.mask = 0xff;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(w.scene.accel->tlas(), &ctx, &rh);
+            hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+        }
+        benchmark::DoNotOptimize(hits);
+    }
+    setRate(state, rays.size());
+}
+
+}  // namespace
+
+BENCHMARK(BM_RtCoreTimingModel)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreFunctional)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EmbreeIntersect1)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_MAIN();
