@@ -1,4 +1,5 @@
 #include <rtlab/rtcore_sim/model_scene.hpp>
+#include <rtlab/tracer/instance_transform.hpp>
 
 #include <algorithm>
 
@@ -68,7 +69,7 @@ void ModelScene::rebuildTlas(const ecs::SceneSnapshot& scene, ModelUpdateStats& 
         ModelInstance inst;
         inst.mesh = s.mesh;
         inst.worldFromObject = s.worldFromObject;
-        inst.objectFromWorld = glm::inverse(glm::dmat4(s.worldFromObject));
+        inst.objectFromWorld = tracer::objectFromWorldOf(s.worldFromObject);
         inst.mask = s.mask;
         const Bvh& bvh = blases_[s.mesh]->bvh;
         if (!bvh.empty()) inst.worldBounds = bvh.rootBounds.transformed(s.worldFromObject);

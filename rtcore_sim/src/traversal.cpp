@@ -1,5 +1,7 @@
 // The traversal step shared by the functional traversal and the timing model.
 #include <rtlab/rtcore_sim/traversal.hpp>
+#include <rtlab/tracer/hit_order.hpp>
+#include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <algorithm>
@@ -114,8 +116,9 @@ void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo
         mesh_ = inst.mesh;
         info.mesh = mesh_;
         ++counters_.instanceTransitions;
-        object_.origin = vec3(inst.objectFromWorld * glm::dvec4(glm::dvec3(world_.origin), 1.0));
-        object_.direction = vec3(glm::dmat3(inst.objectFromWorld) * glm::dvec3(world_.direction));
+        const tracer::ObjectSpaceRay objectRay = tracer::toObjectSpace(inst.objectFromWorld, world_.origin, world_.direction);
+        object_.origin = objectRay.origin;
+        object_.direction = objectRay.direction;
         object_.invDirection = reciprocalDirection(object_.direction);
         if (!blas_ || blas_->bvh.empty()) return selectNext(info);
         current_ = StackEntry{blas_->bvh.root.bits, current.tEntry, EntryKind::BlasRef};
@@ -211,9 +214,14 @@ void RayTraversal::blasLeaf(const BvhLeaf& leaf, ProgrammableSide& side, std::ui
         ++info.primitiveTests;
         ++counters_.triangleTests;
         const Triangle& tri = blas.triangles[r];
+        // Ties at the committed t are settled by ids (tracer/hit_order.hpp), as on Embree.
         const std::optional<tracer::TriangleHit> h = tracer::intersectTriangleWatertight(
-            object_.origin, object_.direction, tri.v[0], tri.v[1], tri.v[2], ray_.ray.tMin, tClosest_);
+            object_.origin, object_.direction, tri.v[0], tri.v[1], tri.v[2], ray_.ray.tMin,
+            hit_.hit ? tracer::tieInclusiveUpperBound(tClosest_) : tClosest_);
         if (!h) continue;
+        if (hit_.hit && !tracer::hitReplaces(h->t, {instanceIndex_, ref.geometry, ref.primitive}, tClosest_,
+                                             {hit_.instanceIndex, hit_.geometryIndex, hit_.primitiveIndex}))
+            continue;
         TriangleCandidate c;
         c.instance = instanceIndex_;
         c.geometry = ref.geometry;

@@ -9,6 +9,7 @@
 // RTLAB_CONFORMANCE_BACKEND=reference (see tests/CMakeLists.txt).
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/tracer/candidate_filter.hpp>
+#include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
 
 #ifdef RTLAB_CONFORMANCE_WITH_RTCORE
@@ -59,9 +60,9 @@ private:
             const ecs::InstanceSnapshot& inst = accel.instance(i);
             if (((args.instanceInclusionMask & inst.mask) & 0xff) == 0) continue;
             // Object-space ray: the direction is not normalised, so t is shared.
-            const glm::dmat4 objectFromWorld = glm::inverse(glm::dmat4(inst.worldFromObject));
-            const vec3 o(objectFromWorld * glm::dvec4(glm::dvec3(ray.origin), 1.0));
-            const vec3 d(glm::dmat3(objectFromWorld) * glm::dvec3(ray.direction));
+            const ObjectSpaceRay objectRay =
+                toObjectSpace(objectFromWorldOf(inst.worldFromObject), ray.origin, ray.direction);
+            const vec3 o = objectRay.origin, d = objectRay.direction;
             const ecs::MeshAsset& mesh = (*scene_.meshes)[inst.mesh];
             for (std::uint32_t g = 0; g < mesh.geometries.size(); ++g) {
                 const ecs::Geometry& geo = mesh.geometries[g];

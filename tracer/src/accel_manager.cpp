@@ -1,5 +1,6 @@
 #include <rtlab/core/timer.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/dxr.hpp>
 
 #include <algorithm>
@@ -358,6 +359,7 @@ void AccelManager::refreshInstanceFacts() {
         InstanceFacts& f = instanceFacts_[i];
         f = InstanceFacts{};
         f.normalFromObject = glm::transpose(glm::inverse(mat3(inst.worldFromObject)));
+        f.objectFromWorld = objectFromWorldOf(inst.worldFromObject);
         f.frontCounterClockwise = (inst.flags & InstanceFlag::TriangleFrontCounterClockwise) != 0;
         f.geometrySlotBase = slotBase_.at(inst.mesh);
         f.hitGroupOffset = inst.hitGroupOffset;

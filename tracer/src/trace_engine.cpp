@@ -5,6 +5,8 @@
 // primitives run the intersection shader from Embree's user geometry
 // callbacks; an accepted ReportHit() is committed into Embree's ray/hit.
 #include <rtlab/tracer/candidate_filter.hpp>
+#include <rtlab/tracer/hit_order.hpp>
+#include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/pipeline.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
 
@@ -51,6 +53,10 @@ constexpr std::uint32_t kCandidateFlags = RayFlag::CullBackFacingTriangles | Ray
                                           RayFlag::ForceNonOpaque;
 
 void contextFilter(const RTCFilterFunctionNArguments* args);
+// Marks a pipeline trace that runs without a context filter (filterFree):
+// Embree never calls it for watertight triangles (user geometry), and the
+// callbacks recognise the pipeline context by it.
+void filterFreeMarker(const RTCFilterFunctionNArguments*) {}
 
 // RTCIntersectContext extended with the state of one trace call. Embree
 // hands the context to every callback; the lane is recovered from ray.id.
@@ -63,6 +69,11 @@ struct PipelineContext {
     // flags): Embree runs without the filter and the committed hit's HitKind
     // and record are computed once, after traversal.
     bool filterFree = false;
+    // Per lane: the object-space ray of the instance last entered
+    // (instance_transform.hpp), so that watertight triangles see exactly the
+    // object ray every back end computes from the world ray.
+    std::array<std::uint32_t, kMaxLanes> objectRayInstance;
+    std::array<ObjectSpaceRay, kMaxLanes> objectRay;
 
     PipelineContext(const TraceEngine& engine, const TraceArgs& args, std::uint32_t depth, TraceCounters& counters,
                     const RayDesc* rays, void* const* payloads, bool coherent)
@@ -83,11 +94,24 @@ struct PipelineContext {
         const bool opaqueInEffect = accel.allOpaque() || !engine.shaders().anyHitGroupHasAnyHit();
         filterFree =
             opaqueInEffect && !accel.anyProcedural() && !(args.rayFlags & kCandidateFlags) && !needsFirstHitStop;
-        if (filterFree) embree.filter = nullptr;
+        if (filterFree) embree.filter = accel.options().watertight ? filterFreeMarker : nullptr;
+        objectRayInstance.fill(RTC_INVALID_GEOMETRY_ID);
+    }
+
+    const ObjectSpaceRay& objectRayOf(std::uint32_t lane, std::uint32_t instanceIndex) {
+        if (objectRayInstance[lane] != instanceIndex) {
+            const RayDesc& world = filter.ray(lane);
+            objectRay[lane] = toObjectSpace(filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld,
+                                            world.origin, world.direction);
+            objectRayInstance[lane] = instanceIndex;
+        }
+        return objectRay[lane];
     }
 };
 
-bool isPipelineContext(const RTCIntersectContext* c) { return c && c->filter == contextFilter; }
+bool isPipelineContext(const RTCIntersectContext* c) {
+    return c && (c->filter == contextFilter || c->filter == filterFreeMarker);
+}
 
 void contextFilter(const RTCFilterFunctionNArguments* a) {
     auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
@@ -210,10 +234,12 @@ void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args) {
 
 namespace {
 
-// Watertight triangles (AccelOptions::watertight): the Woop-Benthin-Wald test
-// on the object-space ray Embree hands us. Inside a pipeline trace the
-// candidate goes through the same DXR filter as a native triangle; otherwise
-// (filter-free fast path, plain Embree queries) the nearest hit is committed.
+// Watertight triangles (AccelOptions::watertight): the Woop-Benthin-Wald test.
+// Inside a pipeline trace the object-space ray is recomputed from the world
+// ray with the shared instance transform (instance_transform.hpp; the same
+// inputs as the RT-core model, so t and barycentrics are bit-identical) and
+// the candidate goes through the DXR filter unless the trace is filter-free;
+// plain Embree queries use Embree's object ray and commit the nearest hit.
 template <class Args>
 void intersectWatertightTriangles(const Args* a, bool occlusion) {
     const auto& mesh = *static_cast<const WatertightTriangles*>(a->geometryUserPtr);
@@ -222,26 +248,44 @@ void intersectWatertightTriangles(const Args* a, bool occlusion) {
     const vec3& p1 = mesh.positions[tri[1]];
     const vec3& p2 = mesh.positions[tri[2]];
     RTCRayN* rayN = rayOf(a);
-    const bool pipeline = isPipelineContext(a->context);
+    PipelineContext* pipeline =
+        isPipelineContext(a->context) ? reinterpret_cast<PipelineContext*>(a->context) : nullptr;
     const std::uint32_t instanceIndex = a->context->instID[0];
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->valid[i] == 0) continue;
-        const vec3 o(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i));
-        const vec3 d(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i));
+        vec3 o, d;
+        if (pipeline) {
+            const ObjectSpaceRay& r = pipeline->objectRayOf(RTCRayN_id(rayN, a->N, i), instanceIndex);
+            o = r.origin;
+            d = r.direction;
+        } else {
+            o = vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i));
+            d = vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i));
+        }
         float& tfar = RTCRayN_tfar(rayN, a->N, i);
-        // Embree's interval [tnear, tfar] is inclusive at tnear (pipeline traces
-        // already moved it one float up, making DXR's open interval); the
-        // watertight test's lower end is exclusive, so step one float down.
+        // Embree's interval [tnear, tfar] is inclusive at both ends (pipeline
+        // traces moved them one float inwards, making DXR's open interval); the
+        // watertight test's ends are exclusive, so step one float outwards.
+        // At the upper end that also lets ties at the committed t reach the
+        // id comparison (hit_order.hpp), as in the RT-core model.
         const float tnearInclusive = RTCRayN_tnear(rayN, a->N, i);
         const float tnear = tnearInclusive > 0.f ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(tnearInclusive) - 1u)
                                                  : -std::numeric_limits<float>::denorm_min();
-        const std::optional<TriangleHit> hit = intersectTriangleWatertight(o, d, p0, p1, p2, tnear, tfar);
+        const std::optional<TriangleHit> hit =
+            intersectTriangleWatertight(o, d, p0, p1, p2, tnear, tieInclusiveUpperBound(tfar));
         if (!hit) continue;
+        if (!occlusion && hit->t == tfar) {
+            RTCHitN* h = hitOf(a);
+            const bool committed = RTCHitN_geomID(h, a->N, i) != RTC_INVALID_GEOMETRY_ID;
+            if (committed &&
+                !hitReplaces(hit->t, {instanceIndex, a->geomID, a->primID}, tfar,
+                             {RTCHitN_instID(h, a->N, i, 0), RTCHitN_geomID(h, a->N, i), RTCHitN_primID(h, a->N, i)}))
+                continue;
+        }
         const vec3 ng = glm::cross(p1 - p0, p2 - p0);
-        if (pipeline) {
-            auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
+        if (pipeline && !pipeline->filterFree) {
             const std::uint32_t lane = RTCRayN_id(rayN, a->N, i);
-            if (!ctx.filter.triangle(lane, hit->t, instanceIndex, a->geomID, a->primID, d, ng, hit->b1, hit->b2))
+            if (!pipeline->filter.triangle(lane, hit->t, instanceIndex, a->geomID, a->primID, d, ng, hit->b1, hit->b2))
                 continue;
         }
         if (occlusion) {

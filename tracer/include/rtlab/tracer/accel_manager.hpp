@@ -64,6 +64,7 @@ struct AccelUpdateStats {
 // Facts about one TLAS instance that traversal needs per hit.
 struct InstanceFacts {
     mat3 normalFromObject{1.f};  // inverse transpose of worldFromObject's 3x3
+    glm::dmat4 objectFromWorld{1.0};  // objectFromWorldOf(worldFromObject) (instance_transform.hpp)
     bool mayBeNonOpaque = false; // some geometry is non-opaque after instance flags
     bool hasProcedural = false;
     bool frontCounterClockwise = false;  // InstanceFlag::TriangleFrontCounterClockwise
@@ -104,6 +105,7 @@ public:
     // Every instance is opaque (after instance flags) / some instance has
     // procedural geometry. Traversal uses them to skip per-candidate work.
     bool allOpaque() const { return allOpaque_; }
+    const AccelOptions& options() const { return options_; }
     bool anyProcedural() const { return anyProcedural_; }
     std::uint32_t geometryCount(ecs::MeshId mesh) const;
     // Shader-table slot of geometry 0 of `mesh`: meshes are laid out in id
