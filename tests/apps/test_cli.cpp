@@ -117,6 +117,9 @@ TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
         "render --scene builtin:cornell --backend rtcore --rtcore-set bvh.width=5 --out " + out.string(),
         "render --scene builtin:cornell --backend rtcore --rtcore-set nope.x=1 --out " + out.string(),
         "render --scene builtin:cornell --backend rtcore --rtcore-config /no/such/rtcore.json --out " + out.string(),
+        // cross-field rule: the input queue must hold a whole warp
+        "render --scene builtin:cornell --backend rtcore --rtcore-set core.inputQueueRays=8 --out " + out.string(),
+        "render --scene /no/such/file.gltf --backend rtcore --verify --out " + out.string(),
         "render --bogus-flag",
         "frobnicate",
         "compare /no/a.exr /no/b.exr",
@@ -168,4 +171,59 @@ TEST(Cli, RenderThirdPartyGltf) {
     std::ifstream in(out / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
     EXPECT_GT(stats["frames"][0]["rays"]["primary"]["hits"].get<int>(), 0);
+}
+
+// --backend rtcore: the model traces every ray; --verify traces each again
+// on Embree. Images equal Embree's bit for bit; stats carry the model's tree.
+TEST(Cli, RtcoreRenderVerifiesAndMatchesEmbree) {
+    const fs::path rt = freshDir("rtcore"), em = freshDir("rtcore_embree");
+    const std::string common = "render --scene builtin:showcase --frames 2 --width 64 --height 36 ";
+    const CliRun r = runCli(common + "--backend rtcore --verify --out " + rt.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    EXPECT_NE(r.out.find("0 mismatch"), std::string::npos) << r.out;
+    ASSERT_EQ(runCli(common + "--out " + em.string()).exitCode, 0);
+    std::ifstream in(rt / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    EXPECT_EQ(stats["settings"]["backend"], "rtcore");
+    EXPECT_EQ(stats["rtcore"]["config"]["core"]["warpWidth"].get<int>(), 32);
+    for (int f = 0; f < 2; ++f) {
+        const auto& fr = stats["frames"][f];
+        EXPECT_EQ(fr["rtcore"]["verify"]["rays"].get<int>(), 64 * 36) << f;
+        EXPECT_EQ(fr["rtcore"]["verify"]["mismatches"].get<int>(), 0) << f;
+        EXPECT_EQ(fr["rtcore"]["frame"]["rays"].get<int>(), 64 * 36) << f;
+        EXPECT_GT(fr["rtcore"]["frame"]["cycles"].get<std::uint64_t>(), 0u) << f;
+        EXPECT_GT(fr["rtcore"]["rays"]["nodeVisits"]["mean"].get<double>(), 0.0) << f;
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%04d", f);
+        const std::string n(name);
+        const CliRun cmp = runCli("compare " + (rt / (n + ".exr")).string() + " " + (em / (n + ".exr")).string());
+        EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
+        EXPECT_TRUE(fs::exists(rt / (n + "_rtcore_cycles.png")));
+        EXPECT_TRUE(fs::exists(rt / (n + "_rtcore_nodes.png")));
+        const rtlab::Image heat = rtlab::readExr(rt / (n + "_rtcore.exr"));
+        ASSERT_TRUE(heat.hasChannel("rtcore.cycles"));
+        ASSERT_TRUE(heat.hasChannel("rtcore.nodeVisits"));
+        const float* cycles = heat.channel("rtcore.cycles");
+        for (std::size_t p = 0; p < heat.pixelCount(); ++p) ASSERT_GT(cycles[p], 0.f) << p;
+    }
+    // Frame 1 refits the cloth and moves the box in the model's BVH too.
+    EXPECT_EQ(stats["frames"][1]["rtcore"]["bvhUpdate"]["blasRefit"].get<int>(), 1);
+    EXPECT_EQ(stats["frames"][1]["rtcore"]["bvhUpdate"]["blasRebuilt"].get<int>(), 0);
+}
+
+TEST(Cli, RtcoreOneAndTwoThreadsAreBitIdentical) {
+    const fs::path a = freshDir("rt_t1"), b = freshDir("rt_t2");
+    const std::string common = "render --scene builtin:showcase --frames 2 --width 48 --height 32 --backend rtcore ";
+    ASSERT_EQ(runCli(common + "--threads 1 --out " + a.string()).exitCode, 0);
+    ASSERT_EQ(runCli(common + "--threads 2 --out " + b.string()).exitCode, 0);
+    auto load = [](const fs::path& p) {
+        std::ifstream in(p / "stats.json");
+        nlohmann::json j = nlohmann::json::parse(in);
+        j.erase("timing");
+        for (auto& f : j["frames"]) f.erase("timing");
+        return j;
+    };
+    EXPECT_EQ(load(a), load(b));
+    const CliRun cmp = runCli("compare " + (a / "frame_0001_rtcore.exr").string() + " " + (b / "frame_0001_rtcore.exr").string());
+    EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
 }

@@ -628,6 +628,44 @@ TEST(ClosestHitAndMiss, ClosestHitRunsOnceForTheClosestCommittedHit) {
     EXPECT_EQ(c.missInvocations, 0u);
 }
 
+// DXR leaves ties open; rtlab commits, at equal t, the smallest (instance,
+// geometry, primitive) on every back end (tracer/hit_order.hpp), so the
+// committed hit never depends on traversal order.
+TEST(ClosestHitAndMiss, TiesAtEqualTGoToTheSmallestIds) {
+    // Step: four coincident instances of one quad -> instance 0 wherever the ray lands.
+    {
+        TestScene s;
+        const ecs::MeshId wall = s.quad();
+        for (int i = 0; i < 4; ++i) s.place(wall, vec3(0.f));
+        const P p(s.build(), makeDesc(1), s.backend.get());
+        for (const float x : {-0.75f, -0.25f, 0.25f, 0.75f}) {
+            const Payload r = trace(p, down(x, -0.5f));
+            EXPECT_EQ(r.closestHits, 1);
+            EXPECT_EQ(r.instanceIndex, 0u) << x;
+            EXPECT_FLOAT_EQ(r.t, 10.f);
+        }
+    }
+    // Step: two coincident geometries of one mesh -> geometry 0.
+    {
+        TestScene s;
+        s.place(s.mesh({s.quadGeometry(), s.quadGeometry()}), vec3(0.f));
+        const P p(s.build(), makeDesc(2), s.backend.get());
+        EXPECT_EQ(trace(p, down(0.25f, -0.5f)).geometryIndex, 0u);
+        EXPECT_EQ(trace(p, down(-0.5f, 0.25f)).geometryIndex, 0u);
+    }
+    // Step: a ray through the diagonal both triangles of a quad share -> primitive 0.
+    {
+        TestScene s;
+        s.place(s.quad(), vec3(0.f));
+        const P p(s.build(), makeDesc(1), s.backend.get());
+        for (const float x : {-0.5f, 0.f, 0.25f}) {
+            const Payload r = trace(p, down(x, x));
+            EXPECT_EQ(r.closestHits, 1);
+            EXPECT_EQ(r.primitiveIndex, 0u) << x;
+        }
+    }
+}
+
 TEST(ClosestHitAndMiss, MissRunsOtherwiseAndFillsThePayload) {
     TestScene s;
     s.place(s.quad(), vec3(0.f));
@@ -828,6 +866,17 @@ TEST(RayInterval, TMinAndTMaxAreOpenEnds) {
     EXPECT_FLOAT_EQ(trace(p, fast).t, 1.f);
     fast.tMax = 1.f;
     EXPECT_EQ(trace(p, fast).misses, 1);
+}
+
+TEST(RayInterval, HitOneFloatBelowTMaxCounts) {
+    TestScene s;
+    s.place(s.quad(), vec3(0.f));
+    const P p(s.build(), makeDesc(1), s.backend.get());
+    // The quad is at exactly t = 2; TMax one float above still contains it.
+    const Payload r = trace(p, down(0.25f, -0.5f, 2.f, 0.f, std::nextafter(2.f, kInfinity)));
+    EXPECT_EQ(r.closestHits, 1);
+    EXPECT_EQ(r.t, 2.f);
+    EXPECT_EQ(trace(p, down(0.25f, -0.5f, 2.f, std::nextafter(2.f, 0.f), std::nextafter(2.f, kInfinity))).closestHits, 1);
 }
 
 TEST(InstanceMask, RayMaskAndInstanceMaskUseTheLowEightBits) {
