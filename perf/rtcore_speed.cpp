@@ -1,7 +1,12 @@
 // Host speed of the RT-core timing model against raw Embree on the same rays:
 // builtin:showcase primary rays at 320x240 (argument 0) and one
 // cosine-weighted diffuse bounce from every primary hit (argument 1).
-//   BM_RtCoreTimingModel  RtCore::run, batches of 1024 rays, cold core per iteration
+//   BM_RtCoreTimingModel  RtCore::run, batches of 1024 rays, cold core per
+//                         iteration; second argument: scheduling policy
+//                         (0 fifo = default, 1 oldestFirst, 2 treelet). Its
+//                         counters are the simulated figures: cyclesPerRay
+//                         (frame cycles / rays), meanLatency, nodeVisitsPerRay,
+//                         triangleTestsPerRay, cacheHitRate, simdEfficiency
 //   BM_RtCoreFunctional   the model's functional traversal (no timing)
 //   BM_EmbreeIntersect1   rtcIntersect1 per ray on the same scene: second
 //                         argument 1 = the default watertight triangles (the
@@ -17,6 +22,7 @@
 #include <embree3/rtcore.h>
 
 #include <memory>
+#include <string>
 #include <span>
 
 namespace {
@@ -69,10 +75,15 @@ void setRate(benchmark::State& state, std::size_t rays) {
         benchmark::Counter(static_cast<double>(rays), benchmark::Counter::kIsIterationInvariantRate);
 }
 
+constexpr const char* kPolicies[] = {"fifo", "oldestFirst", "treelet"};
+
 void BM_RtCoreTimingModel(benchmark::State& state) {
     const Workload& w = workload();
     const std::vector<SimRay>& rays = w.rays(state.range(0));
-    RtCore core(w.config, *w.model);
+    RtCoreConfig config = w.config;
+    config.scheduler.policy = kPolicies[state.range(1)];
+    state.SetLabel(std::string(state.range(0) == 0 ? "primary " : "bounce ") + kPolicies[state.range(1)]);
+    RtCore core(config, *w.model);
     std::vector<SimRayResult> results(rays.size());
     OpaqueSide side;
     for (auto _ : state) {
@@ -84,7 +95,15 @@ void BM_RtCoreTimingModel(benchmark::State& state) {
         benchmark::DoNotOptimize(results.data());
     }
     setRate(state, rays.size());
+    const nlohmann::json stats = core.statsJson();
+    const double n = static_cast<double>(rays.size());
     state.counters["cycles"] = static_cast<double>(core.cycle());
+    state.counters["cyclesPerRay"] = static_cast<double>(core.cycle()) / n;
+    state.counters["meanLatency"] = stats["rays"]["latency"]["mean"].get<double>();
+    state.counters["nodeVisitsPerRay"] = stats["rays"]["nodeVisits"]["mean"].get<double>();
+    state.counters["triangleTestsPerRay"] = stats["rays"]["triangleTests"]["mean"].get<double>();
+    state.counters["cacheHitRate"] = stats["cache"]["hitRate"].get<double>();
+    state.counters["simdEfficiency"] = stats["simd"]["efficiency"].get<double>();
 }
 
 void BM_RtCoreFunctional(benchmark::State& state) {
@@ -131,7 +150,7 @@ void BM_EmbreeIntersect1(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK(BM_RtCoreTimingModel)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreTimingModel)->ArgsProduct({{0, 1}, {0, 1, 2}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RtCoreFunctional)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EmbreeIntersect1)->ArgsProduct({{0, 1}, {1, 0}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();
