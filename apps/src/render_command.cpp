@@ -76,7 +76,9 @@ nlohmann::json verifyJson(const rtcore_sim::VerifyStats& v) {
 }
 
 // Per-pixel heatmaps of the primary rays the model traced: EXR layers
-// rtcore.cycles / rtcore.nodeVisits and a false-colour PNG of the cycles
+// rtcore.cycles (latency: submission -> result), rtcore.slotCycles (time in
+// a ray slot: traversal, fetches, unit waits, no queue waits) and
+// rtcore.nodeVisits, plus false-colour PNGs of slot cycles and node visits
 // (scale: the 99th percentile, so one slow ray cannot flatten the map).
 nlohmann::json writeHeatmaps(const std::filesystem::path& base, int width, int height,
                              const std::vector<std::uint32_t>& rayPixels,
@@ -86,25 +88,27 @@ nlohmann::json writeHeatmaps(const std::filesystem::path& base, int width, int h
                                std::to_string(records.size()) + " traced by the model");
     Image heat(width, height);
     float* cycles = heat.addChannel("rtcore.cycles");
+    float* slotCycles = heat.addChannel("rtcore.slotCycles");
     float* nodes = heat.addChannel("rtcore.nodeVisits");
     for (std::size_t i = 0; i < records.size(); ++i) {
         cycles[rayPixels[i]] += static_cast<float>(records[i].cycles);
+        slotCycles[rayPixels[i]] += static_cast<float>(records[i].slotCycles);
         nodes[rayPixels[i]] += static_cast<float>(records[i].nodeVisits);
     }
-    const float cyclesScale = quantile(cycles, heat.pixelCount(), 0.99);
-    const float nodesScale = quantile(nodes, heat.pixelCount(), 0.99);
-    std::vector<vec3> cyclesRgb(heat.pixelCount()), nodesRgb(heat.pixelCount());
-    for (std::size_t p = 0; p < heat.pixelCount(); ++p) {
-        cyclesRgb[p] = falseColour(cycles[p], cyclesScale);
-        nodesRgb[p] = falseColour(nodes[p], nodesScale);
-    }
-    Image cyclesImage(width, height), nodesImage(width, height);
-    cyclesImage.addRgbLayer("", cyclesRgb);
-    nodesImage.addRgbLayer("", nodesRgb);
     writeExr(base.string() + "_rtcore.exr", heat, ExrPixelType::Float);
-    writePng(base.string() + "_rtcore_cycles.png", cyclesImage);
-    writePng(base.string() + "_rtcore_nodes.png", nodesImage);
-    return {{"cyclesScaleMax", cyclesScale}, {"nodeVisitsScaleMax", nodesScale}};
+    nlohmann::json scales;
+    const auto falseColourPng = [&](const float* values, const std::string& suffix, const std::string& key) {
+        const float scale = quantile(values, heat.pixelCount(), 0.99);
+        std::vector<vec3> rgb(heat.pixelCount());
+        for (std::size_t p = 0; p < heat.pixelCount(); ++p) rgb[p] = falseColour(values[p], scale);
+        Image image(width, height);
+        image.addRgbLayer("", rgb);
+        writePng(base.string() + suffix, image);
+        scales[key] = scale;
+    };
+    falseColourPng(slotCycles, "_rtcore_cycles.png", "slotCyclesScaleMax");
+    falseColourPng(nodes, "_rtcore_nodes.png", "nodeVisitsScaleMax");
+    return scales;
 }
 
 }  // namespace

@@ -180,6 +180,7 @@ struct RtCore::Impl {
         std::uint32_t warp = 0;
         std::uint64_t age = 0;
         std::uint64_t readyCycle = 0;  // became ready (waits for the scheduler from here)
+        std::uint64_t admitCycle = 0;  // entered the ray slot
         std::uint64_t finishCycle = 0;
         std::uint32_t onChip = 0, spilled = 0;              // short stack model
         std::uint32_t spillEntries = 0, refillEntries = 0;  // of the step in flight
@@ -406,6 +407,7 @@ struct RtCore::Impl {
         r.work = s.trav.counters();
         r.stackSpills = s.spills;
         r.stackRefills = s.refills;
+        r.slotCycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(c - s.admitCycle, UINT32_MAX));
         const TraversalCounters& w = r.work;
         stats.steps.add(w.steps);
         stats.nodeVisits.add(w.nodeVisits);
@@ -535,6 +537,7 @@ struct RtCore::Impl {
             s.rayIndex = admitted++;
             s.warp = s.rayIndex / config.core.warpWidth;
             s.age = nextAge++;
+            s.admitCycle = c;
             s.onChip = s.spilled = s.spills = s.refills = 0;
             s.trav.begin(scene, rays[s.rayIndex]);
             stats.inputQueue += c - warpSubmit[s.warp];

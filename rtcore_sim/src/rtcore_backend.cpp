@@ -170,6 +170,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
             PrimaryRayRecord rec;
             if (i < laneOf_.size() && laneOf_[i] == lane) {
                 rec.cycles = results_[i].cycles;
+                rec.slotCycles = results_[i].slotCycles;
                 rec.nodeVisits = results_[i].work.nodeVisits;
                 ++i;
             }

@@ -203,8 +203,13 @@ TEST(Cli, RtcoreRenderVerifiesAndMatchesEmbree) {
         const rtlab::Image heat = rtlab::readExr(rt / (n + "_rtcore.exr"));
         ASSERT_TRUE(heat.hasChannel("rtcore.cycles"));
         ASSERT_TRUE(heat.hasChannel("rtcore.nodeVisits"));
+        ASSERT_TRUE(heat.hasChannel("rtcore.slotCycles"));
         const float* cycles = heat.channel("rtcore.cycles");
-        for (std::size_t p = 0; p < heat.pixelCount(); ++p) ASSERT_GT(cycles[p], 0.f) << p;
+        const float* slotCycles = heat.channel("rtcore.slotCycles");
+        for (std::size_t p = 0; p < heat.pixelCount(); ++p) {
+            ASSERT_GT(slotCycles[p], 0.f) << p;
+            ASSERT_LE(slotCycles[p], cycles[p]) << p;  // latency = queue waits + time in the slot
+        }
     }
     // Frame 1 refits the cloth and moves the box in the model's BVH too.
     EXPECT_EQ(stats["frames"][1]["rtcore"]["bvhUpdate"]["blasRefit"].get<int>(), 1);

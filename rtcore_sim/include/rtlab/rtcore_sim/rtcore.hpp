@@ -26,7 +26,8 @@ namespace rtlab::rtcore_sim {
 
 struct SimRayResult {
     ModelHit hit;
-    std::uint32_t cycles = 0;  // submission (warp enters the input queue) -> completion (result returned)
+    std::uint32_t cycles = 0;      // submission (warp enters the input queue) -> completion (result returned)
+    std::uint32_t slotCycles = 0;  // admission into a ray slot -> traversal finished (no queue waits)
     TraversalCounters work;
     std::uint32_t stackSpills = 0;   // entries this ray spilled from its short stack
     std::uint32_t stackRefills = 0;  // refills (memory reads) it needed

@@ -40,7 +40,8 @@ namespace rtlab::rtcore_sim {
 // What the model measured for one ray traced at recursion depth 1, in
 // submission order (see RtCoreBackend::recordPrimaryRays).
 struct PrimaryRayRecord {
-    std::uint32_t cycles = 0;      // submission -> result returned
+    std::uint32_t cycles = 0;      // latency: submission -> result returned (SimRayResult::cycles)
+    std::uint32_t slotCycles = 0;  // admission into a ray slot -> traversal finished
     std::uint32_t nodeVisits = 0;  // internal nodes visited, both levels
 };
 
