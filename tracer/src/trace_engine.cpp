@@ -69,11 +69,13 @@ struct PipelineContext {
     // flags): Embree runs without the filter and the committed hit's HitKind
     // and record are computed once, after traversal.
     bool filterFree = false;
-    // Per lane: the object-space ray of the instance last entered
+    // The object-space rays of every lane for the instance being traversed
     // (instance_transform.hpp), so that watertight triangles see exactly the
-    // object ray every back end computes from the world ray.
-    std::array<std::uint32_t, kMaxLanes> objectRayInstance;
-    std::array<ObjectSpaceRay, kMaxLanes> objectRay;
+    // object ray every back end computes from the world ray. Embree traverses
+    // one instance at a time for a whole packet, so one instance is cached.
+    std::uint32_t laneCount = 0;
+    std::uint32_t objectRaysInstance = RTC_INVALID_GEOMETRY_ID;
+    std::array<ObjectSpaceRay, kMaxLanes> objectRays;
 
     PipelineContext(const TraceEngine& engine, const TraceArgs& args, std::uint32_t depth, TraceCounters& counters,
                     const RayDesc* rays, void* const* payloads, bool coherent)
@@ -95,17 +97,24 @@ struct PipelineContext {
         filterFree =
             opaqueInEffect && !accel.anyProcedural() && !(args.rayFlags & kCandidateFlags) && !needsFirstHitStop;
         if (filterFree) embree.filter = accel.options().watertight ? filterFreeMarker : nullptr;
-        objectRayInstance.fill(RTC_INVALID_GEOMETRY_ID);
     }
 
-    const ObjectSpaceRay& objectRayOf(std::uint32_t lane, std::uint32_t instanceIndex) {
-        if (objectRayInstance[lane] != instanceIndex) {
-            const RayDesc& world = filter.ray(lane);
-            objectRay[lane] = toObjectSpace(filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld,
-                                            world.origin, world.direction);
-            objectRayInstance[lane] = instanceIndex;
+    const ObjectSpaceRay* objectRaysFor(std::uint32_t instanceIndex) {
+        if (objectRaysInstance != instanceIndex) {
+            const glm::dmat4& objectFromWorld = filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld;
+            // Lanes often share their origin (camera rays): transform it once.
+            vec3 worldOrigin{0.f}, objectOrigin{0.f};
+            for (std::uint32_t lane = 0; lane < laneCount; ++lane) {
+                const RayDesc& world = filter.ray(lane);
+                if (lane == 0 || std::memcmp(&worldOrigin, &world.origin, sizeof(vec3)) != 0) {
+                    worldOrigin = world.origin;
+                    objectOrigin = objectSpacePoint(objectFromWorld, world.origin);
+                }
+                objectRays[lane] = {objectOrigin, objectSpaceVector(objectFromWorld, world.direction)};
+            }
+            objectRaysInstance = instanceIndex;
         }
-        return objectRay[lane];
+        return objectRays.data();
     }
 };
 
@@ -251,11 +260,12 @@ void intersectWatertightTriangles(const Args* a, bool occlusion) {
     PipelineContext* pipeline =
         isPipelineContext(a->context) ? reinterpret_cast<PipelineContext*>(a->context) : nullptr;
     const std::uint32_t instanceIndex = a->context->instID[0];
+    const ObjectSpaceRay* objectRays = pipeline ? pipeline->objectRaysFor(instanceIndex) : nullptr;
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->valid[i] == 0) continue;
         vec3 o, d;
         if (pipeline) {
-            const ObjectSpaceRay& r = pipeline->objectRayOf(RTCRayN_id(rayN, a->N, i), instanceIndex);
+            const ObjectSpaceRay& r = objectRays[RTCRayN_id(rayN, a->N, i)];
             o = r.origin;
             d = r.direction;
         } else {
@@ -329,6 +339,7 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     void* payloads[1] = {payload};
     // A single ray is a one-lane trace; no packet overhead for Embree.
     PipelineContext ctx(*this, args, depth, counters, &ray, payloads, false);
+    ctx.laneCount = 1;
     const std::uint32_t type = args.rayContribution & 0xf;
     if (!isFinite(ray.origin) || !isFinite(ray.direction) || std::isnan(ray.tMin) || std::isnan(ray.tMax) ||
         !(ray.tMin >= 0.f) || !(ray.tMax >= ray.tMin) || !accel_.tlas()) {
@@ -376,6 +387,7 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
 void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
                          std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const {
     PipelineContext ctx(*this, args, depth, counters, rays, payloads, true);
+    ctx.laneCount = kMaxLanes;
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh{};
     bool any = false;

@@ -8,6 +8,7 @@
 // instances touch (the corners of a room).
 #include <rtlab/core/math.hpp>
 
+#include <bit>
 #include <cmath>
 #include <compare>
 #include <cstdint>
@@ -22,7 +23,12 @@ struct HitId {
 // The exclusive upper end to test a candidate against: one float past the
 // committed t, so that ties reach hitReplaces (before any commit, pass the
 // ray's TMax itself).
-inline float tieInclusiveUpperBound(float tCommitted) { return std::nextafter(tCommitted, kInfinity); }
+inline float tieInclusiveUpperBound(float tCommitted) {
+    // The next float up: one step of the bit pattern for finite t >= 0 (the hot case).
+    if (tCommitted >= 0.f && tCommitted < kInfinity)
+        return std::bit_cast<float>(std::bit_cast<std::uint32_t>(tCommitted) + 1u);
+    return std::nextafter(tCommitted, kInfinity);
+}
 
 // A candidate with t <= tCommitted (found by a test bounded by
 // tieInclusiveUpperBound) replaces the committed hit.

@@ -18,10 +18,25 @@ struct ObjectSpaceRay {
     vec3 direction{0.f};
 };
 
+// The two halves of the transform, written out (x, y, z only) so that a
+// caller may transform a shared origin once for many directions; the
+// results are the same bits as toObjectSpace's.
+inline vec3 objectSpacePoint(const glm::dmat4& m, const vec3& p) {
+    const double x = p.x, y = p.y, z = p.z;
+    return vec3(static_cast<float>(((m[0][0] * x + m[1][0] * y) + m[2][0] * z) + m[3][0]),
+                static_cast<float>(((m[0][1] * x + m[1][1] * y) + m[2][1] * z) + m[3][1]),
+                static_cast<float>(((m[0][2] * x + m[1][2] * y) + m[2][2] * z) + m[3][2]));
+}
+inline vec3 objectSpaceVector(const glm::dmat4& m, const vec3& v) {
+    const double x = v.x, y = v.y, z = v.z;
+    return vec3(static_cast<float>((m[0][0] * x + m[1][0] * y) + m[2][0] * z),
+                static_cast<float>((m[0][1] * x + m[1][1] * y) + m[2][1] * z),
+                static_cast<float>((m[0][2] * x + m[1][2] * y) + m[2][2] * z));
+}
+
 inline ObjectSpaceRay toObjectSpace(const glm::dmat4& objectFromWorld, const vec3& worldOrigin,
                                     const vec3& worldDirection) {
-    return {vec3(objectFromWorld * glm::dvec4(glm::dvec3(worldOrigin), 1.0)),
-            vec3(glm::dmat3(objectFromWorld) * glm::dvec3(worldDirection))};
+    return {objectSpacePoint(objectFromWorld, worldOrigin), objectSpaceVector(objectFromWorld, worldDirection)};
 }
 
 }  // namespace rtlab::tracer
