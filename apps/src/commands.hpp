@@ -2,6 +2,7 @@
 // The rtlab subcommands. Each returns the process exit code; bad input is
 // thrown as rtlab::InputError and turned into exit 2 by main().
 #include <CLI/CLI.hpp>
+#include <rtlab/shaders_cpp/frame_plan.hpp>
 
 #include <cstdint>
 #include <string>
@@ -22,9 +23,23 @@ struct RenderOptions {
     int threads = 0;
     std::uint32_t seed = 0;
     std::string out = "out";
+    std::string effects = "auto";           // --effects auto|LIST
+    std::string denoise = "auto";           // --denoise auto|none|LIST
+    std::string gi = "path";                // --gi path|ddgi
 };
 void addRenderCommand(CLI::App& app, RenderOptions& options);
 int runRender(const RenderOptions& options);
+
+struct PlanOptions {
+    std::string scene;
+    std::string effects = "auto";
+    std::string gi = "path";
+    bool json = false;
+};
+void addPlanCommand(CLI::App& app, PlanOptions& options);
+int runPlan(const PlanOptions& options);
+// --effects / --gi as the planner's options (InputError on unknown names).
+shaders::PlanOptions planOptions(const std::string& effects, const std::string& gi);
 
 struct InfoOptions {
     std::string scene;

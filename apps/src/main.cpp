@@ -21,9 +21,11 @@ int main(int argc, char** argv) {
     CLI::App app{"rtlab: a deterministic ray-tracing laboratory"};
     app.require_subcommand(1);
     app::RenderOptions render;
+    app::PlanOptions plan;
     app::InfoOptions info;
     app::CompareOptions compare;
     app::addRenderCommand(app, render);
+    app::addPlanCommand(app, plan);
     app::addInfoCommand(app, info);
     app::addCompareCommand(app, compare);
 
@@ -40,6 +42,7 @@ int main(int argc, char** argv) {
 
     try {
         if (app.got_subcommand("render")) return app::runRender(render);
+        if (app.got_subcommand("plan")) return app::runPlan(plan);
         if (app.got_subcommand("info")) return app::runInfo(info);
         if (app.got_subcommand("compare")) return app::runCompare(compare);
     } catch (const InputError& e) {

@@ -9,7 +9,8 @@
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
-#include <rtlab/shaders_cpp/preview_shading.hpp>
+#include <rtlab/shaders_cpp/frame_plan.hpp>
+#include <rtlab/shaders_cpp/frame_renderer.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 
 #include <nlohmann/json.hpp>
@@ -38,6 +39,12 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
     cmd->add_flag("--verify", o.verify, "With --backend rtcore: trace every ray on Embree too and report mismatches");
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--seed", o.seed, "Random seed")->capture_default_str();
+    cmd->add_option("--effects", o.effects, "auto (what the scene needs; see rtlab plan) or a comma-separated list "
+                                            "narrowing it: alpha,shadows,reflections,ao,gi,translucency,volumes")
+        ->capture_default_str();
+    cmd->add_option("--gi", o.gi, "Diffuse GI technique")->check(CLI::IsMember({"path", "ddgi"}))->capture_default_str();
+    cmd->add_option("--denoise", o.denoise, "auto|none|LIST (the denoise stack is not built yet: auto = none)")
+        ->capture_default_str();
     cmd->add_option("--out", o.out, "Output directory")->capture_default_str();
 }
 
@@ -70,6 +77,7 @@ nlohmann::json verifyJson(const rtcore_sim::VerifyStats& v) {
                             {"embree", hitJson(m.embree)}});
     return {{"rays", v.rays},
             {"mismatches", v.mismatches},
+            {"notBitIdentical", v.notBitIdentical},
             {"hitOnlyRays", v.anyHitOnlyRays},
             {"maxRelativeTDifference", v.maxRelativeTDifference},
             {"examples", examples}};
@@ -120,6 +128,11 @@ int runRender(const RenderOptions& o) {
         if (!o.rtcoreSet.empty()) throw InputError("--rtcore-set", "only applies to --backend rtcore");
         if (o.verify) throw InputError("--verify", "only applies to --backend rtcore");
     }
+    // Step: options checked before anything is loaded.
+    const shaders::PlanOptions planOptions = app::planOptions(o.effects, o.gi);
+    if (o.gi == "ddgi") throw InputError("--gi", "ddgi is not implemented yet; use path");
+    if (o.denoise != "auto" && o.denoise != "none")
+        throw InputError("--denoise", "'" + o.denoise + "': no denoiser is built yet (auto and none both mean none)");
     // Step: the RT-core model, configured before anything is loaded (a bad key is the clearer error).
     std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
     if (o.backend == "rtcore") {
@@ -145,7 +158,11 @@ int runRender(const RenderOptions& o) {
     stats["scene"] = o.scene;
     stats["settings"] = {{"width", o.width}, {"height", o.height}, {"spp", o.spp}, {"frames", o.frames},
                          {"backend", o.backend}, {"seed", o.seed}, {"verify", o.verify}};
+    stats["settings"]["effects"] = o.effects;
+    stats["settings"]["gi"] = o.gi;
+    stats["settings"]["denoise"] = "none";
     if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
+    shaders::FrameHistory history;
     std::uint64_t totalMismatches = 0, totalVerified = 0;
     stats["timing"] = {{"loadMs", loadMs}};
     stats["frames"] = nlohmann::json::array();
@@ -156,19 +173,30 @@ int runRender(const RenderOptions& o) {
         const ecs::FrameUpdate update = world.update(f == 0 ? 0.f : world.settings().frameSeconds);
         const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, update);
         const tracer::AccelUpdateStats accelStats = accel.update(scene);
-        shaders::PreviewSettings preview{o.width, o.height};
+        const shaders::FramePlan plan = shaders::planFrame(scene, planOptions);
+        if (f == 0) {
+            stats["plan"] = plan.toJson();
+            for (const std::string& note : plan.notes) std::cerr << "rtlab: note: " << note << "\n";
+        }
+        shaders::RenderSettings settings;
+        settings.width = o.width;
+        settings.height = o.height;
+        settings.spp = o.spp;
+        settings.frame = static_cast<std::uint32_t>(f);
+        settings.seed = o.seed;
         rtcore_sim::ModelUpdateStats modelStats;
         const Stopwatch modelClock;
         if (rtcore) {
             modelStats = rtcore->update(scene);
             rtcore->beginFrame();
-            preview.backend = rtcore.get();
-            preview.recordRayOrder = true;
+            settings.backend = rtcore.get();
+            settings.recordRayOrder = true;
         }
         const double modelBuildMs = modelClock.elapsedMs();
         const Stopwatch renderClock;
-        const shaders::PreviewResult frame = shaders::renderPreview(accel, scene, preview);
+        const shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, settings, history);
         const double renderMs = renderClock.elapsedMs();
+        history.record(scene);
 
         char name[32];
         std::snprintf(name, sizeof name, "frame_%04d", f);
@@ -194,7 +222,17 @@ int runRender(const RenderOptions& o) {
                        {"tlasUpdates", accelStats.tlasUpdates},
                        {"instancesMoved", accelStats.instancesMoved}};
         const tracer::TraceCounters& c = frame.counters;
-        fj["rays"] = {{"primary", {{"traced", c.rays[0]}, {"hits", c.hits[0]}, {"misses", c.misses[0]}}}};
+        static constexpr const char* kRayTypeNames[] = {"primary", "shadow", "reflection", "ao", "gi", "translucency"};
+        fj["rays"] = nlohmann::json::object();
+        for (std::uint32_t t = 0; t < shaders::kRayTypeCount; ++t)
+            fj["rays"][kRayTypeNames[t]] = {{"traced", c.rays[t]}, {"hits", c.hits[t]}, {"misses", c.misses[t]}};
+        fj["passes"] = nlohmann::json::object();
+        for (std::size_t p = 0; p < shaders::kPassCount; ++p)
+            fj["passes"][std::string(shaders::passName(static_cast<shaders::Pass>(p)))] = {
+                {"planned", plan.passes[p].planned},
+                {"rays", frame.passes[p].rays},
+                {"bytesAllocated", frame.passes[p].bytesAllocated}};
+        fj["nonFiniteValuesRepaired"] = frame.nonFiniteValuesRepaired;
         fj["shaders"] = {{"anyHit", c.anyHitInvocations},
                          {"intersection", c.intersectionInvocations},
                          {"closestHit", c.closestHitInvocations},
@@ -221,6 +259,10 @@ int runRender(const RenderOptions& o) {
         }
         // Timings vary run to run; everything outside "timing" is deterministic.
         fj["timing"] = {{"accelBuildMs", accelStats.buildMs}, {"renderMs", renderMs}};
+        for (std::size_t p = 0; p < shaders::kPassCount; ++p)
+            if (plan.passes[p].planned)
+                fj["timing"]["passMs"][std::string(shaders::passName(static_cast<shaders::Pass>(p)))] =
+                    frame.passes[p].milliseconds;
         if (rtcore) fj["timing"]["rtcoreBvhUpdateMs"] = modelBuildMs;
         stats["frames"].push_back(fj);
     }

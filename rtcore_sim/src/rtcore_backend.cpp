@@ -3,16 +3,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace rtlab::rtcore_sim {
 namespace {
 
 constexpr std::size_t kMaxMismatchExamples = 8;
 
-// DXR leaves such rays undefined; every back end counts them as misses.
-bool validRay(const tracer::RayDesc& r) {
-    return isFinite(r.origin) && isFinite(r.direction) && r.tMin >= 0.f && r.tMax >= r.tMin;
-}
 
 // The model's programmable side for one trace call: every candidate goes to
 // the tracer's CandidateFilter (culling, opacity, any-hit, intersection
@@ -71,13 +68,25 @@ thread_local const RtCoreBackend* tTracing = nullptr;
 
 }  // namespace
 
+static double relativeDifference(float a, float b) {
+    const double scale = std::max(std::abs(double(a)), std::abs(double(b)));
+    return scale > 0.0 ? std::abs(double(a) - double(b)) / scale : 0.0;
+}
+
 bool sameHit(const tracer::CommittedHit& a, const tracer::CommittedHit& b, bool hitOnly, double relativeTolerance) {
     if (a.hit != b.hit) return false;
     if (!a.hit || hitOnly) return true;
-    if (a.instanceIndex != b.instanceIndex || a.geometryIndex != b.geometryIndex || a.primitiveIndex != b.primitiveIndex)
+    if (a.instanceIndex != b.instanceIndex || a.geometryIndex != b.geometryIndex ||
+        a.primitiveIndex != b.primitiveIndex || a.hitKind != b.hitKind || a.hitGroupRecord != b.hitGroupRecord)
         return false;
-    const double ta = a.t, tb = b.t;
-    return std::abs(ta - tb) <= relativeTolerance * std::max(std::abs(ta), std::abs(tb));
+    return relativeDifference(a.t, b.t) <= relativeTolerance;
+}
+
+static bool bitIdenticalHit(const tracer::CommittedHit& a, const tracer::CommittedHit& b) {
+    if (!sameHit(a, b, false, 0.0)) return false;
+    if (!a.hit) return true;
+    return std::memcmp(&a.t, &b.t, sizeof(float)) == 0 &&
+           std::memcmp(a.attributes.values.data(), b.attributes.values.data(), sizeof(float) * 8) == 0;
 }
 
 RtCoreBackend::RtCoreBackend(const RtCoreConfig& config) : config_(config), model_(config.bvh) {
@@ -126,7 +135,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     for (std::uint32_t lane = 0; lane < count; ++lane) {
         if (!active[lane]) continue;
         const tracer::RayDesc& r = rays[lane];
-        if (!validRay(r)) {
+        if (!tracer::isValidRay(r)) {
             ++invalidRays_;
             continue;
         }
@@ -152,18 +161,21 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     filter.rethrowIfFailed();
 
     // Step: committed hits (HitKind, record and attributes come from the filter).
-    std::vector<bool> traced(count, false);
-    for (std::size_t i = 0; i < simRays_.size(); ++i) {
-        const std::uint32_t lane = laneOf_[i];
-        const ModelHit& h = results_[i].hit;
-        traced[lane] = true;
-        filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
+    // Lanes in order: traced ones (laneOf_ is increasing) from the model, the
+    // rest (invalid rays) as misses.
+    std::size_t next = 0;
+    for (std::uint32_t lane = 0; lane < count; ++lane) {
+        if (!active[lane]) continue;
+        if (next < laneOf_.size() && laneOf_[next] == lane) {
+            const ModelHit& h = results_[next++].hit;
+            filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
+        } else {
+            filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
+        }
     }
-    for (std::uint32_t lane = 0; lane < count; ++lane)
-        if (active[lane] && !traced[lane]) filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
 
-    // Step: per-ray records of depth-1 rays, in submission (lane) order.
-    if (recordPrimary_ && depth == 1) {
+    // Step: per-ray records of primary rays (depth 1, ray type 0), in submission (lane) order.
+    if (recordPrimary_ && depth == 1 && (args.rayContribution & 0xf) == 0) {
         std::size_t i = 0;
         for (std::uint32_t lane = 0; lane < count; ++lane) {
             if (!active[lane]) continue;
@@ -197,12 +209,11 @@ void RtCoreBackend::verifyBatch(const tracer::TraceEngine& engine, const tracer:
             ++verifyStats_.mismatches;
             if (verifyStats_.examples.size() < kMaxMismatchExamples)
                 verifyStats_.examples.push_back(HitMismatch{args.rayContribution & 0xf, depth, rays[lane], model, embree});
-        } else if (model.hit && !hitOnly) {
-            const double ta = model.t, tb = embree.t;
-            const double scale = std::max(std::abs(ta), std::abs(tb));
-            if (scale > 0.0)
+        } else if (!hitOnly) {
+            if (!bitIdenticalHit(model, embree)) ++verifyStats_.notBitIdentical;
+            if (model.hit)
                 verifyStats_.maxRelativeTDifference =
-                    std::max(verifyStats_.maxRelativeTDifference, std::abs(ta - tb) / scale);
+                    std::max(verifyStats_.maxRelativeTDifference, relativeDifference(model.t, embree.t));
         }
     }
 }

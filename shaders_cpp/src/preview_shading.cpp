@@ -32,6 +32,16 @@ CameraRay cameraRay(const ecs::CameraSnapshot& camera, int width, int height, fl
     return {vec3(camera.worldFromCamera[3]), glm::normalize(mat3(camera.worldFromCamera) * dirCamera)};
 }
 
+std::optional<vec2> projectToPixel(const ecs::CameraSnapshot& camera, int width, int height, const vec3& worldPoint) {
+    const float aspect = camera.camera.aspectRatio > 0.f ? camera.camera.aspectRatio
+                                                         : static_cast<float>(width) / static_cast<float>(height);
+    const float tanHalf = std::tan(0.5f * camera.camera.yfov);
+    const vec3 p = vec3(glm::inverse(camera.worldFromCamera) * vec4(worldPoint, 1.f));
+    if (!(p.z < 0.f)) return std::nullopt;
+    const float sx = p.x / -p.z, sy = p.y / -p.z;
+    return vec2((sx / (tanHalf * aspect) + 1.f) * 0.5f * width, (1.f - sy / tanHalf) * 0.5f * height);
+}
+
 vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>& textures, const vec2& uv) {
     vec4 c = material.baseColor;
     if (material.baseColorTexture < textures.size()) {

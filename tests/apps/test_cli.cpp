@@ -180,7 +180,7 @@ TEST(Cli, RtcoreRenderVerifiesAndMatchesEmbree) {
     const std::string common = "render --scene builtin:showcase --frames 2 --width 64 --height 36 ";
     const CliRun r = runCli(common + "--backend rtcore --verify --out " + rt.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
-    EXPECT_NE(r.out.find("0 mismatch"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(", 0 mismatch(es)"), std::string::npos) << r.out;
     ASSERT_EQ(runCli(common + "--out " + em.string()).exitCode, 0);
     std::ifstream in(rt / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
@@ -188,9 +188,14 @@ TEST(Cli, RtcoreRenderVerifiesAndMatchesEmbree) {
     EXPECT_EQ(stats["rtcore"]["config"]["core"]["warpWidth"].get<int>(), 32);
     for (int f = 0; f < 2; ++f) {
         const auto& fr = stats["frames"][f];
-        EXPECT_EQ(fr["rtcore"]["verify"]["rays"].get<int>(), 64 * 36) << f;
+        std::uint64_t traced = 0;
+        for (const auto& [type, counts] : fr["rays"].items()) traced += counts["traced"].get<std::uint64_t>();
+        EXPECT_EQ(fr["rays"]["primary"]["traced"].get<int>(), 64 * 36) << f;
+        EXPECT_GT(traced, 4u * 64 * 36) << f;  // every effect traces
+        EXPECT_EQ(fr["rtcore"]["verify"]["rays"].get<std::uint64_t>(), traced) << f;
         EXPECT_EQ(fr["rtcore"]["verify"]["mismatches"].get<int>(), 0) << f;
-        EXPECT_EQ(fr["rtcore"]["frame"]["rays"].get<int>(), 64 * 36) << f;
+        EXPECT_EQ(fr["rtcore"]["verify"]["notBitIdentical"].get<int>(), 0) << f;
+        EXPECT_EQ(fr["rtcore"]["frame"]["rays"].get<std::uint64_t>(), traced) << f;
         EXPECT_GT(fr["rtcore"]["frame"]["cycles"].get<std::uint64_t>(), 0u) << f;
         EXPECT_GT(fr["rtcore"]["rays"]["nodeVisits"]["mean"].get<double>(), 0.0) << f;
         char name[32];

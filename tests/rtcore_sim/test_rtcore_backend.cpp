@@ -80,6 +80,12 @@ TEST(RtCoreBackend, SameHitRules) {
     b.primitiveIndex = 1;
     EXPECT_FALSE(sameHit(a, b, false));
     EXPECT_TRUE(sameHit(a, b, true));
+    b.primitiveIndex = 0;
+    b.hitKind = 255;  // back face vs front face
+    EXPECT_FALSE(sameHit(a, b, false));
+    b.hitKind = a.hitKind;
+    b.hitGroupRecord = 3;
+    EXPECT_FALSE(sameHit(a, b, false));
     b.hit = false;
     EXPECT_FALSE(sameHit(a, b, true));
 }
@@ -90,6 +96,7 @@ TEST(RtCoreBackend, ShowcaseThreeFramesBitIdenticalToEmbree) {
     EXPECT_TRUE(d.identical) << "max abs diff " << d.maxAbsDiff;
     EXPECT_EQ(r.rtcore.verify.rays, 128u * 72u);
     EXPECT_EQ(r.rtcore.verify.mismatches, 0u);
+    EXPECT_EQ(r.rtcore.verify.notBitIdentical, 0u);
     EXPECT_EQ(r.rtcore.preview.counters.rays[0], r.embree.counters.rays[0]);
     EXPECT_EQ(r.rtcore.preview.counters.hits[0], r.embree.counters.hits[0]);
     // Showcase has alpha-masked foliage: its any-hit shader runs on both.

@@ -39,7 +39,7 @@ public:
             const RayDesc& ray = rays[lane];
             Closest best;
             best.t = ray.tMax;
-            if (isFinite(ray.origin) && isFinite(ray.direction) && ray.tMin >= 0.f && ray.tMax >= ray.tMin)
+            if (isValidRay(ray))
                 traceOne(engine, args, filter, lane, ray, best);
             filter.finish(lane, best.hit, best.t, best.instance, best.geometry, best.primitive, out[lane]);
         }

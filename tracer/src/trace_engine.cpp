@@ -160,10 +160,17 @@ void commitAfterTraversal(const PipelineContext& ctx, std::uint32_t lane, float 
     const TraceEngine& engine = ctx.filter.engine();
     const InstanceFacts& facts = engine.accel().instanceFacts(instID);
     const vec3& d = ctx.filter.ray(lane).direction;
-    // dot(d, N n) = dot(N^T d, n) with N = normalFromObject (column-major mat3).
-    const mat3& n = facts.normalFromObject;
-    const float facing = objectNormal.x * glm::dot(n[0], d) + objectNormal.y * glm::dot(n[1], d) +
-                         objectNormal.z * glm::dot(n[2], d);
+    float facing;
+    if (engine.accel().options().watertight) {
+        // The facing test every back end makes (CandidateFilter::triangle): the
+        // object-space direction of the shared instance transform against Ng.
+        facing = glm::dot(objectSpaceVector(facts.objectFromWorld, d), objectNormal);
+    } else {
+        // dot(d, N n) = dot(N^T d, n) with N = normalFromObject (column-major mat3).
+        const mat3& n = facts.normalFromObject;
+        facing = objectNormal.x * glm::dot(n[0], d) + objectNormal.y * glm::dot(n[1], d) +
+                 objectNormal.z * glm::dot(n[2], d);
+    }
     bool front = facing < 0.f;
     if (facts.frontCounterClockwise) front = !front;
     const std::uint32_t type = ctx.filter.args().rayContribution & 0xf;
@@ -341,8 +348,7 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     PipelineContext ctx(*this, args, depth, counters, &ray, payloads, false);
     ctx.laneCount = 1;
     const std::uint32_t type = args.rayContribution & 0xf;
-    if (!isFinite(ray.origin) || !isFinite(ray.direction) || std::isnan(ray.tMin) || std::isnan(ray.tMax) ||
-        !(ray.tMin >= 0.f) || !(ray.tMax >= ray.tMin) || !accel_.tlas()) {
+    if (!isValidRay(ray) || !accel_.tlas()) {
         // DXR: such rays are undefined; we count them as misses.
         ++counters.rays[type];
         ++counters.misses[type];
@@ -393,7 +399,7 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
     bool any = false;
     for (int i = 0; i < kMaxLanes; ++i) {
         const RayDesc& r = rays[i];
-        const bool ok = active[i] && isFinite(r.origin) && isFinite(r.direction) && r.tMin >= 0.f && r.tMax >= r.tMin;
+        const bool ok = active[i] && isValidRay(r);
         valid[i] = ok ? -1 : 0;
         any = any || ok;
         rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;

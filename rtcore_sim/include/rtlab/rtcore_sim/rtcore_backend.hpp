@@ -37,8 +37,8 @@
 
 namespace rtlab::rtcore_sim {
 
-// What the model measured for one ray traced at recursion depth 1, in
-// submission order (see RtCoreBackend::recordPrimaryRays).
+// What the model measured for one primary ray (recursion depth 1, ray type
+// 0), in submission order (see RtCoreBackend::recordPrimaryRays).
 struct PrimaryRayRecord {
     std::uint32_t cycles = 0;      // latency: submission -> result returned (SimRayResult::cycles)
     std::uint32_t slotCycles = 0;  // admission into a ray slot -> traversal finished
@@ -56,17 +56,18 @@ struct HitMismatch {
 
 struct VerifyStats {
     std::uint64_t rays = 0;        // rays traced by both back ends
-    std::uint64_t mismatches = 0;  // rays whose hits differ (hit/miss, instance, geometry, primitive, t)
+    std::uint64_t mismatches = 0;  // hits differ: hit/miss, instance, geometry, primitive, HitKind, record, or t beyond 1e-6 relative
+    std::uint64_t notBitIdentical = 0;  // closest-hit rays that match but differ in some bit of t or the attributes
     std::uint64_t anyHitOnlyRays = 0;  // ACCEPT_FIRST_HIT_AND_END_SEARCH rays: only hit/miss compared
     double maxRelativeTDifference = 0.0;  // over rays whose ids agree
     std::vector<HitMismatch> examples;    // the first few mismatches
 };
 
 // Compares two committed hits the way verification does: both miss, or
-// both hit the same instance, geometry and primitive with t within
-// `relativeTolerance` (relative to the larger |t|). With `hitOnly` (rays
-// that accept the first hit, whose committed hit is any hit) only hit/miss
-// is compared.
+// both hit the same instance, geometry and primitive with the same HitKind
+// and hit-group record, and t within `relativeTolerance` (relative to the
+// larger |t|). With `hitOnly` (rays that accept the first hit, whose
+// committed hit is any hit) only hit/miss is compared.
 bool sameHit(const tracer::CommittedHit& a, const tracer::CommittedHit& b, bool hitOnly,
              double relativeTolerance = 1e-6);
 
@@ -83,7 +84,8 @@ public:
     // the primary-ray records are zeroed (the clock and the cache stay).
     void beginFrame();
 
-    // Keep a PrimaryRayRecord for every ray traced at depth 1 (heatmaps).
+    // Keep a PrimaryRayRecord for every ray traced at depth 1 with ray type
+    // (RayContributionToHitGroupIndex) 0 (heatmaps).
     void recordPrimaryRays(bool on) { recordPrimary_ = on; }
     const std::vector<PrimaryRayRecord>& primaryRays() const { return primary_; }
 
@@ -91,6 +93,7 @@ public:
     void setVerify(bool on) { verify_ = on; }
     const VerifyStats& verifyStats() const { return verifyStats_; }
 
+    // Read these between dispatches (they are not locked against a running trace).
     // The model's stats tree for the frame (RtCore::statsJson, including
     // "config"), plus "backend": trace calls and rays that never reached the
     // model (invalid rays count as misses, as on Embree).

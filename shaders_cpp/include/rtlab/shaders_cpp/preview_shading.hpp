@@ -10,6 +10,7 @@
 #include <rtlab/tracer/pipeline.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace rtlab::shaders {
@@ -45,6 +46,9 @@ struct CameraRay {
     vec3 direction;  // unit length
 };
 CameraRay cameraRay(const ecs::CameraSnapshot& camera, int width, int height, float px, float py);
+// The inverse of cameraRay: the continuous pixel position (px, py) of a world
+// point, or nothing when it lies behind the camera.
+std::optional<vec2> projectToPixel(const ecs::CameraSnapshot& camera, int width, int height, const vec3& worldPoint);
 
 // Surface attributes at a committed triangle hit, in world space.
 struct SurfacePoint {

@@ -45,6 +45,12 @@ struct RayDesc {
     float tMax = kInfinity;
 };
 
+// DXR leaves rays with a non-finite origin or direction, a negative or NaN
+// TMin, or TMax < TMin undefined; every rtlab back end counts them as misses.
+inline bool isValidRay(const RayDesc& r) {
+    return isFinite(r.origin) && isFinite(r.direction) && r.tMin >= 0.f && r.tMax >= r.tMin;
+}
+
 // Hit attributes: barycentrics for triangles (u = weight of vertex 1,
 // v = weight of vertex 2), or up to 8 floats from an intersection shader
 // (DXR's 32-byte attribute limit).

@@ -22,6 +22,8 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <type_traits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -289,7 +291,9 @@ public:
     // returns the ray of pixel (x, y) and initialises its payload; 8
     // horizontally adjacent pixels are traced as one packet; closest-hit/miss
     // then run per lane; done(x, y, payload) receives the result. With a
-    // back end, each 16x16 tile's rays are traced as one batch.
+    // back end, each 16x16 tile's rays are traced as one batch. makeRay may
+    // return std::optional<RayDesc>: a pixel without a ray (nullopt) is not
+    // traced, not counted, and done is not called for it.
     template <class MakeRay, class Done>
     TraceCounters dispatchCoherent(int width, int height, const TraceArgs& args, MakeRay&& makeRay, Done&& done) const {
         if (args.missIndex >= desc_.missShaders.size())
@@ -308,14 +312,14 @@ public:
             for (int lane = 0; lane < 8; ++lane) payloadPtrs[lane] = &payloads[lane];
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x0 = tile.x0; x0 < tile.x1; x0 += 8) {
+                    bool any = false;
                     for (int lane = 0; lane < 8; ++lane) {
-                        active[lane] = x0 + lane < tile.x1;
                         payloads[lane] = Payload{};
-                        if (active[lane])
-                            rays[lane] = makeRay(x0 + lane, y, payloads[lane]);
-                        else
-                            rays[lane] = RayDesc{};
+                        rays[lane] = RayDesc{};
+                        active[lane] = x0 + lane < tile.x1 && generate(makeRay, x0 + lane, y, payloads[lane], rays[lane]);
+                        any = any || active[lane];
                     }
+                    if (!any) continue;
                     engine_.trace8(args, rays.data(), payloadPtrs.data(), active.data(), 1, hits.data(), counters);
                     const DepthGuard guard(scope, 1);
                     for (int lane = 0; lane < 8; ++lane) {
@@ -332,6 +336,21 @@ public:
     TraversalBackend* backend() const { return backend_; }
 
 private:
+    // Calls makeRay; false when it returned an empty std::optional (no ray).
+    template <class MakeRay>
+    static bool generate(MakeRay& makeRay, int x, int y, Payload& payload, RayDesc& ray) {
+        using Result = std::decay_t<decltype(makeRay(x, y, payload))>;
+        if constexpr (std::is_same_v<Result, RayDesc>) {
+            ray = makeRay(x, y, payload);
+            return true;
+        } else {
+            const std::optional<RayDesc> r = makeRay(x, y, payload);
+            if (!r) return false;
+            ray = *r;
+            return true;
+        }
+    }
+
     // dispatchCoherent on a back end: one batch per tile.
     template <class MakeRay, class Done>
     TraceCounters dispatchBatches(int width, int height, const TraceArgs& args, MakeRay& makeRay, Done& done) const {
@@ -344,18 +363,20 @@ private:
             std::vector<void*> payloadPtrs(n);
             const std::unique_ptr<bool[]> active(new bool[n]);
             std::vector<CommittedHit> hits(n);
-            std::size_t i = 0;
+            std::size_t i = 0, traced = 0;
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x = tile.x0; x < tile.x1; ++x, ++i) {
                     payloadPtrs[i] = &payloads[i];
-                    active[i] = true;
-                    rays[i] = makeRay(x, y, payloads[i]);
+                    active[i] = generate(makeRay, x, y, payloads[i], rays[i]);
+                    traced += active[i];
                 }
+            if (traced == 0) return;
             backend_->trace(engine_, args, rays.data(), payloadPtrs.data(), active.get(), n, 1, hits.data(), counters);
             const DepthGuard guard(scope, 1);
             i = 0;
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x = tile.x0; x < tile.x1; ++x, ++i) {
+                    if (!active[i]) continue;
                     finish(args, rays[i], hits[i], payloads[i], 1, counters);
                     done(x, y, payloads[i]);
                 }

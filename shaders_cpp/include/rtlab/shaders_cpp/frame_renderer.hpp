@@ -1,0 +1,74 @@
+#pragma once
+// The frame renderer: the passes of a FramePlan as shader programs on the
+// DXR pipeline (Embree or the RT-core model), each writing its noisy signal
+// plus the guide buffers its denoiser needs, and a composed beauty image.
+//
+// Ray types (RayContributionToHitGroupIndex; per-type counters in stats):
+//   0 primary (G-buffer), 1 shadow, 2 reflection, 3 ambient occlusion,
+//   4 diffuse GI, 5 translucency
+// Random numbers: SampleKey{pixel, frame, sample, bounce, seed} (core/rng.hpp).
+#include <rtlab/core/image.hpp>
+#include <rtlab/ecs/snapshot.hpp>
+#include <rtlab/shaders_cpp/frame_plan.hpp>
+#include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/pipeline.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace rtlab::shaders {
+
+enum RayType : std::uint32_t {
+    kRayPrimary = 0,
+    kRayShadow = 1,
+    kRayReflection = 2,
+    kRayOcclusion = 3,
+    kRayGi = 4,
+    kRayTranslucency = 5,
+    kRayTypeCount = 6,
+};
+
+struct RenderSettings {
+    int width = 640;
+    int height = 360;
+    int spp = 1;               // samples per pixel per effect
+    std::uint32_t frame = 0;   // frame index (random numbers, DDGI history)
+    std::uint32_t seed = 0;
+    tracer::TraversalBackend* backend = nullptr;  // nullptr = Embree
+    bool recordRayOrder = false;  // FrameOutput::primaryRayPixels (order-dependent back ends only)
+    float aoRadius = 1.0f;        // world units
+    int maxTranslucencyDepth = 8; // refraction/reflection events along a translucent path
+    float throughputCutoff = 1e-3f;  // a translucent path ends below this throughput
+    float areaLightUnshadowedSamples = 16;  // samples of the unshadowed area-light estimate (no rays)
+};
+
+// The previous frame's camera and instance transforms, for motion vectors.
+struct FrameHistory {
+    bool valid = false;
+    ecs::CameraSnapshot camera;
+    std::vector<mat4> worldFromObject;  // by entity index
+    std::vector<bool> present;          // by entity index
+    // Remembers `scene` as the previous frame of the next render.
+    void record(const ecs::SceneSnapshot& scene);
+};
+
+// What one pass did this frame.
+struct PassReport {
+    std::uint64_t rays = 0;            // rays traced by the pass
+    std::uint64_t bytesAllocated = 0;  // buffers the pass allocated
+    double milliseconds = 0.0;         // wall time (not deterministic)
+};
+
+struct FrameOutput {
+    Image image;  // beauty R,G,B + every pass's layers (docs/effects.md)
+    std::array<PassReport, kPassCount> passes{};
+    tracer::TraceCounters counters;            // summed over passes (per ray type)
+    std::vector<std::uint32_t> primaryRayPixels;  // with RenderSettings::recordRayOrder
+    std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
+};
+
+FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
+                        const RenderSettings& settings, const FrameHistory& previous = {});
+
+}  // namespace rtlab::shaders

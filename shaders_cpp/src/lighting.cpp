@@ -1,0 +1,201 @@
+#include "lighting.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rtlab::shaders::detail {
+namespace {
+
+vec3 lightPosition(const ecs::LightSnapshot& l) { return vec3(l.worldFromLight[3]); }
+vec3 lightForward(const ecs::LightSnapshot& l) { return -glm::normalize(vec3(l.worldFromLight[2])); }
+vec3 emitted(const ecs::LightSnapshot& l) { return l.light.color * l.light.intensity; }
+
+float lightArea(const ecs::LightSnapshot& l) {
+    if (l.light.type == ecs::LightType::Rect) return std::abs(l.light.size.x * l.light.size.y);
+    return 4.f * kPi * l.light.radius * l.light.radius;
+}
+
+}  // namespace
+
+ShadingPoint shadingPointOf(const GPixel& g) {
+    ShadingPoint sp;
+    sp.position = g.position;
+    sp.normal = g.normal;
+    sp.geometricNormal = g.geometricNormal;
+    sp.wo = g.viewDir;
+    sp.albedo = g.albedo;
+    sp.roughness = g.roughness;
+    sp.metalness = g.metalness;
+    return sp;
+}
+
+ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const vec3& wo) {
+    ShadingPoint sp;
+    sp.position = hit.position;
+    sp.normal = hit.shadingNormal;
+    sp.geometricNormal = hit.geometricNormal;
+    sp.wo = wo;
+    sp.albedo = hit.albedo;
+    sp.roughness = glm::clamp(m.roughness, 0.f, 1.f);
+    sp.metalness = glm::clamp(m.metallic, 0.f, 1.f);
+    return sp;
+}
+
+vec3 specularF0(const ShadingPoint& sp) { return glm::mix(vec3(0.04f), sp.albedo, sp.metalness); }
+
+vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi) {
+    const float cosI = glm::dot(sp.normal, wi);
+    if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, wi) <= 0.f) return vec3(0.f);
+    return (1.f - sp.metalness) * sp.albedo * (cosI / kPi);
+}
+
+vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi) {
+    const float cosI = glm::dot(sp.normal, wi);
+    const float cosO = glm::dot(sp.normal, sp.wo);
+    if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, wi) <= 0.f) return vec3(0.f);
+    vec3 f = evalDiffuseCos(sp, wi);
+    if (cosO > 0.f) {
+        // Step: GGX specular D G F / (4 cosI cosO) x cosI, in the shading frame.
+        const Frame frame = makeFrame(sp.normal);
+        const vec3 wo = toLocal(frame, sp.wo), wiLocal = toLocal(frame, wi);
+        const vec3 h = glm::normalize(wo + wiLocal);
+        const float alpha = ggxAlpha(sp.roughness);
+        const vec3 F = fresnelSchlick(specularF0(sp), glm::dot(wiLocal, h));
+        const float spec = ggxD(h, alpha) * ggxG2(wo, wiLocal, alpha) / (4.f * std::max(cosO, 1e-6f));
+        if (std::isfinite(spec)) f += F * spec;
+    }
+    return f;
+}
+
+LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) {
+    LightSample s;
+    if (l.light.type == ecs::LightType::Rect) {
+        // Step: uniform point on the rectangle; area pdf -> solid angle.
+        const vec3 ax = vec3(l.worldFromLight[0]), ay = vec3(l.worldFromLight[1]);
+        const vec3 q = lightPosition(l) + (u.x - 0.5f) * l.light.size.x * ax + (u.y - 0.5f) * l.light.size.y * ay;
+        const vec3 d = q - p;
+        const float dist2 = glm::dot(d, d);
+        if (!(dist2 > 0.f)) return s;
+        const float dist = std::sqrt(dist2);
+        s.direction = d / dist;
+        s.distance = dist;
+        const float cosLight = glm::dot(-s.direction, lightForward(l));
+        if (!(cosLight > 0.f)) return s;  // the back of a one-sided panel
+        const float area = lightArea(l) * glm::length(glm::cross(ax, ay));
+        s.radianceOverPdf = emitted(l) * (cosLight * area / dist2);
+        s.valid = std::isfinite(s.radianceOverPdf.x) && area > 0.f;
+        return s;
+    }
+    // Step: sphere light — uniform in the cone it subtends.
+    const vec3 c = lightPosition(l);
+    const vec3 d = c - p;
+    const float dist2 = glm::dot(d, d);
+    const float r = std::max(l.light.radius, 0.f);
+    if (!(dist2 > r * r)) return s;  // inside the light
+    const float dist = std::sqrt(dist2);
+    const float sinMax2 = r * r / dist2;
+    const float cosMax = std::sqrt(std::max(0.f, 1.f - sinMax2));
+    const Frame frame = makeFrame(d / dist);
+    s.direction = glm::normalize(toWorld(frame, sampleUniformCone(u, cosMax)));
+    // Distance to the sphere along the sampled direction (nearest root; the centre for r = 0).
+    const float b = glm::dot(d, s.direction);
+    const float disc = b * b - (dist2 - r * r);
+    s.distance = r > 0.f ? b - std::sqrt(std::max(disc, 0.f)) : dist;
+    const float pdf = uniformConePdf(cosMax);
+    s.radianceOverPdf = emitted(l) / pdf;
+    // A zero-radius sphere is a point light of intensity 0: nothing to sample.
+    s.valid = r > 0.f && std::isfinite(s.radianceOverPdf.x) && s.distance > 0.f;
+    return s;
+}
+
+LightSample pointLightSample(const ecs::LightSnapshot& l, const vec3& p) {
+    LightSample s;
+    if (l.light.type == ecs::LightType::Directional) {
+        s.direction = -lightForward(l);
+        s.distance = kInfinity;
+        s.radianceOverPdf = emitted(l);
+        s.valid = true;
+        return s;
+    }
+    const vec3 d = lightPosition(l) - p;
+    const float dist2 = glm::dot(d, d);
+    if (!(dist2 > 0.f)) return s;
+    const float dist = std::sqrt(dist2);
+    if (l.light.range > 0.f && dist > l.light.range) return s;
+    s.direction = d / dist;
+    s.distance = dist;
+    float falloff = 1.f;
+    if (l.light.type == ecs::LightType::Spot) {
+        const float cosAngle = glm::dot(-s.direction, lightForward(l));
+        const float cosOuter = std::cos(l.light.outerConeAngle), cosInner = std::cos(l.light.innerConeAngle);
+        falloff = glm::clamp((cosAngle - cosOuter) / std::max(cosInner - cosOuter, 1e-4f), 0.f, 1.f);
+        falloff *= falloff;
+    }
+    s.radianceOverPdf = emitted(l) * (falloff / dist2);
+    s.valid = falloff > 0.f && std::isfinite(s.radianceOverPdf.x);
+    return s;
+}
+
+float pointLightImportance(const ecs::LightSnapshot& l, const ShadingPoint& sp) {
+    const LightSample s = pointLightSample(l, sp.position);
+    if (!s.valid) return 0.f;
+    const float cosI = glm::dot(sp.normal, s.direction);
+    if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, s.direction) <= 0.f) return 0.f;
+    return luminance(s.radianceOverPdf) * cosI;
+}
+
+vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp, int samples, const SampleKey& key,
+                         std::uint32_t dimension) {
+    // Step: stratified samples on a sqrt(n) x sqrt(n) grid, jittered by the pixel's hash.
+    const int side = std::max(1, static_cast<int>(std::sqrt(static_cast<float>(samples))));
+    const vec2 jitter(sampleUniform(key, dimension), sampleUniform(key, dimension + 1));
+    vec3 sum(0.f);
+    for (int j = 0; j < side; ++j)
+        for (int i = 0; i < side; ++i) {
+            const vec2 u = glm::fract((vec2(i, j) + jitter) / float(side));
+            const LightSample s = sampleAreaLight(light, sp.position, u);
+            if (s.valid) sum += evalBrdfCos(sp, s.direction) * s.radianceOverPdf;
+        }
+    return sum / float(side * side);
+}
+
+const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf) {
+    // Step: importance of every light at this point, then invert the CDF.
+    float total = 0.f;
+    float weights[64];
+    const std::size_t n = std::min<std::size_t>(scene.lights.size(), 64);
+    for (std::size_t i = 0; i < n; ++i) {
+        const ecs::LightSnapshot& l = scene.lights[i];
+        float w = 0.f;
+        if (l.light.isArea()) {
+            const vec3 d = lightPosition(l) - sp.position;
+            const float dist2 = std::max(glm::dot(d, d), 1e-4f);
+            const float facing = glm::dot(sp.normal, d) > 0.f || dist2 < lightArea(l) ? 1.f : 0.f;
+            w = facing * luminance(emitted(l)) * lightArea(l) / dist2;
+        } else {
+            w = pointLightImportance(l, sp);
+        }
+        weights[i] = std::isfinite(w) ? std::max(w, 0.f) : 0.f;
+        total += weights[i];
+    }
+    pdf = 0.f;
+    if (!(total > 0.f)) return nullptr;
+    float target = u * total, running = 0.f;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (weights[i] <= 0.f) continue;
+        running += weights[i];
+        if (target < running || i + 1 == n) {
+            pdf = weights[i] / total;
+            return &scene.lights[i];
+        }
+    }
+    // Rounding left target at the very end: the last contributing light.
+    for (std::size_t i = n; i-- > 0;)
+        if (weights[i] > 0.f) {
+            pdf = weights[i] / total;
+            return &scene.lights[i];
+        }
+    return nullptr;
+}
+
+}  // namespace rtlab::shaders::detail

@@ -1,0 +1,56 @@
+#pragma once
+// Lights and surface response shared by the passes (internal): the BRDF
+// (Lambert + GGX/Smith/Schlick), light sampling (rect and sphere area
+// lights, point/spot/directional lights picked by importance).
+#include "render_context.hpp"
+
+#include <rtlab/shaders_cpp/sampling.hpp>
+
+namespace rtlab::shaders::detail {
+
+// The surface a BRDF is evaluated on.
+struct ShadingPoint {
+    vec3 position{0.f};
+    vec3 normal{0.f, 0.f, 1.f};           // shading normal
+    vec3 geometricNormal{0.f, 0.f, 1.f};  // on the side of the viewer
+    vec3 wo{0.f, 0.f, 1.f};               // toward the viewer (unit)
+    vec3 albedo{0.f};
+    float roughness = 1.f;
+    float metalness = 0.f;
+};
+ShadingPoint shadingPointOf(const GPixel& g);
+ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const vec3& wo);
+
+// f(wo, wi) * cos(theta_i); 0 below the surface.
+vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi);
+// The diffuse part only: (1 - metalness) albedo / pi * cos(theta_i).
+vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi);
+// F0 of the specular lobe.
+vec3 specularF0(const ShadingPoint& sp);
+
+// A point sampled on a light, seen from a surface point.
+struct LightSample {
+    vec3 direction{0.f};  // unit, from the surface to the light
+    float distance = 0.f; // to the sampled point (kInfinity for directional)
+    vec3 radianceOverPdf{0.f};  // Le / pdf (solid angle) for area lights, I / d^2 for point lights
+    bool valid = false;
+};
+// Area light (rect or sphere) sample from `p` with two uniforms.
+LightSample sampleAreaLight(const ecs::LightSnapshot& light, const vec3& p, vec2 u);
+// Point, spot or directional light toward `p` (no sampling needed).
+LightSample pointLightSample(const ecs::LightSnapshot& light, const vec3& p);
+// Importance of a point/spot/directional light for a surface: intensity x
+// orientation / distance^2, zero out of range or facing away.
+float pointLightImportance(const ecs::LightSnapshot& light, const ShadingPoint& sp);
+
+// The unshadowed direct light of one area light, by `samples` stratified
+// samples without rays (the shadow pass's "unshadowed" signal).
+vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp, int samples, const SampleKey& key,
+                         std::uint32_t dimension);
+
+// One light picked among all lights by importance (area lights weighted by
+// intensity x area / distance^2); nullptr when none contributes. `pdf` is
+// the pick probability.
+const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf);
+
+}  // namespace rtlab::shaders::detail

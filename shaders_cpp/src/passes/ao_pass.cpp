@@ -1,0 +1,50 @@
+// Ambient occlusion: cosine-hemisphere rays around the shading normal,
+// limited to RenderSettings::aoRadius; visibility and the nearest occluder's
+// distance (a closest-hit query, so the distance is the same on every back
+// end; a first-hit query would report whichever occluder traversal met first).
+#include "../lighting.hpp"
+
+namespace rtlab::shaders::detail {
+
+std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::TraceCounters& counters) {
+    const std::size_t n = ctx.gbuffer.size();
+    const int spp = std::max(ctx.settings.spp, 1);
+    const float radius = ctx.settings.aoRadius;
+    float* visibility = out.addChannel("ao.V", 1.f);
+    float* hitT = out.addChannel("ao.hitT", 0.f);
+    std::vector<float> visible(n, 0.f), occluderSum(n, 0.f);
+    std::vector<std::uint16_t> tested(n, 0), occluded(n, 0);
+    for (int s = 0; s < spp; ++s)
+        counters.add(ctx.pipeline().dispatchCoherent(
+            ctx.width, ctx.height, ctx.args(kRayOcclusion),
+            [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                const std::size_t i = ctx.pixelIndex(x, y);
+                const GPixel& g = ctx.gbuffer[i];
+                if (!g.hit || !(radius > 0.f)) return std::nullopt;
+                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
+                const vec3 local = sampleCosineHemisphere(vec2(sampleUniform(key, 4), sampleUniform(key, 5)));
+                vec3 dir = glm::normalize(toWorld(makeFrame(g.normal), local));
+                // Below the geometric surface (bent shading normal): mirror it back up.
+                if (glm::dot(dir, g.geometricNormal) <= 0.f)
+                    dir = glm::normalize(dir - 2.f * glm::dot(dir, g.geometricNormal) * g.geometricNormal);
+                ++tested[i];
+                return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir), 0.f, dir, radius};
+            },
+            [&](int x, int y, const HitPayload& p) {
+                const std::size_t i = ctx.pixelIndex(x, y);
+                if (p.hit) {
+                    ++occluded[i];
+                    occluderSum[i] += p.t;
+                } else {
+                    visible[i] += 1.f;
+                }
+            }));
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!tested[i]) continue;
+        visibility[i] = visible[i] / float(tested[i]);
+        hitT[i] = occluded[i] ? occluderSum[i] / float(occluded[i]) : radius;
+    }
+    return n * (2 * sizeof(float) + 2 * sizeof(float) + 2 * sizeof(std::uint16_t));
+}
+
+}  // namespace rtlab::shaders::detail

@@ -1,0 +1,86 @@
+// G-buffer: primary visibility through 8-wide packets, writing the guides
+// every denoiser needs (depth, normals, albedo, roughness, metalness, ids,
+// motion vectors, emissive).
+#include "../render_context.hpp"
+
+namespace rtlab::shaders::detail {
+
+std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, Image& out,
+                             std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters) {
+    const int w = ctx.width, h = ctx.height;
+    const vec3 forward = -glm::normalize(vec3(ctx.scene.camera.worldFromCamera[2]));
+    std::vector<mat4> objectFromWorld(ctx.scene.instances.size());
+    for (std::size_t i = 0; i < objectFromWorld.size(); ++i)
+        objectFromWorld[i] = glm::inverse(ctx.scene.instances[i].worldFromObject);
+    // Step: primary rays through pixel centres.
+    counters.add(ctx.pipeline().dispatchCoherent(
+        w, h, ctx.args(kRayPrimary),
+        [&](int x, int y, HitPayload&) {
+            if (rayOrder) rayOrder->push_back(static_cast<std::uint32_t>(ctx.pixelIndex(x, y)));
+            const CameraRay r = cameraRay(ctx.scene.camera, w, h, x + 0.5f, y + 0.5f);
+            return tracer::RayDesc{r.origin, 0.f, r.direction, kInfinity};
+        },
+        [&](int x, int y, const HitPayload& p) {
+            GPixel& g = ctx.gbuffer[ctx.pixelIndex(x, y)];
+            if (!p.hit) return;
+            const ecs::Material& m = ctx.material(p.material);
+            const CameraRay r = cameraRay(ctx.scene.camera, w, h, x + 0.5f, y + 0.5f);
+            g.hit = true;
+            g.t = p.t;
+            g.depth = p.t * glm::dot(r.direction, forward);
+            g.position = p.position;
+            g.viewDir = -r.direction;
+            g.normal = p.shadingNormal;
+            g.geometricNormal = p.geometricNormal;
+            g.albedo = p.albedo;
+            g.emissive = m.emissive;
+            g.roughness = glm::clamp(m.roughness, 0.f, 1.f);
+            g.metalness = glm::clamp(m.metallic, 0.f, 1.f);
+            g.material = p.material;
+            g.mesh = p.mesh;
+            g.instance = p.instance;
+            // Step: motion — where this surface point was in the previous frame.
+            if (previous.valid) {
+                vec3 prevWorld = p.position;
+                if (p.entity < previous.present.size() && previous.present[p.entity]) {
+                    const vec3 object = vec3(objectFromWorld[p.instance] * vec4(p.position, 1.f));
+                    prevWorld = vec3(previous.worldFromObject[p.entity] * vec4(object, 1.f));
+                }
+                const std::optional<vec2> prev = projectToPixel(previous.camera, w, h, prevWorld);
+                if (prev && std::isfinite(prev->x) && std::isfinite(prev->y)) g.motion = *prev - vec2(x + 0.5f, y + 0.5f);
+            }
+        }));
+
+    // Step: the guide layers.
+    const std::size_t n = ctx.gbuffer.size();
+    std::vector<vec3> albedo(n), normal(n), geoNormal(n), emissive(n);
+    float* depth = out.addChannel("depth.Z");
+    float* roughness = out.addChannel("roughness.Y");
+    float* metalness = out.addChannel("metalness.Y");
+    float* meshId = out.addChannel("id.mesh");
+    float* instanceId = out.addChannel("id.instance");
+    float* motionX = out.addChannel("motion.X");
+    float* motionY = out.addChannel("motion.Y");
+    for (std::size_t i = 0; i < n; ++i) {
+        const GPixel& g = ctx.gbuffer[i];
+        albedo[i] = g.albedo;
+        normal[i] = g.normal;
+        geoNormal[i] = g.geometricNormal;
+        emissive[i] = g.emissive;
+        depth[i] = g.depth;
+        roughness[i] = g.roughness;
+        metalness[i] = g.metalness;
+        meshId[i] = g.hit ? float(g.mesh) : -1.f;
+        instanceId[i] = g.hit ? float(g.instance) : -1.f;
+        motionX[i] = g.motion.x;
+        motionY[i] = g.motion.y;
+    }
+    out.addRgbLayer("albedo", albedo);
+    out.addRgbLayer("normal", normal);
+    out.addRgbLayer("geonormal", geoNormal);
+    out.addRgbLayer("emissive", emissive);
+    // G-buffer in memory + its 17 output floats per pixel.
+    return n * (sizeof(GPixel) + 17 * sizeof(float));
+}
+
+}  // namespace rtlab::shaders::detail

@@ -1,0 +1,58 @@
+// Reflections where roughness <= FramePlan::reflectionMaxRoughness (opaque
+// materials): the mirror direction at roughness ~ 0, GGX visible-normal
+// samples (Heitz 2018) otherwise; the hit is shaded with emission + one
+// importance-picked light and its shadow ray. Output: incoming radiance,
+// hit distance, and the pre-integrated specular term (F0 x + y), so the
+// denoiser filters radiance only and compose multiplies the term back.
+#include "indirect_shading.hpp"
+
+namespace rtlab::shaders::detail {
+
+std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
+                                tracer::TraceCounters& counters) {
+    const std::size_t n = ctx.gbuffer.size();
+    const int spp = std::max(ctx.settings.spp, 1);
+    SecondaryResult result{std::vector<vec3>(n, vec3(0.f)), std::vector<float>(n, 0.f)};
+    std::vector<SecondaryRay> rays(n);
+    std::vector<vec3> brdf(n, vec3(0.f));
+    std::vector<bool> glossy(n, false);
+    for (std::size_t i = 0; i < n; ++i) {
+        const GPixel& g = ctx.gbuffer[i];
+        glossy[i] = g.hit && g.roughness <= ctx.plan.reflectionMaxRoughness &&
+                    ctx.material(g.material).transmission <= 0.f;
+        if (!glossy[i]) continue;
+        const ShadingPoint sp = shadingPointOf(g);
+        const vec2 ab = specularBrdfIntegral(std::max(glm::dot(g.normal, g.viewDir), 0.f), g.roughness);
+        brdf[i] = specularF0(sp) * ab.x + vec3(ab.y);
+    }
+    for (int s = 0; s < spp; ++s) {
+        for (std::size_t i = 0; i < n; ++i) {
+            rays[i].active = false;
+            if (!glossy[i]) continue;
+            const GPixel& g = ctx.gbuffer[i];
+            const Frame frame = makeFrame(g.normal);
+            const vec3 wo = toLocal(frame, g.viewDir);
+            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 1);
+            const GgxReflectionSample rs =
+                sampleGgxReflection(wo, ggxAlpha(g.roughness), vec2(sampleUniform(key, 2), sampleUniform(key, 3)));
+            if (!(rs.pdf > 0.f)) continue;
+            const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
+            if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface: no contribution
+            rays[i].active = true;
+            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir), 0.f, dir, kInfinity};
+        }
+        traceAndShadeSecondary(ctx, rays, kRayReflection, static_cast<std::uint32_t>(s), 1, result, counters);
+    }
+    std::vector<vec3> radiance(n);
+    float* hitT = out.addChannel("reflection.hitT", 0.f);
+    for (std::size_t i = 0; i < n; ++i) {
+        radiance[i] = result.radiance[i] / float(spp);
+        hitT[i] = result.hitT[i] / float(spp);
+        specular[i] = brdf[i] * radiance[i];
+    }
+    out.addRgbLayer("reflection", radiance);
+    out.addRgbLayer("reflection.brdf", brdf);
+    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
+}
+
+}  // namespace rtlab::shaders::detail

@@ -1,0 +1,125 @@
+// Shadows / direct light. Per area light: one visibility ray per pixel and
+// sample toward a random point on the light -> visibility and occluder hit
+// distance buffers (the shadow denoiser works per light), and the unshadowed
+// light by stratified samples without rays. Point, spot and directional
+// lights: one picked per pixel by importance, one shadow ray toward it.
+#include "../lighting.hpp"
+
+namespace rtlab::shaders::detail {
+
+std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct,
+                            tracer::TraceCounters& counters) {
+    const std::size_t n = ctx.gbuffer.size();
+    const int spp = std::max(ctx.settings.spp, 1);
+    std::uint64_t bytes = 0;
+    // Closest-hit queries: the occluder distance is the nearest one, the same on every back end.
+    const tracer::TraceArgs shadowArgs = ctx.args(kRayShadow);
+    const auto tracePerPixel = [&](auto&& makeRay, auto&& done) {
+        counters.add(ctx.pipeline().dispatchCoherent(ctx.width, ctx.height, shadowArgs, makeRay, done));
+    };
+
+    // Step: area lights, one buffer set each.
+    std::uint32_t areaIndex = 0;
+    for (std::size_t li = 0; li < ctx.scene.lights.size(); ++li) {
+        const ecs::LightSnapshot& light = ctx.scene.lights[li];
+        if (!light.light.isArea() || !(light.light.intensity > 0.f)) continue;
+        const std::string layer = "shadow.light" + std::to_string(areaIndex);
+        float* visibility = out.addChannel(layer + ".V", 1.f);
+        float* hitT = out.addChannel(layer + ".hitT", 0.f);
+        std::vector<vec3> unshadowed(n, vec3(0.f));
+        std::vector<float> visibleSum(n, 0.f), occluderSum(n, 0.f);
+        std::vector<std::uint16_t> tested(n, 0), occluded(n, 0);
+        std::vector<vec3> target(n);  // this sample's direction (xyz) per pixel
+        bytes += n * (2 * sizeof(float) + 3 * sizeof(float)) + n * (2 * sizeof(float) + 2 * sizeof(std::uint16_t));
+        const std::uint32_t dim = 16 + 4 * areaIndex;
+        for (int s = 0; s < spp; ++s) {
+            tracePerPixel(
+                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                    const std::size_t i = ctx.pixelIndex(x, y);
+                    const GPixel& g = ctx.gbuffer[i];
+                    if (!g.hit) return std::nullopt;
+                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
+                    const LightSample ls =
+                        sampleAreaLight(light, g.position, vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)));
+                    if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
+                    ++tested[i];
+                    return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, ls.direction), 0.f,
+                                           ls.direction, ls.distance};
+                },
+                [&](int x, int y, const HitPayload& p) {
+                    const std::size_t i = ctx.pixelIndex(x, y);
+                    if (p.hit) {
+                        ++occluded[i];
+                        occluderSum[i] += p.t;
+                    } else {
+                        visibleSum[i] += 1.f;
+                    }
+                });
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+            const GPixel& g = ctx.gbuffer[i];
+            if (!g.hit) continue;
+            visibility[i] = tested[i] ? visibleSum[i] / float(tested[i]) : 1.f;
+            hitT[i] = occluded[i] ? occluderSum[i] / float(occluded[i]) : 0.f;
+            unshadowed[i] = unshadowedAreaLight(light, shadingPointOf(g),
+                                                static_cast<int>(ctx.settings.areaLightUnshadowedSamples),
+                                                ctx.key(i, 0, 0), dim + 2);
+            direct[i] += unshadowed[i] * visibility[i];
+        }
+        out.addRgbLayer("direct.light" + std::to_string(areaIndex), unshadowed);
+        ++areaIndex;
+    }
+
+    // Step: point / spot / directional lights — one picked per pixel by importance.
+    bool anyPoint = false;
+    for (const ecs::LightSnapshot& l : ctx.scene.lights) anyPoint = anyPoint || (!l.light.isArea() && l.light.intensity > 0.f);
+    if (anyPoint) {
+        std::vector<vec3> pointDirect(n, vec3(0.f)), contribution(n, vec3(0.f));
+        bytes += n * 2 * 3 * sizeof(float);
+        for (int s = 0; s < spp; ++s) {
+            tracePerPixel(
+                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                    const std::size_t i = ctx.pixelIndex(x, y);
+                    const GPixel& g = ctx.gbuffer[i];
+                    contribution[i] = vec3(0.f);
+                    if (!g.hit) return std::nullopt;
+                    const ShadingPoint sp = shadingPointOf(g);
+                    // Step: importance = intensity x orientation / distance^2 over the non-area lights.
+                    float total = 0.f;
+                    for (const ecs::LightSnapshot& l : ctx.scene.lights)
+                        if (!l.light.isArea()) total += pointLightImportance(l, sp);
+                    if (!(total > 0.f)) return std::nullopt;
+                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
+                    float target = sampleUniform(key, 8) * total, running = 0.f;
+                    const ecs::LightSnapshot* chosen = nullptr;
+                    float pdf = 0.f;
+                    for (const ecs::LightSnapshot& l : ctx.scene.lights) {
+                        if (l.light.isArea()) continue;
+                        const float w = pointLightImportance(l, sp);
+                        if (w <= 0.f) continue;
+                        chosen = &l;
+                        pdf = w / total;
+                        running += w;
+                        if (target < running) break;
+                    }
+                    if (!chosen) return std::nullopt;
+                    const LightSample ls = pointLightSample(*chosen, g.position);
+                    contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf;
+                    return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, ls.direction), 0.f,
+                                           ls.direction, ls.distance};
+                },
+                [&](int x, int y, const HitPayload& p) {
+                    const std::size_t i = ctx.pixelIndex(x, y);
+                    if (!p.hit) pointDirect[i] += contribution[i];
+                });
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+            pointDirect[i] /= float(spp);
+            direct[i] += pointDirect[i];
+        }
+        out.addRgbLayer("direct.point", pointDirect);
+    }
+    return bytes;
+}
+
+}  // namespace rtlab::shaders::detail

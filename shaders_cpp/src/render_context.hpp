@@ -1,0 +1,99 @@
+#pragma once
+// Shared state of one frame's passes (internal to shaders_cpp): the pipeline
+// with its shader table, the payload every hit group fills, the G-buffer the
+// secondary passes start from, and small helpers.
+#include <rtlab/core/rng.hpp>
+#include <rtlab/shaders_cpp/frame_renderer.hpp>
+#include <rtlab/shaders_cpp/preview_shading.hpp>
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+namespace rtlab::shaders::detail {
+
+// What closest-hit reports: the surface at the committed hit (radiance-like
+// ray types) or only the distance (shadow / occlusion rays).
+struct HitPayload {
+    bool hit = false;
+    bool missed = false;  // the miss shader ran (tells a shadow query's miss from its skipped closest-hit)
+    float t = 0.f;
+    std::uint32_t instance = 0;
+    std::uint32_t mesh = 0;
+    std::uint32_t entity = 0;    // entity index of the instance
+    vec3 position{0.f};
+    vec3 geometricNormal{0.f};   // unit, facing the incoming ray
+    vec3 shadingNormal{0.f};     // unit, on the geometric normal's side
+    bool frontFace = true;       // the ray hit the side the geometric normal points to
+    vec2 uv{0.f};
+    std::uint32_t material = 0;
+    vec3 albedo{0.f};            // base colour at the hit (texture applied)
+};
+
+using RtPipeline = tracer::Pipeline<HitPayload>;
+
+// One pixel of the G-buffer.
+struct GPixel {
+    bool hit = false;
+    float depth = 0.f;          // linear view z (distance along the camera's forward axis)
+    float t = 0.f;              // primary hit distance
+    vec3 position{0.f};
+    vec3 viewDir{0.f};          // unit, from the surface toward the camera
+    vec3 normal{0.f};           // shading normal, facing the viewer
+    vec3 geometricNormal{0.f};  // facing the viewer
+    vec3 albedo{0.f};
+    vec3 emissive{0.f};
+    float roughness = 1.f;
+    float metalness = 0.f;
+    std::uint32_t material = 0;
+    std::uint32_t mesh = 0;
+    std::uint32_t instance = 0;
+    vec2 motion{0.f};           // pixels: previous position - current position
+};
+
+
+class RenderContext {
+public:
+    RenderContext(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
+                  const RenderSettings& settings);
+
+    const tracer::AccelManager& accel;
+    const ecs::SceneSnapshot& scene;
+    const FramePlan& plan;
+    const RenderSettings& settings;
+    int width, height;
+    std::vector<GPixel> gbuffer;
+
+    const RtPipeline& pipeline() const { return *pipeline_; }
+    // TraceRay arguments of a ray type: FORCE_OPAQUE unless the alpha pass is planned.
+    tracer::TraceArgs args(RayType type, std::uint32_t extraFlags = 0) const;
+    const ecs::Material& material(std::uint32_t id) const;
+    std::size_t pixelIndex(int x, int y) const { return std::size_t(y) * std::size_t(width) + std::size_t(x); }
+    SampleKey key(std::size_t pixel, std::uint32_t sample, std::uint32_t bounce) const {
+        return SampleKey{static_cast<std::uint32_t>(pixel), settings.frame, sample, bounce, settings.seed};
+    }
+
+private:
+    std::unique_ptr<RtPipeline> pipeline_;
+};
+
+// Robust ray start on a surface (Wächter & Binder, RT Gems ch. 6): offset
+// along the geometric normal toward the side the ray leaves on.
+vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction);
+
+// Passes (one file each in src/passes/). Each returns the bytes it allocated
+// and adds its layers to `out`.
+std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, Image& out,
+                             std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters);
+// Adds each light's (unshadowed x visibility) and the point lights' shadowed
+// light to `direct`.
+std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct, tracer::TraceCounters& counters);
+std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::TraceCounters& counters);
+// Writes the irradiance (albedo demodulated) per pixel.
+std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vector<vec3>& irradiance,
+                                        tracer::TraceCounters& counters);
+// Writes brdf x incoming radiance per pixel.
+std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
+                                tracer::TraceCounters& counters);
+
+}  // namespace rtlab::shaders::detail
