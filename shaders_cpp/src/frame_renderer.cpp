@@ -42,12 +42,16 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
         return detail::runGBufferPass(ctx, previous, out.image, settings.recordRayOrder ? &out.primaryRayPixels : nullptr, c);
     });
     const std::size_t n = ctx.gbuffer.size();
-    std::vector<vec3> direct(n, vec3(0.f)), irradiance(n, vec3(0.f)), specular(n, vec3(0.f));
+    std::vector<vec3> direct(n, vec3(0.f)), irradiance(n, vec3(0.f)), specular(n, vec3(0.f)),
+        transmitted(n, vec3(0.f));
     if (plan.has(Pass::Shadows))
         run(Pass::Shadows, [&](tracer::TraceCounters& c) { return detail::runShadowPass(ctx, out.image, direct, c); });
     if (plan.has(Pass::Reflections))
         run(Pass::Reflections,
             [&](tracer::TraceCounters& c) { return detail::runReflectionPass(ctx, out.image, specular, c); });
+    if (plan.has(Pass::Translucency))
+        run(Pass::Translucency,
+            [&](tracer::TraceCounters& c) { return detail::runTranslucencyPass(ctx, out.image, transmitted, c); });
     if (plan.has(Pass::AmbientOcclusion))
         run(Pass::AmbientOcclusion,
             [&](tracer::TraceCounters& c) { return detail::runAmbientOcclusionPass(ctx, out.image, c); });
@@ -62,8 +66,9 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     for (std::size_t i = 0; i < n; ++i) {
         const detail::GPixel& g = ctx.gbuffer[i];
         if (!g.hit) continue;
-        const vec3 diffuseAlbedo = (1.f - g.metalness) * g.albedo;
-        beauty[i] = g.emissive + direct[i] + diffuseAlbedo * irradiance[i] / kPi + specular[i];
+        const vec3 diffuseAlbedo = (1.f - g.metalness) * (1.f - g.transmission) * g.albedo;
+        beauty[i] = g.emissive + direct[i] + diffuseAlbedo * irradiance[i] / kPi + specular[i] +
+                    g.transmission * transmitted[i];
     }
     out.image.addRgbLayer("", beauty);
     // Step: nothing non-finite leaves a pass.

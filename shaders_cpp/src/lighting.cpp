@@ -26,6 +26,7 @@ ShadingPoint shadingPointOf(const GPixel& g) {
     sp.albedo = g.albedo;
     sp.roughness = g.roughness;
     sp.metalness = g.metalness;
+    sp.transmission = g.transmission;
     return sp;
 }
 
@@ -38,6 +39,7 @@ ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const
     sp.albedo = hit.albedo;
     sp.roughness = glm::clamp(m.roughness, 0.f, 1.f);
     sp.metalness = glm::clamp(m.metallic, 0.f, 1.f);
+    sp.transmission = glm::clamp(m.transmission, 0.f, 1.f);
     return sp;
 }
 
@@ -46,7 +48,7 @@ vec3 specularF0(const ShadingPoint& sp) { return glm::mix(vec3(0.04f), sp.albedo
 vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi) {
     const float cosI = glm::dot(sp.normal, wi);
     if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, wi) <= 0.f) return vec3(0.f);
-    return (1.f - sp.metalness) * sp.albedo * (cosI / kPi);
+    return (1.f - sp.metalness) * (1.f - sp.transmission) * sp.albedo * (cosI / kPi);
 }
 
 vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi) {

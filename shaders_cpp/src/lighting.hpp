@@ -17,13 +17,14 @@ struct ShadingPoint {
     vec3 albedo{0.f};
     float roughness = 1.f;
     float metalness = 0.f;
+    float transmission = 0.f;  // scales the diffuse lobe by (1 - transmission)
 };
 ShadingPoint shadingPointOf(const GPixel& g);
 ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const vec3& wo);
 
 // f(wo, wi) * cos(theta_i); 0 below the surface.
 vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi);
-// The diffuse part only: (1 - metalness) albedo / pi * cos(theta_i).
+// The diffuse part only: (1 - metalness)(1 - transmission) albedo / pi * cos(theta_i).
 vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi);
 // F0 of the specular lobe.
 vec3 specularF0(const ShadingPoint& sp);

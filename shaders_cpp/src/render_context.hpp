@@ -45,6 +45,8 @@ struct GPixel {
     vec3 emissive{0.f};
     float roughness = 1.f;
     float metalness = 0.f;
+    float transmission = 0.f;   // the material's transmission (0 opaque, 1 clear glass)
+    bool frontFace = true;      // the primary ray hit the side the geometric normal points to (entering)
     std::uint32_t material = 0;
     std::uint32_t mesh = 0;
     std::uint32_t instance = 0;
@@ -95,5 +97,9 @@ std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vec
 // Writes brdf x incoming radiance per pixel.
 std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
                                 tracer::TraceCounters& counters);
+// Writes the radiance arriving through (and reflected off) transmissive
+// surfaces, Fresnel-weighted, per pixel.
+std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<vec3>& transmitted,
+                                  tracer::TraceCounters& counters);
 
 }  // namespace rtlab::shaders::detail

@@ -36,6 +36,8 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             g.emissive = m.emissive;
             g.roughness = glm::clamp(m.roughness, 0.f, 1.f);
             g.metalness = glm::clamp(m.metallic, 0.f, 1.f);
+            g.transmission = glm::clamp(m.transmission, 0.f, 1.f);
+            g.frontFace = p.frontFace;
             g.material = p.material;
             g.mesh = p.mesh;
             g.instance = p.instance;

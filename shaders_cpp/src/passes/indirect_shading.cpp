@@ -2,12 +2,9 @@
 
 namespace rtlab::shaders::detail {
 
-void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
-                            std::uint32_t sample, std::uint32_t bounce, SecondaryResult& result,
-                            tracer::TraceCounters& counters) {
-    const std::size_t n = ctx.gbuffer.size();
-    std::vector<HitPayload> hits(n);
-    // Step: the secondary rays.
+void traceSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
+                    std::vector<HitPayload>& hits, tracer::TraceCounters& counters) {
+    hits.assign(ctx.gbuffer.size(), HitPayload{});
     counters.add(ctx.pipeline().dispatchCoherent(
         ctx.width, ctx.height, ctx.args(rayType),
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
@@ -16,19 +13,24 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
             return r.ray;
         },
         [&](int x, int y, const HitPayload& p) { hits[ctx.pixelIndex(x, y)] = p; }));
+}
 
-    // Step: emission at the hit, and one light picked by importance with its shadow ray.
+void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const std::vector<vec3>& incoming,
+               const std::vector<vec3>& weight, std::uint32_t sample, std::uint32_t bounce,
+               std::vector<vec3>& radiance, tracer::TraceCounters& counters) {
+    const std::size_t n = hits.size();
     std::vector<vec3> lightContribution(n, vec3(0.f));
+    // Step: emission at the hit, and one light picked by importance with its shadow query.
     counters.add(ctx.pipeline().dispatchCoherent(
-        ctx.width, ctx.height, ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
+        ctx.width, ctx.height,
+        ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
             const std::size_t i = ctx.pixelIndex(x, y);
             const HitPayload& h = hits[i];
-            if (!rays[i].active || !h.hit) return std::nullopt;
+            if (!h.hit) return std::nullopt;
             const ecs::Material& m = ctx.material(h.material);
-            result.radiance[i] += m.emissive;
-            result.hitT[i] += h.t;
-            const ShadingPoint sp = shadingPointOf(h, m, -rays[i].ray.direction);
+            radiance[i] += weight[i] * m.emissive;
+            const ShadingPoint sp = shadingPointOf(h, m, -incoming[i]);
             const SampleKey key = ctx.key(i, sample, bounce);
             float pickPdf = 0.f;
             const ecs::LightSnapshot* light = pickLight(ctx.scene, sp, sampleUniform(key, 12), pickPdf);
@@ -38,7 +40,7 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
                                                          vec2(sampleUniform(key, 13), sampleUniform(key, 14)))
                                        : pointLightSample(*light, sp.position);
             if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
-            lightContribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf;
+            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf;
             if (!isFinite(lightContribution[i])) return std::nullopt;
             return tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, ls.direction), 0.f, ls.direction,
                                    ls.distance};
@@ -46,8 +48,21 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
         // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
         [&](int x, int y, const HitPayload& p) {
             const std::size_t i = ctx.pixelIndex(x, y);
-            if (p.missed) result.radiance[i] += lightContribution[i];
+            if (p.missed) radiance[i] += lightContribution[i];
         }));
+}
+
+void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
+                            std::uint32_t sample, std::uint32_t bounce, SecondaryResult& result,
+                            tracer::TraceCounters& counters) {
+    std::vector<HitPayload> hits;
+    traceSecondary(ctx, rays, rayType, hits, counters);
+    std::vector<vec3> incoming(hits.size()), weight(hits.size(), vec3(1.f));
+    for (std::size_t i = 0; i < hits.size(); ++i) {
+        incoming[i] = rays[i].ray.direction;
+        if (hits[i].hit) result.hitT[i] += hits[i].t;
+    }
+    shadeHits(ctx, hits, incoming, weight, sample, bounce, result.radiance, counters);
 }
 
 }  // namespace rtlab::shaders::detail

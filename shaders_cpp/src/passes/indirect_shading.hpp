@@ -20,9 +20,18 @@ struct SecondaryResult {
 };
 
 // Traces `rays` (one per pixel, inactive ones skipped) with ray type
-// `rayType`, shades every hit with emission + one light sample (shadow ray
-// type kRayShadow), and adds to `result` (radiance, hitT). `bounce` keys the
-// random numbers.
+// `rayType`; hits[i] is pixel i's hit (hit = false when inactive or missed).
+void traceSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
+                    std::vector<HitPayload>& hits, tracer::TraceCounters& counters);
+
+// Outgoing radiance toward -incoming[i] at every hit: emission + one light
+// picked by importance with its shadow ray (type kRayShadow), times
+// weight[i], added to radiance[i]. `bounce` keys the random numbers.
+void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const std::vector<vec3>& incoming,
+               const std::vector<vec3>& weight, std::uint32_t sample, std::uint32_t bounce,
+               std::vector<vec3>& radiance, tracer::TraceCounters& counters);
+
+// traceSecondary + shadeHits, adding radiance and hit distance to `result`.
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
                             std::uint32_t sample, std::uint32_t bounce, SecondaryResult& result,
                             tracer::TraceCounters& counters);
