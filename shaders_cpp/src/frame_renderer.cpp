@@ -43,7 +43,8 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     });
     const std::size_t n = ctx.gbuffer.size();
     std::vector<vec3> direct(n, vec3(0.f)), irradiance(n, vec3(0.f)), specular(n, vec3(0.f)),
-        transmitted(n, vec3(0.f));
+        transmitted(n, vec3(0.f)), inscatter(n, vec3(0.f));
+    std::vector<float> primaryTransmittance(n, 1.f);
     if (plan.has(Pass::Shadows))
         run(Pass::Shadows, [&](tracer::TraceCounters& c) { return detail::runShadowPass(ctx, out.image, direct, c); });
     if (plan.has(Pass::Reflections))
@@ -58,17 +59,23 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     if (plan.has(Pass::GlobalIllumination))
         run(Pass::GlobalIllumination,
             [&](tracer::TraceCounters& c) { return detail::runGlobalIlluminationPass(ctx, out.image, irradiance, c); });
+    if (plan.has(Pass::Volumes) && !ctx.media.empty())
+        run(Pass::Volumes, [&](tracer::TraceCounters& c) {
+            return detail::runVolumePass(ctx, out.image, primaryTransmittance, inscatter, c);
+        });
     // Any-hit calls belong to the alpha pass: it has no rays of its own.
     out.passes[static_cast<std::size_t>(Pass::AlphaMask)].rays = 0;
 
-    // Step: compose = emission + direct + diffuse x irradiance / pi + specular x reflected radiance.
+    // Step: compose = in-scattered + T x (emission + direct + diffuse x irradiance / pi
+    //                 + specular x reflected radiance + transmission x translucency).
     std::vector<vec3> beauty(n, vec3(0.f));
     for (std::size_t i = 0; i < n; ++i) {
         const detail::GPixel& g = ctx.gbuffer[i];
+        beauty[i] = inscatter[i];
         if (!g.hit) continue;
         const vec3 diffuseAlbedo = (1.f - g.metalness) * (1.f - g.transmission) * g.albedo;
-        beauty[i] = g.emissive + direct[i] + diffuseAlbedo * irradiance[i] / kPi + specular[i] +
-                    g.transmission * transmitted[i];
+        beauty[i] += primaryTransmittance[i] * (g.emissive + direct[i] + diffuseAlbedo * irradiance[i] / kPi +
+                                                specular[i] + g.transmission * transmitted[i]);
     }
     out.image.addRgbLayer("", beauty);
     // Step: nothing non-finite leaves a pass.

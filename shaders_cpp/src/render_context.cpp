@@ -32,6 +32,7 @@ RenderContext::RenderContext(const tracer::AccelManager& accel_, const ecs::Scen
                              const FramePlan& plan_, const RenderSettings& settings_)
     : accel(accel_), scene(scene_), plan(plan_), settings(settings_), width(settings_.width),
       height(settings_.height), gbuffer(std::size_t(settings_.width) * std::size_t(settings_.height)) {
+    if (plan.has(Pass::Volumes)) media = mediaOf(scene);
     // Step: the shader table — one record per (geometry slot, ray type).
     RtPipeline::Desc desc;
     desc.rayTypeCount = kRayTypeCount;

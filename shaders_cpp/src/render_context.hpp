@@ -2,6 +2,8 @@
 // Shared state of one frame's passes (internal to shaders_cpp): the pipeline
 // with its shader table, the payload every hit group fills, the G-buffer the
 // secondary passes start from, and small helpers.
+#include "participating_media.hpp"
+
 #include <rtlab/core/rng.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
 #include <rtlab/shaders_cpp/preview_shading.hpp>
@@ -65,6 +67,13 @@ public:
     const RenderSettings& settings;
     int width, height;
     std::vector<GPixel> gbuffer;
+    std::vector<Medium> media;  // filled only when the plan has the volumes pass
+
+    // Transmittance of the media along (o, d) over [0, tMax] (1 without media).
+    float transmittance(const vec3& o, const vec3& d, float tMax, std::size_t pixel, std::uint32_t sample,
+                        std::uint32_t dim) const {
+        return media.empty() ? 1.f : detail::transmittance(media, o, d, tMax, key(pixel, sample, 7), dim);
+    }
 
     const RtPipeline& pipeline() const { return *pipeline_; }
     // TraceRay arguments of a ray type: FORCE_OPAQUE unless the alpha pass is planned.
@@ -97,6 +106,9 @@ std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vec
 // Writes brdf x incoming radiance per pixel.
 std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
                                 tracer::TraceCounters& counters);
+// Primary-ray transmittance and single scattering of the fog volumes.
+std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& primaryTransmittance,
+                            std::vector<vec3>& inscatter, tracer::TraceCounters& counters);
 // Writes the radiance arriving through (and reflected off) transmissive
 // surfaces, Fresnel-weighted, per pixel.
 std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<vec3>& transmitted,

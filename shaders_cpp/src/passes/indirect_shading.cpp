@@ -40,10 +40,11 @@ void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const st
                                                          vec2(sampleUniform(key, 13), sampleUniform(key, 14)))
                                        : pointLightSample(*light, sp.position);
             if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
-            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf;
+            const vec3 origin = rayOriginLeaving(sp.position, sp.geometricNormal, ls.direction);
+            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf *
+                                   ctx.transmittance(origin, ls.direction, ls.distance, i, sample, 2000 + 400 * bounce);
             if (!isFinite(lightContribution[i])) return std::nullopt;
-            return tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, ls.direction), 0.f, ls.direction,
-                                   ls.distance};
+            return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
         },
         // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
         [&](int x, int y, const HitPayload& p) {
@@ -60,7 +61,11 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
     std::vector<vec3> incoming(hits.size()), weight(hits.size(), vec3(1.f));
     for (std::size_t i = 0; i < hits.size(); ++i) {
         incoming[i] = rays[i].ray.direction;
-        if (hits[i].hit) result.hitT[i] += hits[i].t;
+        if (!hits[i].hit) continue;
+        result.hitT[i] += hits[i].t;
+        // Fog between the surface and the secondary hit.
+        weight[i] = vec3(ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
+                                           3000 + 400 * bounce));
     }
     shadeHits(ctx, hits, incoming, weight, sample, bounce, result.radiance, counters);
 }

@@ -29,7 +29,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
         std::vector<vec3> unshadowed(n, vec3(0.f));
         std::vector<float> visibleSum(n, 0.f), occluderSum(n, 0.f);
         std::vector<std::uint16_t> tested(n, 0), occluded(n, 0);
-        std::vector<vec3> target(n);  // this sample's direction (xyz) per pixel
+        std::vector<float> mediumT(n, 1.f);  // this sample's fog transmittance toward the light
         bytes += n * (2 * sizeof(float) + 3 * sizeof(float)) + n * (2 * sizeof(float) + 2 * sizeof(std::uint16_t));
         const std::uint32_t dim = 16 + 4 * areaIndex;
         for (int s = 0; s < spp; ++s) {
@@ -43,8 +43,10 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                         sampleAreaLight(light, g.position, vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)));
                     if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
                     ++tested[i];
-                    return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, ls.direction), 0.f,
-                                           ls.direction, ls.distance};
+                    const vec3 origin = rayOriginLeaving(g.position, g.geometricNormal, ls.direction);
+                    mediumT[i] = ctx.transmittance(origin, ls.direction, ls.distance, i, static_cast<std::uint32_t>(s),
+                                                   100 + 300 * areaIndex);
+                    return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
                 },
                 [&](int x, int y, const HitPayload& p) {
                     const std::size_t i = ctx.pixelIndex(x, y);
@@ -52,7 +54,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                         ++occluded[i];
                         occluderSum[i] += p.t;
                     } else {
-                        visibleSum[i] += 1.f;
+                        visibleSum[i] += mediumT[i];  // fog attenuates what the geometry lets through
                     }
                 });
         }
@@ -104,9 +106,11 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     }
                     if (!chosen) return std::nullopt;
                     const LightSample ls = pointLightSample(*chosen, g.position);
-                    contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf;
-                    return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, ls.direction), 0.f,
-                                           ls.direction, ls.distance};
+                    const vec3 origin = rayOriginLeaving(g.position, g.geometricNormal, ls.direction);
+                    contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf *
+                                      ctx.transmittance(origin, ls.direction, ls.distance, i,
+                                                        static_cast<std::uint32_t>(s), 1000);
+                    return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
                 },
                 [&](int x, int y, const HitPayload& p) {
                     const std::size_t i = ctx.pixelIndex(x, y);

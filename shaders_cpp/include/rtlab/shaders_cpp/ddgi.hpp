@@ -1,0 +1,226 @@
+#pragma once
+// DDGI probe volume (Majercik et al. 2019, "Dynamic Diffuse Global
+// Illumination with Ray-Traced Irradiance Fields", JCGT 8(2)) as a plain data
+// module: it chooses the probe grid and the per-frame ray directions, blends
+// ray results that the *caller* traced into octahedral irradiance and
+// distance-moment tiles, and answers visibility-weighted irradiance queries.
+// It never traces rays itself and depends on nothing but core and the
+// sampling toolkit (sampling.hpp).
+//
+// Conventions
+//   * Units. Positions, biases and distances are world units. Ray radiance is
+//     radiance L (W sr^-1 m^-2, or whatever unit the caller's radiance has).
+//   * Stored irradiance. An irradiance texel in direction n holds the
+//     irradiance E(n) = integral over the hemisphere around n of L cos, i.e.
+//     pi times the cosine-weighted mean radiance (a uniform environment L
+//     gives E = pi L). irradiance() returns E, so the caller's outgoing
+//     diffuse radiance is albedo / pi * E. With irradianceGamma != 1 the
+//     texels hold E^(1/gamma) (see DdgiSettings::irradianceGamma).
+//   * Distance texels hold the moments (mean distance, mean squared distance)
+//     of the distances seen around their direction, in world units, each
+//     clamped to maxRayDistance().
+//   * Tiles follow sampling.hpp: N x N octahedral interior plus a one-texel
+//     border, (N+2)^2 texels row-major per probe; the atlases store the tiles
+//     of probe 0, 1, 2, ... back to back (probe-major).
+//   * Probe order: grid coordinate (x, y, z) has index x + nx (y + ny z).
+//   * Determinism: update() is parallel over probes; every texel is a pure
+//     function of its probe's results, summed in ray order, so atlases are
+//     bit-identical for any thread count.
+#include <rtlab/core/math.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+namespace rtlab::shaders {
+
+struct DdgiSettings {
+    // Probes per axis. 0 = automatic for that axis: the spacing target is
+    // (largest extent of the inflated bounds) / (maxProbesPerAxis - 1), and an
+    // axis gets ceil(extent / target) + 1 probes, clamped to
+    // [2, maxProbesPerAxis] - so a 10 x 3 x 10 room gets 8 x 4 x 8 probes with
+    // near-cubic cells. Explicit counts must lie in [2, 64].
+    glm::ivec3 probeCounts{0};
+    // Cap for automatic counts (at most 8^3 = 512 probes: 512 x 128 = 64k rays
+    // per update, the ray budget of a 256 x 256 frame at 1 sample per pixel).
+    int maxProbesPerAxis = 8;
+    // Rays per probe and update, in [1, 65536]. 128 (the paper uses 64 to 256):
+    // each irradiance texel's cosine lobe then covers ~64 rays, i.e. ~12%
+    // single-frame noise before the hysteresis averages ~1 / (1 - 0.97) = 33
+    // frames, at half the cost of 256 rays.
+    std::uint32_t raysPerProbe = 128;
+    // Interior texels per tile side (the paper's 8 and 16), in [1, 64]: 10x10
+    // and 18x18 texels with the border. Irradiance is smooth (a cosine
+    // convolution), distances are sharp, hence the finer distance tiles.
+    int irradianceTexels = 8;
+    int distanceTexels = 16;
+    // Weight of the previous value when blending in a new frame, in [0, 1]
+    // (paper: 0.97). 0 = no history.
+    float hysteresis = 0.97f;
+    // Exponent of max(0, dot(texel, ray)) weighting distance samples (paper:
+    // 50: the lobe's half-weight angle is ~9.5 degrees, so occluders stay sharp).
+    // In [0, 1000].
+    float depthSharpness = 50.f;
+    // Surface biases of the query point, world units, >= 0. The query moves by
+    // normalBias * n + viewBias * viewDir before the visibility test, so that a
+    // surface does not shadow itself against the probes' recorded distances.
+    // Defaults follow the paper's listing: a total self-shadow bias of
+    // 0.3 * 0.75 * (minimum probe spacing), split 20% along n and 80% toward
+    // the viewer: normalBias = 0.045 s_min, viewBias = 0.18 s_min.
+    std::optional<float> normalBias;
+    std::optional<float> viewBias;
+    // Distance recorded for misses and upper clamp of every distance, world
+    // units, > 0. Default 1.5 x the probe cell diagonal: a query point is at
+    // most one cell diagonal (plus the bias) from each of its 8 probes, so an
+    // open probe's recorded distance must exceed that or free space would look
+    // occluded; 1.5x leaves margin, and a shorter clamp keeps the variance of
+    // open directions small. It does not limit the caller's radiance rays.
+    std::optional<float> maxRayDistance;
+    // Perceptual encoding exponent in [1, 16]. 1 (default) = texels store
+    // linear irradiance: the atlases are float, so the paper's gamma-5 encoding
+    // (meant for 10-bit textures and to speed up convergence in dark regions)
+    // is not needed, and linear storage keeps the hysteresis an exact
+    // exponential average. With gamma g the texels hold E^(1/g), hysteresis
+    // blends encoded values, and queries decode each probe's bilinear sample
+    // (x^g) before weighting.
+    float irradianceGamma = 1.f;
+};
+
+// One traced probe ray. update() takes them indexed [probe * raysPerProbe + ray].
+//   distance >= 0, finite : front-face hit at that distance; radiance used.
+//   distance infinite     : miss (+inf, also -inf): radiance (sky) used,
+//                           distance recorded as maxRayDistance.
+//   distance < 0, finite  : back-face hit at |distance| (the paper/RTXGI
+//                           convention): radiance ignored for irradiance (a
+//                           probe does not see the inside of geometry), |d|
+//                           used for the distance moments (a caller may
+//                           shorten it, as RTXGI does with 0.2 |t|, so that the
+//                           probe's view is blocked there).
+//   distance NaN, or radiance with a NaN/Inf component: the sample is rejected
+//   (skipped entirely) and counted in DdgiUpdateStats::rejectedSamples.
+//   Finite radiance is clamped per component to [0, kDdgiMaxRadiance].
+struct DdgiRayResult {
+    vec3 radiance{0.f};
+    float distance = kInfinity;
+};
+
+// Numerical safety clamp, not a firefly clamp: 65536 rays x 1e30 x pi stays
+// far below FLT_MAX, so sums and blends never overflow.
+inline constexpr float kDdgiMaxRadiance = 1e30f;
+
+struct DdgiUpdateStats {
+    std::uint64_t rays = 0;             // results consumed
+    std::uint64_t misses = 0;
+    std::uint64_t backfaceHits = 0;
+    std::uint64_t rejectedSamples = 0;  // non-finite radiance or NaN distance
+    std::uint64_t clampedSamples = 0;   // radiance clamped (negative or > kDdgiMaxRadiance)
+};
+
+// Row-major RGB image of an atlas: probe p's tile occupies tile column
+// p % (nx ny) and tile row p / (nx ny), i.e. each row holds one xy-slab of
+// the grid and z grows downward.
+struct DdgiAtlasImage {
+    int width = 0;
+    int height = 0;
+    std::vector<vec3> texels;  // width * height, index y * width + x
+};
+
+class DdgiVolume {
+public:
+    // The volume covers sceneBounds inflated by 1% of its largest extent per
+    // side (at least 1e-3 and 1e-4 x the largest |coordinate|, so that float
+    // spacing never collapses); each axis is first grown to at least 10% of
+    // the largest extent, so flat scenes get a slab. Empty or non-finite bounds
+    // become the cube [-1, 1]^3 (a volume over nothing is harmless and keeps
+    // every query finite); coordinates are clamped to +-1e12.
+    // Throws std::invalid_argument for settings outside the documented ranges
+    // (e.g. raysPerProbe = 0).
+    explicit DdgiVolume(const Aabb& sceneBounds, const DdgiSettings& settings = {});
+
+    const DdgiSettings& settings() const { return settings_; }
+    const Aabb& bounds() const { return bounds_; }  // inflated; probes sit on its corners
+    glm::ivec3 probeCounts() const { return counts_; }
+    vec3 probeSpacing() const { return spacing_; }
+    std::uint32_t probeCount() const { return probeCount_; }
+    std::uint32_t raysPerProbe() const { return settings_.raysPerProbe; }
+    float normalBias() const { return normalBias_; }  // resolved defaults
+    float viewBias() const { return viewBias_; }
+    float maxRayDistance() const { return maxRayDistance_; }
+
+    vec3 probePosition(std::uint32_t probe) const;
+
+    // The paper's per-frame random rotation: randomRotation of three
+    // sampleUniform dimensions keyed by (frame, seed) with
+    // pixel = kRotationKeyPixel, the same for every probe in the frame.
+    static mat3 frameRotation(std::uint32_t frameIndex, std::uint32_t seed);
+    static constexpr std::uint32_t kRotationKeyPixel = 0xFFFFFFFFu;  // no real pixel
+    // sphericalFibonacci(ray, raysPerProbe, frameRotation(frame, seed)); unit.
+    // `probe` does not change the direction (one rotation per frame); it is
+    // part of the signature for callers that loop over (probe, ray).
+    vec3 rayDirection(std::uint32_t probe, std::uint32_t ray, std::uint32_t frameIndex, std::uint32_t seed) const;
+
+    // Blends one frame of results (size must be probeCount() * raysPerProbe(),
+    // else std::invalid_argument; directions must be rayDirection(.., frameIndex,
+    // seed)). Per texel: the new irradiance is pi * sum(w L) / sum(w) with
+    // w = max(0, dot(texel, ray)) over non-back-face samples, the new moments
+    // are sum(w' (d, d^2)) / sum(w') with w' = w^depthSharpness; the stored
+    // value becomes hysteresis * old + (1 - hysteresis) * new, or new on the
+    // first update after construction / reset(). A texel with sum of weights 0
+    // keeps its old value. Borders are refilled with ddgiFillTileBorder.
+    void update(std::span<const DdgiRayResult> results, std::uint32_t frameIndex, std::uint32_t seed);
+    // Forget the history: irradiance 0, moments (maxRayDistance, maxRayDistance^2).
+    void reset();
+    std::uint64_t updatesSinceReset() const { return updates_; }
+    const DdgiUpdateStats& lastUpdateStats() const { return lastStats_; }
+
+    // Irradiance E (see the header comment) at a surface point with normal
+    // `normal` seen from direction `viewDir` (unit vector from the point toward
+    // the viewer; zero = no view bias): the paper's query over the 8 probes of
+    // the cell containing the biased point (clamped to the grid), weighting each
+    // by trilinear x (smooth back-face ((dot(dirToProbe, n) + 1) / 2)^2 + 0.2) x
+    // (Chebyshev visibility from the moments at the biased point), with weights
+    // below 0.2 crushed by w^3 / 0.2^2, normalised. Always finite: a zero or
+    // non-finite normal is taken as +z, a non-finite position gives 0.
+    vec3 irradiance(vec3 position, vec3 normal, vec3 viewDir) const;
+    // One probe's bilinearly filtered tiles (decoded irradiance E; moments).
+    vec3 probeIrradiance(std::uint32_t probe, vec3 direction) const;
+    vec2 probeDistanceMoments(std::uint32_t probe, vec3 direction) const;
+
+    // Raw atlases, probe-major tiles (see the header comment). Irradiance
+    // texels are encoded when irradianceGamma != 1.
+    const std::vector<vec3>& irradianceAtlas() const { return irradiance_; }
+    const std::vector<vec2>& distanceAtlas() const { return distance_; }
+    int irradianceTileSize() const { return settings_.irradianceTexels + 2; }
+    int distanceTileSize() const { return settings_.distanceTexels + 2; }
+    // 2D debug layouts (see DdgiAtlasImage): decoded irradiance E; moments as
+    // (mean, mean^2, 0).
+    DdgiAtlasImage irradianceAtlasImage() const;
+    DdgiAtlasImage distanceAtlasImage() const;
+
+    // Bytes held by the volume's buffers (atlases, texel directions, scratch).
+    std::size_t bytesAllocated() const;
+
+private:
+    const vec3* irradianceTile(std::uint32_t probe) const;
+    const vec2* distanceTile(std::uint32_t probe) const;
+    vec3 decode(vec3 stored) const;
+
+    DdgiSettings settings_;
+    Aabb bounds_;
+    glm::ivec3 counts_{2};
+    vec3 spacing_{1.f};
+    std::uint32_t probeCount_ = 0;
+    float normalBias_ = 0.f, viewBias_ = 0.f, maxRayDistance_ = 1.f;
+
+    std::vector<vec3> irradiance_;  // probeCount * (Ni+2)^2
+    std::vector<vec2> distance_;    // probeCount * (Nd+2)^2
+    std::vector<vec3> irradianceTexelDirs_, distanceTexelDirs_;  // interior, row-major
+    std::vector<vec3> rayDirs_;     // scratch: this frame's directions
+    std::vector<DdgiUpdateStats> probeStats_;  // scratch: per-probe counters
+    std::uint64_t updates_ = 0;
+    DdgiUpdateStats lastStats_;
+};
+
+}  // namespace rtlab::shaders
