@@ -27,6 +27,7 @@ ShadingPoint shadingPointOf(const GPixel& g) {
     sp.roughness = g.roughness;
     sp.metalness = g.metalness;
     sp.transmission = g.transmission;
+    sp.errorScale = g.errorScale;
     return sp;
 }
 
@@ -40,6 +41,7 @@ ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const
     sp.roughness = glm::clamp(m.roughness, 0.f, 1.f);
     sp.metalness = glm::clamp(m.metallic, 0.f, 1.f);
     sp.transmission = glm::clamp(m.transmission, 0.f, 1.f);
+    sp.errorScale = hit.errorScale;
     return sp;
 }
 
@@ -69,13 +71,22 @@ vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi) {
     return f;
 }
 
+tracer::RayDesc shadowRayToward(const LightSample& ls, const vec3& p, const vec3& ng, float errorScale) {
+    const vec3 origin = rayOriginLeaving(p, ng, ls.direction, errorScale);
+    if (!std::isfinite(ls.distance)) return tracer::RayDesc{origin, 0.f, ls.direction, kInfinity};
+    const vec3 toTarget = ls.direction * ls.distance - (origin - p);
+    const float length = glm::length(toTarget);
+    if (!(length > 0.f) || !std::isfinite(length)) return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
+    return tracer::RayDesc{origin, 0.f, toTarget / length, length};
+}
+
 LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) {
     LightSample s;
     if (l.light.type == ecs::LightType::Rect) {
         // Step: uniform point on the rectangle; area pdf -> solid angle.
         const vec3 ax = vec3(l.worldFromLight[0]), ay = vec3(l.worldFromLight[1]);
-        const vec3 q = lightPosition(l) + (u.x - 0.5f) * l.light.size.x * ax + (u.y - 0.5f) * l.light.size.y * ay;
-        const vec3 d = q - p;
+        // Relative to p first: far from the origin, absolute positions lose the light's size to rounding.
+        const vec3 d = (lightPosition(l) - p) + (u.x - 0.5f) * l.light.size.x * ax + (u.y - 0.5f) * l.light.size.y * ay;
         const float dist2 = glm::dot(d, d);
         if (!(dist2 > 0.f)) return s;
         const float dist = std::sqrt(dist2);

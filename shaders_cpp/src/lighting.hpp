@@ -18,6 +18,7 @@ struct ShadingPoint {
     float roughness = 1.f;
     float metalness = 0.f;
     float transmission = 0.f;  // scales the diffuse lobe by (1 - transmission)
+    float errorScale = 0.f;    // for ray offsets (rayOriginLeaving)
 };
 ShadingPoint shadingPointOf(const GPixel& g);
 ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const vec3& wo);
@@ -36,6 +37,13 @@ struct LightSample {
     vec3 radianceOverPdf{0.f};  // Le / pdf (solid angle) for area lights, I / d^2 for point lights
     bool valid = false;
 };
+// The shadow ray from surface point p (geometric normal ng) to the light
+// sample: its origin is offset off the surface (rayOriginLeaving), and the
+// direction and length are re-aimed from that origin at the sampled point,
+// so the offset cannot carry the ray past the light (e.g. through a ceiling
+// the light hangs just below).
+tracer::RayDesc shadowRayToward(const LightSample& ls, const vec3& p, const vec3& ng, float errorScale);
+
 // Area light (rect or sphere) sample from `p` with two uniforms.
 LightSample sampleAreaLight(const ecs::LightSnapshot& light, const vec3& p, vec2 u);
 // Point, spot or directional light toward `p` (no sampling needed).

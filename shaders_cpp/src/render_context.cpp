@@ -2,6 +2,8 @@
 
 #include <rtlab/shaders_cpp/sampling.hpp>
 
+#include <algorithm>
+
 namespace rtlab::shaders::detail {
 namespace {
 
@@ -24,6 +26,7 @@ void surfaceClosestHit(const RenderContext& ctx, const tracer::HitContext& hc, H
     p.uv = sp.uv;
     p.material = g.material;
     p.albedo = vec3(baseColorAt(ctx.material(g.material), *ctx.scene.textures, sp.uv));
+    p.errorScale = errorScaleOf(sp.position, hc.worldRayOrigin);
 }
 
 }  // namespace
@@ -84,8 +87,14 @@ const ecs::Material& RenderContext::material(std::uint32_t id) const {
     return id < scene.materials->size() ? (*scene.materials)[id] : kDefault;
 }
 
-vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction) {
-    return offsetRayOrigin(position, glm::dot(direction, geometricNormal) >= 0.f ? geometricNormal : -geometricNormal);
+vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction, float errorScale) {
+    return offsetRayOriginByError(position, glm::dot(direction, geometricNormal) >= 0.f ? geometricNormal : -geometricNormal,
+                                  errorScale);
+}
+
+float errorScaleOf(const vec3& a, const vec3& b) {
+    const vec3 m = glm::max(glm::abs(a), glm::abs(b));
+    return std::max({m.x, m.y, m.z});
 }
 
 }  // namespace rtlab::shaders::detail

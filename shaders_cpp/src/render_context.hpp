@@ -30,6 +30,7 @@ struct HitPayload {
     vec2 uv{0.f};
     std::uint32_t material = 0;
     vec3 albedo{0.f};            // base colour at the hit (texture applied)
+    float errorScale = 0.f;      // max |coordinate| of the ray origin and the hit (offsetRayOriginByError)
 };
 
 using RtPipeline = tracer::Pipeline<HitPayload>;
@@ -53,6 +54,7 @@ struct GPixel {
     std::uint32_t mesh = 0;
     std::uint32_t instance = 0;
     vec2 motion{0.f};           // pixels: previous position - current position
+    float errorScale = 0.f;     // max |coordinate| of the camera and the hit (offsetRayOriginByError)
 };
 
 
@@ -88,9 +90,12 @@ private:
     std::unique_ptr<RtPipeline> pipeline_;
 };
 
-// Robust ray start on a surface (Wächter & Binder, RT Gems ch. 6): offset
-// along the geometric normal toward the side the ray leaves on.
-vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction);
+// Robust ray start on a surface (after Wächter & Binder, RT Gems ch. 6; see
+// offsetRayOriginByError): offset along the geometric normal toward the side
+// the ray leaves on, by a few ulps of `errorScale`.
+vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction, float errorScale);
+// max |coordinate| of two points (a hit and the origin of the ray that found it).
+float errorScaleOf(const vec3& a, const vec3& b);
 
 // Passes (one file each in src/passes/). Each returns the bytes it allocated
 // and adds its layers to `out`.

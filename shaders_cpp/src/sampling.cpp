@@ -409,4 +409,22 @@ float powerHeuristic(int nf, float fPdf, int ng, float gPdf) {
 
 float luminance(vec3 rgb) { return 0.2126f * rgb.r + 0.7152f * rgb.g + 0.0722f * rgb.b; }
 
+vec3 offsetRayOriginByError(vec3 p, vec3 ng, float errorMagnitude) {
+    const float len = glm::length(ng);
+    if (!(len > 0.f) || !std::isfinite(len) || !isFinite(p)) return p;
+    const vec3 n = ng / len;
+    // Step: 8 ulps of the error magnitude (2^-20 relative), never below the smallest normal float.
+    const float magnitude = std::max({std::abs(errorMagnitude), std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+    const float delta = std::max(std::isfinite(magnitude) ? magnitude * 0x1p-20f : 0x1p-20f * 3.4e38f,
+                                 std::numeric_limits<float>::min());
+    vec3 q;
+    for (int a = 0; a < 3; ++a) {
+        q[a] = p[a] + delta * n[a];
+        // Step: a component the normal points along moves by at least one ulp.
+        if (q[a] == p[a] && n[a] != 0.f) q[a] = std::nextafter(p[a], n[a] > 0.f ? kInfinity : -kInfinity);
+        if (!std::isfinite(q[a])) q[a] = p[a];
+    }
+    return q;
+}
+
 }  // namespace rtlab::shaders

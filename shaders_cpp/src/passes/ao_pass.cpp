@@ -28,7 +28,7 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
                 if (glm::dot(dir, g.geometricNormal) <= 0.f)
                     dir = glm::normalize(dir - 2.f * glm::dot(dir, g.geometricNormal) * g.geometricNormal);
                 ++tested[i];
-                return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir), 0.f, dir, radius};
+                return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, radius};
             },
             [&](int x, int y, const HitPayload& p) {
                 const std::size_t i = ctx.pixelIndex(x, y);

@@ -38,6 +38,7 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             g.metalness = glm::clamp(m.metallic, 0.f, 1.f);
             g.transmission = glm::clamp(m.transmission, 0.f, 1.f);
             g.frontFace = p.frontFace;
+            g.errorScale = p.errorScale;
             g.material = p.material;
             g.mesh = p.mesh;
             g.instance = p.instance;

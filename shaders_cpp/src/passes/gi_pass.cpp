@@ -22,7 +22,7 @@ std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vec
                                                sampleCosineHemisphere(vec2(sampleUniform(key, 0), sampleUniform(key, 1)))));
             if (glm::dot(dir, g.geometricNormal) <= 0.f)
                 dir = glm::normalize(dir - 2.f * glm::dot(dir, g.geometricNormal) * g.geometricNormal);
-            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir), 0.f, dir, kInfinity};
+            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
         }
         traceAndShadeSecondary(ctx, rays, kRayGi, static_cast<std::uint32_t>(s), 1, result, counters);
     }

@@ -40,11 +40,11 @@ void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const st
                                                          vec2(sampleUniform(key, 13), sampleUniform(key, 14)))
                                        : pointLightSample(*light, sp.position);
             if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
-            const vec3 origin = rayOriginLeaving(sp.position, sp.geometricNormal, ls.direction);
+            const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
             lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf *
-                                   ctx.transmittance(origin, ls.direction, ls.distance, i, sample, 2000 + 400 * bounce);
+                                   ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample, 2000 + 400 * bounce);
             if (!isFinite(lightContribution[i])) return std::nullopt;
-            return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
+            return ray;
         },
         // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
         [&](int x, int y, const HitPayload& p) {

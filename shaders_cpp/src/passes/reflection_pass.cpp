@@ -39,7 +39,7 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
             const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
             if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface: no contribution
             rays[i].active = true;
-            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir), 0.f, dir, kInfinity};
+            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
         }
         traceAndShadeSecondary(ctx, rays, kRayReflection, static_cast<std::uint32_t>(s), 1, result, counters);
     }

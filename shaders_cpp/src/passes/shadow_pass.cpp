@@ -43,10 +43,10 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                         sampleAreaLight(light, g.position, vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)));
                     if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
                     ++tested[i];
-                    const vec3 origin = rayOriginLeaving(g.position, g.geometricNormal, ls.direction);
-                    mediumT[i] = ctx.transmittance(origin, ls.direction, ls.distance, i, static_cast<std::uint32_t>(s),
+                    const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
+                    mediumT[i] = ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s),
                                                    100 + 300 * areaIndex);
-                    return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
+                    return ray;
                 },
                 [&](int x, int y, const HitPayload& p) {
                     const std::size_t i = ctx.pixelIndex(x, y);
@@ -106,11 +106,11 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     }
                     if (!chosen) return std::nullopt;
                     const LightSample ls = pointLightSample(*chosen, g.position);
-                    const vec3 origin = rayOriginLeaving(g.position, g.geometricNormal, ls.direction);
+                    const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
                     contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf *
-                                      ctx.transmittance(origin, ls.direction, ls.distance, i,
+                                      ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
                                                         static_cast<std::uint32_t>(s), 1000);
-                    return tracer::RayDesc{origin, 0.f, ls.direction, ls.distance};
+                    return ray;
                 },
                 [&](int x, int y, const HitPayload& p) {
                     const std::size_t i = ctx.pixelIndex(x, y);

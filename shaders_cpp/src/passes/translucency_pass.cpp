@@ -43,7 +43,7 @@ struct PathState {
 // One interface event at `p` (normal n on the incident side, direction d):
 // the next ray, and whether it crossed into/out of the medium.
 tracer::RayDesc interfaceEvent(const vec3& p, const vec3& n, const vec3& d, float ior, bool entering, float u,
-                               bool& crossed) {
+                               float errorScale, bool& crossed) {
     const float eta = entering ? 1.f / std::max(ior, 1e-3f) : std::max(ior, 1e-3f);
     const float cosI = glm::clamp(-glm::dot(d, n), 0.f, 1.f);
     float cosT = 0.f;
@@ -57,7 +57,7 @@ tracer::RayDesc interfaceEvent(const vec3& p, const vec3& n, const vec3& d, floa
         crossed = true;
     }
     next = glm::normalize(next);
-    return tracer::RayDesc{rayOriginLeaving(p, n, next), 0.f, next, kInfinity};
+    return tracer::RayDesc{rayOriginLeaving(p, n, next, errorScale), 0.f, next, kInfinity};
 }
 
 }  // namespace
@@ -84,7 +84,7 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
             const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
             bool crossed = false;
             rays[i].ray = interfaceEvent(g.position, g.geometricNormal, -g.viewDir, m.ior, g.frontFace,
-                                         sampleUniform(key, 20), crossed);
+                                         sampleUniform(key, 20), g.errorScale, crossed);
             rays[i].active = true;
             state[i].active = true;
             state[i].inside = crossed == g.frontFace;
@@ -108,7 +108,7 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
                     const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), static_cast<std::uint32_t>(depth));
                     bool crossed = false;
                     rays[i].ray = interfaceEvent(h.position, h.geometricNormal, rays[i].ray.direction, m.ior, h.frontFace,
-                                                 sampleUniform(key, 20), crossed);
+                                                 sampleUniform(key, 20), h.errorScale, crossed);
                     rays[i].active = true;
                     if (crossed) {
                         st.inside = h.frontFace;

@@ -218,6 +218,7 @@ private:
     std::vector<vec2> distance_;    // probeCount * (Nd+2)^2
     std::vector<vec3> irradianceTexelDirs_, distanceTexelDirs_;  // interior, row-major
     std::vector<vec3> rayDirs_;     // scratch: this frame's directions
+    std::vector<float> irradianceWeights_, distanceWeights_;  // scratch: texel x ray weights
     std::vector<DdgiUpdateStats> probeStats_;  // scratch: per-probe counters
     std::uint64_t updates_ = 0;
     DdgiUpdateStats lastStats_;

@@ -127,6 +127,17 @@ vec2 specularBrdfIntegral(float NdotV, float roughness);
 // Finite p gives a finite result (clamped at +-FLT_MAX); a zero ng returns p.
 vec3 offsetRayOrigin(vec3 p, vec3 ng);
 
+// The offset the renderer uses: the same idea (move the hit point off its
+// surface by a few units in the last place along the geometric normal), but
+// measured in ulps of `errorMagnitude`, the largest |coordinate| that went
+// into computing p (the ray origin's and p's own): 8 ulps of it, at least one
+// ulp of each moved component. W&B's fixed 256-ulp offset is ~2^-15 of the
+// coordinates (3 units at 1e5: through the walls of a 2-unit room), and its
+// 1/65536 floor near the origin is larger than a whole scene scaled by 1e-4;
+// both break the far/tiny scene tests this one passes. ng is normalized
+// here; zero or non-finite input returns p.
+vec3 offsetRayOriginByError(vec3 p, vec3 ng, float errorMagnitude);
+
 // Point i (taken modulo n) of n spherical Fibonacci points: unit vectors,
 // evenly spread, z from 1 - 1/n down to -1 + 1/n. n = 0 gives +z.
 vec3 sphericalFibonacci(std::uint32_t i, std::uint32_t n);
