@@ -130,7 +130,6 @@ int runRender(const RenderOptions& o) {
     }
     // Step: options checked before anything is loaded.
     const shaders::PlanOptions planOptions = app::planOptions(o.effects, o.gi);
-    if (o.gi == "ddgi") throw InputError("--gi", "ddgi is not implemented yet; use path");
     if (o.denoise != "auto" && o.denoise != "none")
         throw InputError("--denoise", "'" + o.denoise + "': no denoiser is built yet (auto and none both mean none)");
     // Step: the RT-core model, configured before anything is loaded (a bad key is the clearer error).
@@ -196,13 +195,13 @@ int runRender(const RenderOptions& o) {
         const Stopwatch renderClock;
         const shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, settings, history);
         const double renderMs = renderClock.elapsedMs();
-        history.record(scene);
 
         char name[32];
         std::snprintf(name, sizeof name, "frame_%04d", f);
         const std::filesystem::path base = std::filesystem::path(o.out) / name;
         writeExr(base.string() + ".exr", frame.image, ExrPixelType::Float);
         writePng(base.string() + ".png", frame.image);
+        if (frame.ddgiAtlas.width() > 0) writeExr(base.string() + "_ddgi.exr", frame.ddgiAtlas, ExrPixelType::Float);
         nlohmann::json heatmap;
         if (rtcore) heatmap = writeHeatmaps(base, o.width, o.height, frame.primaryRayPixels, rtcore->primaryRays());
 

@@ -162,6 +162,7 @@ void DdgiVolume::reset() {
     std::fill(distance_.begin(), distance_.end(), vec2(maxRayDistance_, maxRayDistance_ * maxRayDistance_));
     updates_ = 0;
     lastStats_ = {};
+    probeActive_.assign(probeCount_, 1);
 }
 
 vec3 DdgiVolume::probePosition(std::uint32_t probe) const {
@@ -312,6 +313,15 @@ void DdgiVolume::update(std::span<const DdgiRayResult> results, std::uint32_t fr
         ddgiFillTileBorder(dist, nDist);
     });
 
+    // Classification: mostly back faces -> the probe is inside geometry.
+    probeActive_.assign(probeCount_, 1);
+    for (std::uint32_t p = 0; p < probeCount_; ++p) {
+        const DdgiUpdateStats& s = probeStats_[p];
+        probeActive_[p] = static_cast<double>(s.backfaceHits) <=
+                                  static_cast<double>(settings_.backfaceFractionInactive) * static_cast<double>(s.rays)
+                              ? 1
+                              : 0;
+    }
     // Fixed-order reduction of the per-probe counters.
     lastStats_ = {};
     for (const DdgiUpdateStats& s : probeStats_) {
@@ -348,12 +358,19 @@ vec3 DdgiVolume::irradiance(vec3 position, vec3 normal, vec3 viewDir) const {
         alpha[a] = std::clamp(g - static_cast<float>(base[a]), 0.f, 1.f);
     }
 
+    // Inactive probes (inside geometry) are skipped unless all eight are.
+    bool anyActive = false;
+    for (int c = 0; c < 8; ++c) {
+        const glm::ivec3 g = base + glm::ivec3(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+        anyActive = anyActive || probeActive(static_cast<std::uint32_t>(g.x + counts_.x * (g.y + counts_.y * g.z)));
+    }
     vec3 sum(0.f);
     float sumWeight = 0.f;
     for (int c = 0; c < 8; ++c) {
         const glm::ivec3 offset(c & 1, (c >> 1) & 1, (c >> 2) & 1);
         const glm::ivec3 g = base + offset;
         const auto probe = static_cast<std::uint32_t>(g.x + counts_.x * (g.y + counts_.y * g.z));
+        if (anyActive && !probeActive(probe)) continue;
         const vec3 probePos = probePosition(probe);
 
         // Smooth back-face weight, from the true (unbiased) position.
@@ -384,7 +401,9 @@ vec3 DdgiVolume::irradiance(vec3 position, vec3 normal, vec3 viewDir) const {
         sum += weight * probeIrradiance(probe, n);
         sumWeight += weight;
     }
-    // sumWeight >= (1e-6)^3 / 0.04 > 0: the trilinear weights sum to 1.
+    // With a probe used, sumWeight >= its minimum weight x its trilinear weight;
+    // that can be 0 when only zero-trilinear-weight probes are active.
+    if (!(sumWeight > 0.f)) return vec3(0.f);
     const vec3 result = sum / sumWeight;
     return isFinite(result) ? result : vec3(0.f);
 }

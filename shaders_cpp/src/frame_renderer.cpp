@@ -22,7 +22,14 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
 }
 
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
-                        const RenderSettings& settings, const FrameHistory& previous) {
+                        const RenderSettings& settings) {
+    FrameHistory none;
+    return renderFrame(accel, scene, plan, settings, none);
+}
+
+FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
+                        const RenderSettings& settings, FrameHistory& history) {
+    const FrameHistory& previous = history;
     if (settings.recordRayOrder && (!settings.backend || !settings.backend->orderDependent()))
         throw std::invalid_argument("renderFrame: recordRayOrder needs an order-dependent back end");
     FrameOutput out;
@@ -57,8 +64,11 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
         run(Pass::AmbientOcclusion,
             [&](tracer::TraceCounters& c) { return detail::runAmbientOcclusionPass(ctx, out.image, c); });
     if (plan.has(Pass::GlobalIllumination))
-        run(Pass::GlobalIllumination,
-            [&](tracer::TraceCounters& c) { return detail::runGlobalIlluminationPass(ctx, out.image, irradiance, c); });
+        run(Pass::GlobalIllumination, [&](tracer::TraceCounters& c) {
+            return plan.gi == GiTechnique::Ddgi
+                       ? detail::runDdgiPass(ctx, history, out.image, irradiance, out.ddgiAtlas, c)
+                       : detail::runGlobalIlluminationPass(ctx, out.image, irradiance, c);
+        });
     if (plan.has(Pass::Volumes) && !ctx.media.empty())
         run(Pass::Volumes, [&](tracer::TraceCounters& c) {
             return detail::runVolumePass(ctx, out.image, primaryTransmittance, inscatter, c);
@@ -87,6 +97,7 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
                 ++out.nonFiniteValuesRepaired;
             }
     }
+    history.record(scene);
     return out;
 }
 

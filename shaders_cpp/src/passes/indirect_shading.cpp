@@ -2,30 +2,34 @@
 
 namespace rtlab::shaders::detail {
 
-void traceSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
+RayGrid imageGrid(const RenderContext& ctx) { return RayGrid{ctx.width, ctx.height}; }
+
+void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<SecondaryRay>& rays, RayType rayType,
                     std::vector<HitPayload>& hits, tracer::TraceCounters& counters) {
-    hits.assign(ctx.gbuffer.size(), HitPayload{});
+    hits.assign(grid.size(), HitPayload{});
+    const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
     counters.add(ctx.pipeline().dispatchCoherent(
-        ctx.width, ctx.height, ctx.args(rayType),
+        grid.width, grid.height, ctx.args(rayType),
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-            const SecondaryRay& r = rays[ctx.pixelIndex(x, y)];
+            const SecondaryRay& r = rays[index(x, y)];
             if (!r.active) return std::nullopt;
             return r.ray;
         },
-        [&](int x, int y, const HitPayload& p) { hits[ctx.pixelIndex(x, y)] = p; }));
+        [&](int x, int y, const HitPayload& p) { hits[index(x, y)] = p; }));
 }
 
-void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const std::vector<vec3>& incoming,
-               const std::vector<vec3>& weight, std::uint32_t sample, std::uint32_t bounce,
-               std::vector<vec3>& radiance, tracer::TraceCounters& counters) {
+void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
+               const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
+               std::uint32_t bounce, std::vector<vec3>& radiance, tracer::TraceCounters& counters) {
     const std::size_t n = hits.size();
     std::vector<vec3> lightContribution(n, vec3(0.f));
+    const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
     // Step: emission at the hit, and one light picked by importance with its shadow query.
     counters.add(ctx.pipeline().dispatchCoherent(
-        ctx.width, ctx.height,
+        grid.width, grid.height,
         ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-            const std::size_t i = ctx.pixelIndex(x, y);
+            const std::size_t i = index(x, y);
             const HitPayload& h = hits[i];
             if (!h.hit) return std::nullopt;
             const ecs::Material& m = ctx.material(h.material);
@@ -48,7 +52,7 @@ void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const st
         },
         // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
         [&](int x, int y, const HitPayload& p) {
-            const std::size_t i = ctx.pixelIndex(x, y);
+            const std::size_t i = index(x, y);
             if (p.missed) radiance[i] += lightContribution[i];
         }));
 }
@@ -57,7 +61,8 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
                             std::uint32_t sample, std::uint32_t bounce, SecondaryResult& result,
                             tracer::TraceCounters& counters) {
     std::vector<HitPayload> hits;
-    traceSecondary(ctx, rays, rayType, hits, counters);
+    const RayGrid grid = imageGrid(ctx);
+    traceSecondary(ctx, grid, rays, rayType, hits, counters);
     std::vector<vec3> incoming(hits.size()), weight(hits.size(), vec3(1.f));
     for (std::size_t i = 0; i < hits.size(); ++i) {
         incoming[i] = rays[i].ray.direction;
@@ -67,7 +72,7 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
         weight[i] = vec3(ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
                                            3000 + 400 * bounce));
     }
-    shadeHits(ctx, hits, incoming, weight, sample, bounce, result.radiance, counters);
+    shadeHits(ctx, grid, hits, incoming, weight, sample, bounce, result.radiance, counters);
 }
 
 }  // namespace rtlab::shaders::detail

@@ -19,17 +19,26 @@ struct SecondaryResult {
     std::vector<float> hitT;     // its hit distance (0 on a miss)
 };
 
-// Traces `rays` (one per pixel, inactive ones skipped) with ray type
-// `rayType`; hits[i] is pixel i's hit (hit = false when inactive or missed).
-void traceSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
+// The 2D grid a batch of secondary rays is dispatched over: the image
+// (one ray per pixel) or, for DDGI, rays per probe x probes. Element i is
+// (i % width, i / width); random numbers use i as the SampleKey pixel.
+struct RayGrid {
+    int width = 0, height = 0;
+    std::size_t size() const { return std::size_t(width) * std::size_t(height); }
+};
+RayGrid imageGrid(const RenderContext& ctx);
+
+// Traces `rays` (one per grid element, inactive ones skipped) with ray type
+// `rayType`; hits[i] is element i's hit (hit = false when inactive or missed).
+void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<SecondaryRay>& rays, RayType rayType,
                     std::vector<HitPayload>& hits, tracer::TraceCounters& counters);
 
 // Outgoing radiance toward -incoming[i] at every hit: emission + one light
 // picked by importance with its shadow ray (type kRayShadow), times
 // weight[i], added to radiance[i]. `bounce` keys the random numbers.
-void shadeHits(RenderContext& ctx, const std::vector<HitPayload>& hits, const std::vector<vec3>& incoming,
-               const std::vector<vec3>& weight, std::uint32_t sample, std::uint32_t bounce,
-               std::vector<vec3>& radiance, tracer::TraceCounters& counters);
+void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
+               const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
+               std::uint32_t bounce, std::vector<vec3>& radiance, tracer::TraceCounters& counters);
 
 // traceSecondary + shadeHits, adding radiance and hit distance to `result`.
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,

@@ -93,7 +93,7 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
         }
         // Step: follow the paths, one event per dispatch.
         for (int depth = 1; depth <= maxDepth; ++depth) {
-            traceSecondary(ctx, rays, kRayTranslucency, hits, counters);
+            traceSecondary(ctx, imageGrid(ctx), rays, kRayTranslucency, hits, counters);
             for (std::size_t i = 0; i < n; ++i) {
                 if (!rays[i].active) continue;
                 PathState& st = state[i];
@@ -122,7 +122,7 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
                 }
             }
         }
-        shadeHits(ctx, finals, incoming, weight, static_cast<std::uint32_t>(s), 9, radiance, counters);
+        shadeHits(ctx, imageGrid(ctx), finals, incoming, weight, static_cast<std::uint32_t>(s), 9, radiance, counters);
     }
     float* hitT = out.addChannel("translucency.hitT", 0.f);
     for (std::size_t i = 0; i < n; ++i) {

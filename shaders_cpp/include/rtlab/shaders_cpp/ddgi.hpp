@@ -59,6 +59,10 @@ struct DdgiSettings {
     // Weight of the previous value when blending in a new frame, in [0, 1]
     // (paper: 0.97). 0 = no history.
     float hysteresis = 0.97f;
+    // Probe classification (as in RTXGI): a probe whose latest rays hit back
+    // faces more often than this fraction sits inside geometry and is left
+    // out of irradiance() (unless all eight around a point are).
+    float backfaceFractionInactive = 0.25f;
     // Exponent of max(0, dot(texel, ray)) weighting distance samples (paper:
     // 50: the lobe's half-weight angle is ~9.5 degrees, so occluders stay sharp).
     // In [0, 1000].
@@ -174,6 +178,8 @@ public:
     void reset();
     std::uint64_t updatesSinceReset() const { return updates_; }
     const DdgiUpdateStats& lastUpdateStats() const { return lastStats_; }
+    // Whether the latest update classified the probe as outside geometry.
+    bool probeActive(std::uint32_t probe) const { return probe >= probeActive_.size() || probeActive_[probe] != 0; }
 
     // Irradiance E (see the header comment) at a surface point with normal
     // `normal` seen from direction `viewDir` (unit vector from the point toward
@@ -220,6 +226,7 @@ private:
     std::vector<vec3> rayDirs_;     // scratch: this frame's directions
     std::vector<float> irradianceWeights_, distanceWeights_;  // scratch: texel x ray weights
     std::vector<DdgiUpdateStats> probeStats_;  // scratch: per-probe counters
+    std::vector<std::uint8_t> probeActive_;    // classification of the latest update (1 = active)
     std::uint64_t updates_ = 0;
     DdgiUpdateStats lastStats_;
 };

@@ -15,6 +15,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace rtlab::shaders {
@@ -43,12 +44,17 @@ struct RenderSettings {
     float areaLightUnshadowedSamples = 16;  // samples of the unshadowed area-light estimate (no rays)
 };
 
-// The previous frame's camera and instance transforms, for motion vectors.
+class DdgiVolume;
+
+// What persists from frame to frame: the previous camera and instance
+// transforms (motion vectors) and the DDGI probes (hysteresis). renderFrame
+// reads and then updates it.
 struct FrameHistory {
     bool valid = false;
     ecs::CameraSnapshot camera;
     std::vector<mat4> worldFromObject;  // by entity index
     std::vector<bool> present;          // by entity index
+    std::shared_ptr<DdgiVolume> ddgi;   // created by the first DDGI frame
     // Remembers `scene` as the previous frame of the next render.
     void record(const ecs::SceneSnapshot& scene);
 };
@@ -66,9 +72,15 @@ struct FrameOutput {
     tracer::TraceCounters counters;            // summed over passes (per ray type)
     std::vector<std::uint32_t> primaryRayPixels;  // with RenderSettings::recordRayOrder
     std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
+    Image ddgiAtlas;  // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
 };
 
+// Renders one frame; `history` holds the previous frame (motion vectors,
+// DDGI probes) and is updated to this one.
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
-                        const RenderSettings& settings, const FrameHistory& previous = {});
+                        const RenderSettings& settings, FrameHistory& history);
+// A single frame with no history.
+FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
+                        const RenderSettings& settings);
 
 }  // namespace rtlab::shaders
