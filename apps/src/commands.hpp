@@ -26,6 +26,9 @@ struct RenderOptions {
     std::string effects = "auto";           // --effects auto|LIST
     std::string denoise = "auto";           // --denoise auto|none|LIST
     std::string gi = "path";                // --gi path|ddgi
+    float reflectionRoughness = 0.3f;       // --reflection-roughness: reflections where roughness <= this
+    float aoRadius = 1.0f;                  // --ao-radius (world units)
+    int maxTranslucencyDepth = 8;           // --max-translucency-depth
 };
 void addRenderCommand(CLI::App& app, RenderOptions& options);
 int runRender(const RenderOptions& options);

@@ -43,6 +43,16 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
                                             "narrowing it: alpha,shadows,reflections,ao,gi,translucency,volumes")
         ->capture_default_str();
     cmd->add_option("--gi", o.gi, "Diffuse GI technique")->check(CLI::IsMember({"path", "ddgi"}))->capture_default_str();
+    cmd->add_option("--reflection-roughness", o.reflectionRoughness, "Reflections trace where roughness <= this")
+        ->check(CLI::Range(0.f, 1.f))
+        ->capture_default_str();
+    cmd->add_option("--ao-radius", o.aoRadius, "Ambient-occlusion ray length (world units)")
+        ->check(CLI::Range(0.f, 1e30f))
+        ->capture_default_str();
+    cmd->add_option("--max-translucency-depth", o.maxTranslucencyDepth,
+                    "Refraction/reflection events along a translucent path")
+        ->check(CLI::Range(1, 64))
+        ->capture_default_str();
     cmd->add_option("--denoise", o.denoise, "auto|none|LIST (the denoise stack is not built yet: auto = none)")
         ->capture_default_str();
     cmd->add_option("--out", o.out, "Output directory")->capture_default_str();
@@ -129,7 +139,8 @@ int runRender(const RenderOptions& o) {
         if (o.verify) throw InputError("--verify", "only applies to --backend rtcore");
     }
     // Step: options checked before anything is loaded.
-    const shaders::PlanOptions planOptions = app::planOptions(o.effects, o.gi);
+    shaders::PlanOptions planOptions = app::planOptions(o.effects, o.gi);
+    planOptions.reflectionMaxRoughness = o.reflectionRoughness;
     if (o.denoise != "auto" && o.denoise != "none")
         throw InputError("--denoise", "'" + o.denoise + "': no denoiser is built yet (auto and none both mean none)");
     // Step: the RT-core model, configured before anything is loaded (a bad key is the clearer error).
@@ -159,6 +170,9 @@ int runRender(const RenderOptions& o) {
                          {"backend", o.backend}, {"seed", o.seed}, {"verify", o.verify}};
     stats["settings"]["effects"] = o.effects;
     stats["settings"]["gi"] = o.gi;
+    stats["settings"]["reflectionRoughness"] = o.reflectionRoughness;
+    stats["settings"]["aoRadius"] = o.aoRadius;
+    stats["settings"]["maxTranslucencyDepth"] = o.maxTranslucencyDepth;
     stats["settings"]["denoise"] = "none";
     if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
     shaders::FrameHistory history;
@@ -183,6 +197,8 @@ int runRender(const RenderOptions& o) {
         settings.spp = o.spp;
         settings.frame = static_cast<std::uint32_t>(f);
         settings.seed = o.seed;
+        settings.aoRadius = o.aoRadius;
+        settings.maxTranslucencyDepth = o.maxTranslucencyDepth;
         rtcore_sim::ModelUpdateStats modelStats;
         const Stopwatch modelClock;
         if (rtcore) {

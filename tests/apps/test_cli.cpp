@@ -120,6 +120,11 @@ TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
         // cross-field rule: the input queue must hold a whole warp
         "render --scene builtin:cornell --backend rtcore --rtcore-set core.inputQueueRays=8 --out " + out.string(),
         "render --scene /no/such/file.gltf --backend rtcore --verify --out " + out.string(),
+        "render --scene builtin:cornell --effects ao,glitter --out " + out.string(),
+        "render --scene builtin:cornell --denoise svgf --out " + out.string(),
+        "render --scene builtin:cornell --gi photons --out " + out.string(),
+        "plan --scene /no/such/file.gltf",
+        "plan --scene builtin:cornell --effects nope",
         "render --bogus-flag",
         "frobnicate",
         "compare /no/a.exr /no/b.exr",
@@ -236,4 +241,40 @@ TEST(Cli, RtcoreOneAndTwoThreadsAreBitIdentical) {
     EXPECT_EQ(load(a), load(b));
     const CliRun cmp = runCli("compare " + (a / "frame_0001_rtcore.exr").string() + " " + (b / "frame_0001_rtcore.exr").string());
     EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
+}
+
+TEST(Cli, PlanPrintsThePassesAndWhy) {
+    const CliRun cornell = runCli("plan --scene builtin:cornell");
+    ASSERT_EQ(cornell.exitCode, 0) << cornell.out;
+    EXPECT_NE(cornell.out.find("[x] shadows: 1 area light"), std::string::npos) << cornell.out;
+    EXPECT_NE(cornell.out.find("[ ] reflections: no opaque material with roughness <= 0.3"), std::string::npos) << cornell.out;
+    const CliRun showcase = runCli("plan --scene builtin:showcase --json");
+    ASSERT_EQ(showcase.exitCode, 0) << showcase.out;
+    const nlohmann::json j = nlohmann::json::parse(showcase.out);
+    ASSERT_EQ(j["passes"].size(), 8u);
+    for (const auto& p : j["passes"]) EXPECT_TRUE(p["planned"].get<bool>()) << p.dump();
+    const CliRun narrowed = runCli("plan --scene builtin:cornell --effects ao,reflections");
+    ASSERT_EQ(narrowed.exitCode, 0);
+    EXPECT_NE(narrowed.out.find("note: reflections requested but not planned"), std::string::npos) << narrowed.out;
+}
+
+TEST(Cli, ShowcaseEffectsAndDdgiRender) {
+    const fs::path out = freshDir("effects");
+    const CliRun r = runCli("render --scene builtin:showcase --denoise none --gi ddgi --frames 2 --width 64 --height 36 --out " +
+                            out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    EXPECT_TRUE(fs::exists(out / "frame_0001_ddgi.exr"));
+    const rtlab::Image img = rtlab::readExr(out / "frame_0001.exr");
+    for (const char* layer : {"R", "shadow.light0.V", "reflection.R", "ao.V", "gi.R", "translucency.R", "volume.inscatter.R"})
+        EXPECT_TRUE(img.hasChannel(layer)) << layer;
+    std::ifstream in(out / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    const auto& passes = stats["frames"][1]["passes"];
+    for (const char* p : {"gbuffer", "shadows", "reflections", "ao", "gi", "translucency", "volumes"}) {
+        EXPECT_GT(passes[p]["rays"].get<std::uint64_t>(), 0u) << p;
+        EXPECT_GT(passes[p]["bytesAllocated"].get<std::uint64_t>(), 0u) << p;
+    }
+    EXPECT_GT(stats["frames"][1]["shaders"]["anyHit"].get<std::uint64_t>(), 0u);
+    EXPECT_EQ(stats["frames"][1]["nonFiniteValuesRepaired"].get<int>(), 0);
+    EXPECT_EQ(stats["plan"]["gi"], "ddgi");
 }
