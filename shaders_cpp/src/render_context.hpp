@@ -90,6 +90,29 @@ private:
     std::unique_ptr<RtPipeline> pipeline_;
 };
 
+// Per-pixel sums of one pass's visibility rays (shadows, AO): how many were
+// traced, how much got through (weighted, e.g. by fog transmittance), and
+// the occluders' distances.
+struct VisibilityTally {
+    explicit VisibilityTally(std::size_t n) : visible(n, 0.f), occluderSum(n, 0.f), tested(n, 0), occluded(n, 0) {}
+    std::vector<float> visible, occluderSum;
+    std::vector<std::uint16_t> tested, occluded;
+    // One traced ray of pixel i: a hit occludes (closest-hit query: p.t is the nearest occluder).
+    void record(std::size_t i, const HitPayload& p, float throughput = 1.f) {
+        if (p.hit) {
+            ++occluded[i];
+            occluderSum[i] += p.t;
+        } else {
+            visible[i] += throughput;
+        }
+    }
+    float visibility(std::size_t i) const { return tested[i] ? visible[i] / float(tested[i]) : 1.f; }
+    float meanOccluderDistance(std::size_t i, float none) const {
+        return occluded[i] ? occluderSum[i] / float(occluded[i]) : none;
+    }
+    std::uint64_t bytes() const { return visible.size() * (2 * sizeof(float) + 2 * sizeof(std::uint16_t)); }
+};
+
 // Robust ray start on a surface (after Wächter & Binder, RT Gems ch. 6; see
 // offsetRayOriginByError): offset along the geometric normal toward the side
 // the ray leaves on, by a few ulps of `errorScale`.

@@ -40,6 +40,15 @@ fs::path freshDir(const std::string& name) {
 
 const fs::path kAssimp = "/usr/share/assimp/models/glTF2";
 
+// DIR/stats.json without its "timing" entries (everything else is deterministic).
+nlohmann::json statsWithoutTiming(const fs::path& dir) {
+    std::ifstream in(dir / "stats.json");
+    nlohmann::json j = nlohmann::json::parse(in);
+    j.erase("timing");
+    for (auto& f : j["frames"]) f.erase("timing");
+    return j;
+}
+
 }  // namespace
 
 TEST(Cli, RenderShowcaseThreeFramesWritesOutputsAndUpdateCounts) {
@@ -83,14 +92,7 @@ TEST(Cli, OneAndTwoThreadsAreBitIdentical) {
     EXPECT_EQ(cmp.exitCode, 0);
     EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
     // Stats match too, apart from the timing entries.
-    auto load = [](const fs::path& p) {
-        std::ifstream in(p / "stats.json");
-        nlohmann::json j = nlohmann::json::parse(in);
-        j.erase("timing");
-        for (auto& f : j["frames"]) f.erase("timing");
-        return j;
-    };
-    EXPECT_EQ(load(a), load(b));
+    EXPECT_EQ(statsWithoutTiming(a), statsWithoutTiming(b));
 }
 
 TEST(Cli, CompareReportsDifferences) {
@@ -231,14 +233,7 @@ TEST(Cli, RtcoreOneAndTwoThreadsAreBitIdentical) {
     const std::string common = "render --scene builtin:showcase --frames 2 --width 48 --height 32 --backend rtcore ";
     ASSERT_EQ(runCli(common + "--threads 1 --out " + a.string()).exitCode, 0);
     ASSERT_EQ(runCli(common + "--threads 2 --out " + b.string()).exitCode, 0);
-    auto load = [](const fs::path& p) {
-        std::ifstream in(p / "stats.json");
-        nlohmann::json j = nlohmann::json::parse(in);
-        j.erase("timing");
-        for (auto& f : j["frames"]) f.erase("timing");
-        return j;
-    };
-    EXPECT_EQ(load(a), load(b));
+    EXPECT_EQ(statsWithoutTiming(a), statsWithoutTiming(b));
     const CliRun cmp = runCli("compare " + (a / "frame_0001_rtcore.exr").string() + " " + (b / "frame_0001_rtcore.exr").string());
     EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
 }

@@ -12,8 +12,7 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
     const float radius = ctx.settings.aoRadius;
     float* visibility = out.addChannel("ao.V", 1.f);
     float* hitT = out.addChannel("ao.hitT", 0.f);
-    std::vector<float> visible(n, 0.f), occluderSum(n, 0.f);
-    std::vector<std::uint16_t> tested(n, 0), occluded(n, 0);
+    VisibilityTally tally(n);
     for (int s = 0; s < spp; ++s)
         counters.add(ctx.pipeline().dispatchCoherent(
             ctx.width, ctx.height, ctx.args(kRayOcclusion),
@@ -27,24 +26,16 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
                 // Below the geometric surface (bent shading normal): mirror it back up.
                 if (glm::dot(dir, g.geometricNormal) <= 0.f)
                     dir = glm::normalize(dir - 2.f * glm::dot(dir, g.geometricNormal) * g.geometricNormal);
-                ++tested[i];
+                ++tally.tested[i];
                 return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, radius};
             },
-            [&](int x, int y, const HitPayload& p) {
-                const std::size_t i = ctx.pixelIndex(x, y);
-                if (p.hit) {
-                    ++occluded[i];
-                    occluderSum[i] += p.t;
-                } else {
-                    visible[i] += 1.f;
-                }
-            }));
+            [&](int x, int y, const HitPayload& p) { tally.record(ctx.pixelIndex(x, y), p); }));
     for (std::size_t i = 0; i < n; ++i) {
-        if (!tested[i]) continue;
-        visibility[i] = visible[i] / float(tested[i]);
-        hitT[i] = occluded[i] ? occluderSum[i] / float(occluded[i]) : radius;
+        if (!tally.tested[i]) continue;
+        visibility[i] = tally.visibility(i);
+        hitT[i] = tally.meanOccluderDistance(i, radius);
     }
-    return n * (2 * sizeof(float) + 2 * sizeof(float) + 2 * sizeof(std::uint16_t));
+    return n * 2 * sizeof(float) + tally.bytes();
 }
 
 }  // namespace rtlab::shaders::detail

@@ -27,10 +27,9 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
         float* visibility = out.addChannel(layer + ".V", 1.f);
         float* hitT = out.addChannel(layer + ".hitT", 0.f);
         std::vector<vec3> unshadowed(n, vec3(0.f));
-        std::vector<float> visibleSum(n, 0.f), occluderSum(n, 0.f);
-        std::vector<std::uint16_t> tested(n, 0), occluded(n, 0);
+        VisibilityTally tally(n);
         std::vector<float> mediumT(n, 1.f);  // this sample's fog transmittance toward the light
-        bytes += n * (2 * sizeof(float) + 3 * sizeof(float)) + n * (2 * sizeof(float) + 2 * sizeof(std::uint16_t));
+        bytes += n * (2 * sizeof(float) + 3 * sizeof(float) + sizeof(float)) + tally.bytes();
         const std::uint32_t dim = 16 + 4 * areaIndex;
         for (int s = 0; s < spp; ++s) {
             tracePerPixel(
@@ -42,7 +41,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     const LightSample ls =
                         sampleAreaLight(light, g.position, vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)));
                     if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
-                    ++tested[i];
+                    ++tally.tested[i];
                     const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
                     mediumT[i] = ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s),
                                                    100 + 300 * areaIndex);
@@ -50,19 +49,14 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                 },
                 [&](int x, int y, const HitPayload& p) {
                     const std::size_t i = ctx.pixelIndex(x, y);
-                    if (p.hit) {
-                        ++occluded[i];
-                        occluderSum[i] += p.t;
-                    } else {
-                        visibleSum[i] += mediumT[i];  // fog attenuates what the geometry lets through
-                    }
+                    tally.record(i, p, mediumT[i]);  // fog attenuates what the geometry lets through
                 });
         }
         for (std::size_t i = 0; i < n; ++i) {
             const GPixel& g = ctx.gbuffer[i];
             if (!g.hit) continue;
-            visibility[i] = tested[i] ? visibleSum[i] / float(tested[i]) : 1.f;
-            hitT[i] = occluded[i] ? occluderSum[i] / float(occluded[i]) : 0.f;
+            visibility[i] = tally.visibility(i);
+            hitT[i] = tally.meanOccluderDistance(i, 0.f);
             unshadowed[i] = unshadowedAreaLight(light, shadingPointOf(g),
                                                 static_cast<int>(ctx.settings.areaLightUnshadowedSamples),
                                                 ctx.key(i, 0, 0), dim + 2);
