@@ -433,3 +433,52 @@ TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     EXPECT_NEAR(d, p, 0.35 * p);
     EXPECT_EQ(ddgi.nonFiniteValuesRepaired, 0u);
 }
+
+// ---- motion vectors ------------------------------------------------------------
+
+// Showcase frame 1 after frame 0: the camera stands still, so static
+// surfaces have zero motion; the sliding box's pixels point back to where
+// the box was (it moves toward +x and +z between the frames).
+TEST(Effects, MotionVectorsBackProjectMovingInstances) {
+    ecs::World world;
+    ecs::load::loadScene(world, "builtin:showcase");
+    tracer::AccelManager accel;
+    RenderSettings s;
+    s.width = 96;
+    s.height = 54;
+    PlanOptions o;
+    o.requested = {Pass::GBuffer};
+    FrameHistory history;
+    FrameOutput out;
+    for (int f = 0; f < 2; ++f) {
+        const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(f == 0 ? 0.f : 0.25f));
+        accel.update(scene);
+        s.frame = static_cast<std::uint32_t>(f);
+        out = renderFrame(accel, scene, planFrame(scene, o), s, history);
+    }
+    // Which instance is the moving box? The only one whose pixels move.
+    const float* mx = out.image.channel("motion.X");
+    const float* my = out.image.channel("motion.Y");
+    const float* inst = out.image.channel("id.instance");
+    std::size_t moving = 0, still = 0;
+    float movingInstance = -1.f;
+    for (std::size_t i = 0; i < out.image.pixelCount(); ++i) {
+        const bool moved = std::abs(mx[i]) > 0.05f || std::abs(my[i]) > 0.05f;
+        if (moved) {
+            if (movingInstance < 0.f) movingInstance = inst[i];
+            EXPECT_EQ(inst[i], movingInstance) << "only one instance moves";
+            ++moving;
+        } else {
+            ++still;
+        }
+        EXPECT_TRUE(std::isfinite(mx[i]) && std::isfinite(my[i]));
+    }
+    EXPECT_GT(moving, 20u);
+    EXPECT_GT(still, out.image.pixelCount() / 2);
+    // The box moves right on screen (+x world, camera looking down -z): its
+    // previous position lies to the left, so motion.x < 0.
+    double sumX = 0.0;
+    for (std::size_t i = 0; i < out.image.pixelCount(); ++i)
+        if (inst[i] == movingInstance) sumX += mx[i];
+    EXPECT_LT(sumX, 0.0);
+}
