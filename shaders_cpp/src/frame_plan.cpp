@@ -99,7 +99,7 @@ FramePlan planFrame(const ecs::SceneSnapshot& scene, const PlanOptions& options)
         f.transmissiveMaterials ? plural(f.transmissiveMaterials, "transmissive material")
                                 : "no transmissive material");
     set(Pass::Volumes, f.volumes > 0,
-        f.volumes ? plural(f.volumes, "volume") + ": transmittance on primary, shadow and reflection rays, single scattering"
+        f.volumes ? plural(f.volumes, "volume") + ": transmittance on primary, shadow, reflection and path-GI rays, single scattering"
                   : "no volume: OpenVDB code is not touched");
 
     // Step: --effects narrows the plan, never forces a pass without its inputs.

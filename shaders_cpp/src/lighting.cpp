@@ -99,7 +99,8 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
         s.valid = std::isfinite(s.radianceOverPdf.x) && area > 0.f;
         return s;
     }
-    // Step: sphere light — uniform in the cone it subtends.
+    // Step: sphere light — uniform in the cone it subtends. 1 - cos(theta_max)
+    // as sin^2 / (1 + cos): the direct form loses every digit for small or distant spheres.
     const vec3 c = lightPosition(l);
     const vec3 d = c - p;
     const float dist2 = glm::dot(d, d);
@@ -108,14 +109,19 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
     const float dist = std::sqrt(dist2);
     const float sinMax2 = r * r / dist2;
     const float cosMax = std::sqrt(std::max(0.f, 1.f - sinMax2));
+    const float oneMinusCosMax = sinMax2 / (1.f + cosMax);
+    const float oneMinusCos = std::min(u.x, kOneMinusEpsilon) * oneMinusCosMax;
+    const float sinTheta = std::sqrt(std::max(0.f, oneMinusCos * (2.f - oneMinusCos)));
+    const float phi = 2.f * kPi * u.y;
     const Frame frame = makeFrame(d / dist);
-    s.direction = glm::normalize(toWorld(frame, sampleUniformCone(u, cosMax)));
+    s.direction = glm::normalize(
+        toWorld(frame, vec3(sinTheta * std::cos(phi), sinTheta * std::sin(phi), 1.f - oneMinusCos)));
     // Distance to the sphere along the sampled direction (nearest root; the centre for r = 0).
     const float b = glm::dot(d, s.direction);
     const float disc = b * b - (dist2 - r * r);
     s.distance = r > 0.f ? b - std::sqrt(std::max(disc, 0.f)) : dist;
-    const float pdf = uniformConePdf(cosMax);
-    s.radianceOverPdf = emitted(l) / pdf;
+    // pdf = 1 / (2 pi (1 - cos theta_max)).
+    s.radianceOverPdf = emitted(l) * (2.f * kPi * oneMinusCosMax);
     // A zero-radius sphere is a point light of intensity 0: nothing to sample.
     s.valid = r > 0.f && std::isfinite(s.radianceOverPdf.x) && s.distance > 0.f;
     return s;
@@ -172,43 +178,58 @@ vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp
     return sum / float(side * side);
 }
 
-const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf) {
-    // Step: importance of every light at this point, then invert the CDF.
-    float total = 0.f;
-    float weights[64];
-    const std::size_t n = std::min<std::size_t>(scene.lights.size(), 64);
-    for (std::size_t i = 0; i < n; ++i) {
-        const ecs::LightSnapshot& l = scene.lights[i];
-        float w = 0.f;
-        if (l.light.isArea()) {
-            const vec3 d = lightPosition(l) - sp.position;
-            const float dist2 = std::max(glm::dot(d, d), 1e-4f);
-            const float facing = glm::dot(sp.normal, d) > 0.f || dist2 < lightArea(l) ? 1.f : 0.f;
-            w = facing * luminance(emitted(l)) * lightArea(l) / dist2;
-        } else {
-            w = pointLightImportance(l, sp);
-        }
-        weights[i] = std::isfinite(w) ? std::max(w, 0.f) : 0.f;
-        total += weights[i];
+bool emits(const ecs::LightSnapshot& l) {
+    return l.light.intensity > 0.f && glm::length(l.light.color) > 0.f && std::isfinite(l.light.intensity);
+}
+
+const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& lights,
+                                       const std::function<float(const ecs::LightSnapshot&)>& weight, float u,
+                                       float& pdf) {
+    // Step: the weights once, then invert the CDF.
+    std::vector<float> w(lights.size(), 0.f);
+    double total = 0.0;
+    for (std::size_t i = 0; i < lights.size(); ++i) {
+        const float wi = weight(lights[i]);
+        w[i] = std::isfinite(wi) && wi > 0.f ? wi : 0.f;
+        total += w[i];
     }
     pdf = 0.f;
-    if (!(total > 0.f)) return nullptr;
-    float target = u * total, running = 0.f;
-    for (std::size_t i = 0; i < n; ++i) {
-        if (weights[i] <= 0.f) continue;
-        running += weights[i];
-        if (target < running || i + 1 == n) {
-            pdf = weights[i] / total;
-            return &scene.lights[i];
-        }
+    if (!(total > 0.0)) return nullptr;
+    const double target = double(u) * total;
+    double running = 0.0;
+    std::size_t chosen = lights.size();
+    for (std::size_t i = 0; i < lights.size(); ++i) {
+        if (w[i] <= 0.f) continue;
+        chosen = i;  // rounding can leave target at the very end: the last contributing light
+        running += w[i];
+        if (target < running) break;
     }
-    // Rounding left target at the very end: the last contributing light.
-    for (std::size_t i = n; i-- > 0;)
-        if (weights[i] > 0.f) {
-            pdf = weights[i] / total;
-            return &scene.lights[i];
-        }
-    return nullptr;
+    pdf = static_cast<float>(w[chosen] / total);
+    return &lights[chosen];
+}
+
+const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf) {
+    return pickByWeight(
+        scene.lights,
+        [&](const ecs::LightSnapshot& l) -> float {
+            if (!emits(l)) return 0.f;
+            if (!l.light.isArea()) return pointLightImportance(l, sp);
+            // Area lights: intensity x area / distance^2, zero only when the
+            // whole light is below the surface (any rect corner / the sphere's top above it).
+            const vec3 d = lightPosition(l) - sp.position;
+            const float dist2 = std::max(glm::dot(d, d), 1e-8f);
+            bool above = false;
+            if (l.light.type == ecs::LightType::Rect) {
+                const vec3 ax = 0.5f * l.light.size.x * vec3(l.worldFromLight[0]);
+                const vec3 ay = 0.5f * l.light.size.y * vec3(l.worldFromLight[1]);
+                for (int c = 0; c < 4 && !above; ++c)
+                    above = glm::dot(sp.normal, d + (c & 1 ? ax : -ax) + (c & 2 ? ay : -ay)) > 0.f;
+            } else {
+                above = glm::dot(sp.normal, d) > -l.light.radius;
+            }
+            return above ? luminance(emitted(l)) * lightArea(l) / dist2 : 0.f;
+        },
+        u, pdf);
 }
 
 }  // namespace rtlab::shaders::detail

@@ -6,6 +6,8 @@
 
 #include <rtlab/shaders_cpp/sampling.hpp>
 
+#include <functional>
+
 namespace rtlab::shaders::detail {
 
 // The surface a BRDF is evaluated on.
@@ -56,6 +58,16 @@ float pointLightImportance(const ecs::LightSnapshot& light, const ShadingPoint& 
 // samples without rays (the shadow pass's "unshadowed" signal).
 vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp, int samples, const SampleKey& key,
                          std::uint32_t dimension);
+
+// Whether a light emits at all (the planner counts the same lights).
+bool emits(const ecs::LightSnapshot& light);
+
+// One light of `lights` picked with probability weight(light) / sum of
+// weights (non-finite or negative weights count as 0); nullptr when every
+// weight is 0. `pdf` is the pick probability. Deterministic, any number of lights.
+const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& lights,
+                                       const std::function<float(const ecs::LightSnapshot&)>& weight, float u,
+                                       float& pdf);
 
 // One light picked among all lights by importance (area lights weighted by
 // intensity x area / distance^2); nullptr when none contributes. `pdf` is

@@ -92,6 +92,12 @@ vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const v
                                   errorScale);
 }
 
+vec3 cosineDirectionAbove(const vec3& n, const vec3& ng, vec2 u) {
+    vec3 dir = glm::normalize(toWorld(makeFrame(n), sampleCosineHemisphere(u)));
+    if (glm::dot(dir, ng) <= 0.f) dir = glm::normalize(dir - 2.f * glm::dot(dir, ng) * ng);
+    return dir;
+}
+
 float errorScaleOf(const vec3& a, const vec3& b) {
     const vec3 m = glm::max(glm::abs(a), glm::abs(b));
     return std::max({m.x, m.y, m.z});

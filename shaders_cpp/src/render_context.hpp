@@ -14,6 +14,25 @@
 
 namespace rtlab::shaders::detail {
 
+// Random-number streams. SampleKey::bounce carries the stream, so no two uses
+// in a frame share random numbers; dimensions restart at 0 in each stream.
+namespace stream {
+inline constexpr std::uint32_t kAreaLight = 0x100;         // + area-light index: light point (0, 1), unshadowed jitter (2, 3)
+inline constexpr std::uint32_t kPointLightPick = 0x200;    // importance pick among point lights (0)
+inline constexpr std::uint32_t kAmbientOcclusion = 0x300;  // direction (0, 1)
+inline constexpr std::uint32_t kGiBounce = 0x400;          // direction (0, 1)
+inline constexpr std::uint32_t kGiHit = 0x410;             // light pick and point at the GI hit (0, 1, 2)
+inline constexpr std::uint32_t kReflection = 0x500;        // visible normal (0, 1)
+inline constexpr std::uint32_t kReflectionHit = 0x510;     // light at the reflection hit (0, 1, 2)
+inline constexpr std::uint32_t kTranslucency = 0x600;      // + event depth: Fresnel choice (0)
+inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;   // light at the opaque end (0, 1, 2)
+inline constexpr std::uint32_t kVolumeScatter = 0x700;     // distance, light pick, light point (0 .. 3)
+inline constexpr std::uint32_t kDdgiHit = 0x800;           // light at a probe ray's hit (0, 1, 2)
+// Fog transmittance along a ray of stream s: kTransmittance + 4 s + segment (dimensions 0 .. 255).
+inline constexpr std::uint32_t kTransmittance = 0x10000;
+constexpr std::uint32_t transmittance(std::uint32_t s, std::uint32_t segment = 0) { return kTransmittance + 4 * s + segment; }
+}  // namespace stream
+
 // What closest-hit reports: the surface at the committed hit (radiance-like
 // ray types) or only the distance (shadow / occlusion rays).
 struct HitPayload {
@@ -71,10 +90,11 @@ public:
     std::vector<GPixel> gbuffer;
     std::vector<Medium> media;  // filled only when the plan has the volumes pass
 
-    // Transmittance of the media along (o, d) over [0, tMax] (1 without media).
+    // Transmittance of the media along (o, d) over [0, tMax] (1 without media);
+    // streamId from stream::transmittance(...).
     float transmittance(const vec3& o, const vec3& d, float tMax, std::size_t pixel, std::uint32_t sample,
-                        std::uint32_t dim) const {
-        return media.empty() ? 1.f : detail::transmittance(media, o, d, tMax, key(pixel, sample, 7), dim);
+                        std::uint32_t streamId) const {
+        return media.empty() ? 1.f : detail::transmittance(media, o, d, tMax, key(pixel, sample, streamId), 0);
     }
 
     const RtPipeline& pipeline() const { return *pipeline_; }
@@ -82,8 +102,9 @@ public:
     tracer::TraceArgs args(RayType type, std::uint32_t extraFlags = 0) const;
     const ecs::Material& material(std::uint32_t id) const;
     std::size_t pixelIndex(int x, int y) const { return std::size_t(y) * std::size_t(width) + std::size_t(x); }
-    SampleKey key(std::size_t pixel, std::uint32_t sample, std::uint32_t bounce) const {
-        return SampleKey{static_cast<std::uint32_t>(pixel), settings.frame, sample, bounce, settings.seed};
+    // The random numbers of `pixel` (or ray-grid element), sample and stream (namespace stream).
+    SampleKey key(std::size_t pixel, std::uint32_t sample, std::uint32_t streamId) const {
+        return SampleKey{static_cast<std::uint32_t>(pixel), settings.frame, sample, streamId, settings.seed};
     }
 
 private:
@@ -94,24 +115,32 @@ private:
 // traced, how much got through (weighted, e.g. by fog transmittance), and
 // the occluders' distances.
 struct VisibilityTally {
-    explicit VisibilityTally(std::size_t n) : visible(n, 0.f), occluderSum(n, 0.f), tested(n, 0), occluded(n, 0) {}
-    std::vector<float> visible, occluderSum;
-    std::vector<std::uint16_t> tested, occluded;
-    // One traced ray of pixel i: a hit occludes (closest-hit query: p.t is the nearest occluder).
-    void record(std::size_t i, const HitPayload& p, float throughput = 1.f) {
+    explicit VisibilityTally(std::size_t n)
+        : visible(n, 0.f), weightSum(n, 0.f), occluderSum(n, 0.f), tested(n, 0), occluded(n, 0) {}
+    std::vector<float> visible, weightSum, occluderSum;
+    std::vector<std::uint32_t> tested, occluded;
+    // One traced ray of pixel i with weight w: a hit occludes (closest-hit
+    // query: p.t is the nearest occluder), a miss lets `throughput` through.
+    void record(std::size_t i, const HitPayload& p, float throughput = 1.f, float w = 1.f) {
+        weightSum[i] += w;
         if (p.hit) {
             ++occluded[i];
             occluderSum[i] += p.t;
         } else {
-            visible[i] += throughput;
+            visible[i] += w * throughput;
         }
     }
-    float visibility(std::size_t i) const { return tested[i] ? visible[i] / float(tested[i]) : 1.f; }
+    // Weighted fraction that got through; 1 when nothing was traced.
+    float visibility(std::size_t i) const { return weightSum[i] > 0.f ? visible[i] / weightSum[i] : 1.f; }
     float meanOccluderDistance(std::size_t i, float none) const {
         return occluded[i] ? occluderSum[i] / float(occluded[i]) : none;
     }
-    std::uint64_t bytes() const { return visible.size() * (2 * sizeof(float) + 2 * sizeof(std::uint16_t)); }
+    std::uint64_t bytes() const { return visible.size() * (3 * sizeof(float) + 2 * sizeof(std::uint32_t)); }
 };
+
+// A cosine-distributed direction around the shading normal n, mirrored
+// above the geometric normal ng when a bent shading normal sends it below.
+vec3 cosineDirectionAbove(const vec3& n, const vec3& ng, vec2 u);
 
 // Robust ray start on a surface (after Wächter & Binder, RT Gems ch. 6; see
 // offsetRayOriginByError): offset along the geometric normal toward the side

@@ -342,17 +342,18 @@ TEST(Effects, FarAndTinySceneHasNoSelfIntersectionAcne) {
     const Rendered base = renderCornellTransformed(vec3(0.f), 1.f);
     const Rendered far = renderCornellTransformed(vec3(1e5f, 0.f, 1e5f), 1.f);
     const Rendered tiny = renderCornellTransformed(vec3(0.f), 1e-4f);
-    for (const Rendered* r : {&far, &tiny}) {
-        const char* which = r == &far ? "far" : "tiny";
-        std::printf("[ effects  ] %s: ao.V %.4f (base %.4f), shadow V %.4f (base %.4f), gi.G %.4f (base %.4f)\n", which,
-                    meanOf(r->out.image, "ao.V"), meanOf(base.out.image, "ao.V"), meanOf(r->out.image, "shadow.light0.V"),
-                    meanOf(base.out.image, "shadow.light0.V"), meanOf(r->out.image, "gi.G"), meanOf(base.out.image, "gi.G"));
-        expectAllFinite(*r, which);
-        EXPECT_NEAR(meanOf(r->out.image, "ao.V"), meanOf(base.out.image, "ao.V"), 0.03) << which;
-        EXPECT_NEAR(meanOf(r->out.image, "shadow.light0.V"), meanOf(base.out.image, "shadow.light0.V"), 0.03) << which;
-        const double gi = meanOf(r->out.image, "gi.G"), giBase = meanOf(base.out.image, "gi.G");
-        EXPECT_NEAR(gi, giBase, 0.1 * giBase) << which;  // 1 spp of a noisy signal: 10%
-    }
+    // Tiny: float precision scales with the scene: the same up to rounding.
+    expectAllFinite(tiny, "tiny");
+    EXPECT_NEAR(meanOf(tiny.out.image, "ao.V"), meanOf(base.out.image, "ao.V"), 0.005);
+    EXPECT_NEAR(meanOf(tiny.out.image, "shadow.light0.V"), meanOf(base.out.image, "shadow.light0.V"), 0.005);
+    EXPECT_NEAR(meanOf(tiny.out.image, "gi.G"), meanOf(base.out.image, "gi.G"), 0.02 * meanOf(base.out.image, "gi.G"));
+    // Far: at 1e5 one ulp is 8 mm and ray offsets are ~6 cm in a 2 m room, so
+    // corners open up a little (measured: AO -1 %, GI +6 %); no acne (that
+    // would darken AO and shadows by tens of percent).
+    expectAllFinite(far, "far");
+    EXPECT_NEAR(meanOf(far.out.image, "ao.V"), meanOf(base.out.image, "ao.V"), 0.02);
+    EXPECT_NEAR(meanOf(far.out.image, "shadow.light0.V"), meanOf(base.out.image, "shadow.light0.V"), 0.01);
+    EXPECT_NEAR(meanOf(far.out.image, "gi.G"), meanOf(base.out.image, "gi.G"), 0.1 * meanOf(base.out.image, "gi.G"));
 }
 
 // ---- DDGI ------------------------------------------------------------------------
@@ -404,9 +405,9 @@ TEST(Effects, DdgiFurnaceIsPiTimesEmission) {
     for (std::size_t i = 0; i < out.image.pixelCount(); ++i) EXPECT_NEAR(gi[i], kPi * 0.5f, 0.02f * kPi * 0.5f) << i;
 }
 
-// DDGI's irradiance on Cornell after a few frames is in the same range as
-// the path-traced one-bounce-plus estimate (DDGI adds more bounces through
-// its feedback, and leaks/blurs a little: 35% on the image mean).
+// DDGI's irradiance on Cornell after a few frames matches the path-traced
+// estimate on average: no less than 5% below it (energy loss would show
+// here) and at most 15% above (DDGI adds bounces through its feedback).
 TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     ecs::World world;
     ecs::load::loadScene(world, "builtin:cornell");
@@ -430,7 +431,9 @@ TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     }
     const double p = meanOf(path.image, "gi.G"), d = meanOf(ddgi.image, "gi.G");
     EXPECT_GT(p, 0.0);
-    EXPECT_NEAR(d, p, 0.35 * p);
+    // Measured: path 0.0736, DDGI 0.0750 (more bounces through the probes' feedback).
+    EXPECT_GE(d, 0.95 * p);
+    EXPECT_LE(d, 1.15 * p);
     EXPECT_EQ(ddgi.nonFiniteValuesRepaired, 0u);
 }
 
@@ -481,4 +484,56 @@ TEST(Effects, MotionVectorsBackProjectMovingInstances) {
     for (std::size_t i = 0; i < out.image.pixelCount(); ++i)
         if (inst[i] == movingInstance) sumX += mx[i];
     EXPECT_LT(sumX, 0.0);
+}
+
+// ---- light units -------------------------------------------------------------------
+
+namespace {
+// A grey floor seen straight down at the origin, lit by one light; the
+// unshadowed (area) or shadowed (point) direct light of the centre pixel.
+float directAtFloorCentre(const ecs::Light& light, const vec3& lightPosition, const char* layer) {
+    ecs::World world;
+    ecs::Material floor;
+    floor.baseColor = vec4(0.5f, 0.5f, 0.5f, 1.f);
+    const ecs::MaterialId floorId = world.addMaterial(floor);
+    place(world, world.addMesh(ecs::load::makeMesh("floor", ecs::load::makeGrid(40.f, 1, floorId))), vec3(0.f));
+    const ecs::Entity le = world.create("light");
+    world.emplace(le, ecs::LocalTransform{lightPosition, orientationLookingAlong(vec3(0, -1, 0)), vec3(1.f)});
+    world.emplace(le, light);
+    addCamera(world, vec3(0.f, 0.5f, 0.f), vec3(0.f), 0.01f);
+    RenderSettings s;
+    s.width = 3;
+    s.height = 3;
+    s.spp = 4;
+    PlanOptions o;
+    o.requested = {Pass::Shadows};
+    const Rendered r = renderWorld(world, s, o);
+    expectAllFinite(r, layer);
+    return r.out.image.channel(layer)[4];
+}
+}  // namespace
+
+// The floor's BRDF seen and lit head-on: Lambert albedo / pi plus the GGX
+// lobe of the default material (roughness 1: D = 1/pi, G2 = 1, F = 0.04): 0.04 / (4 pi).
+constexpr double kHeadOnBrdf = 0.5 / kPi + 0.04 / (4.0 * kPi);
+
+// A sphere light of radius r at height d straight above: irradiance
+// E = pi Le (r/d)^2 exactly. Small and distant spheres (r/d = 1e-4) too:
+// the cone is sampled from sin^2 / (1 + cos), not 1 - cos.
+TEST(Effects, SphereLightIrradianceIsAnalytic) {
+    for (const float ratio : {0.2f, 1e-2f, 1e-4f}) {
+        ecs::Light sphere{ecs::LightType::Sphere, vec3(1.f), 1000.f};
+        sphere.radius = 2.f * ratio;
+        const double expected = kHeadOnBrdf * kPi * 1000.0 * double(ratio) * double(ratio);
+        const float got = directAtFloorCentre(sphere, vec3(0.f, 2.f, 0.f), "direct.light0.R");
+        EXPECT_NEAR(got, expected, 0.01 * expected) << "r/d " << ratio;
+    }
+}
+
+// Point lights are in candela: E = I cos / d^2.
+TEST(Effects, PointLightIsInCandela) {
+    ecs::Light point{ecs::LightType::Point, vec3(1.f), 40.f};
+    const float got = directAtFloorCentre(point, vec3(0.f, 2.f, 0.f), "direct.point.R");
+    const double expected = kHeadOnBrdf * 40.0 / 4.0;
+    EXPECT_NEAR(got, expected, 1e-3 * expected);
 }

@@ -20,12 +20,9 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
                 const std::size_t i = ctx.pixelIndex(x, y);
                 const GPixel& g = ctx.gbuffer[i];
                 if (!g.hit || !(radius > 0.f)) return std::nullopt;
-                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
-                const vec3 local = sampleCosineHemisphere(vec2(sampleUniform(key, 4), sampleUniform(key, 5)));
-                vec3 dir = glm::normalize(toWorld(makeFrame(g.normal), local));
-                // Below the geometric surface (bent shading normal): mirror it back up.
-                if (glm::dot(dir, g.geometricNormal) <= 0.f)
-                    dir = glm::normalize(dir - 2.f * glm::dot(dir, g.geometricNormal) * g.geometricNormal);
+                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kAmbientOcclusion);
+                const vec3 dir = cosineDirectionAbove(g.normal, g.geometricNormal,
+                                                      vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
                 ++tally.tested[i];
                 return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, radius};
             },

@@ -67,7 +67,11 @@ std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out,
                              h.albedo;
         radiance[i] += diffuse / kPi * volume.irradiance(h.position, h.shadingNormal, -incoming[i]);
     }
-    shadeHits(ctx, grid, hits, incoming, weight, 0, 20, radiance, counters);
+    // Back-face hits only report a distance: no shading, no shadow rays.
+    std::vector<HitPayload> shaded = hits;
+    for (HitPayload& h : shaded)
+        if (h.hit && !seenFromFront(h)) h.hit = false;
+    shadeHits(ctx, grid, shaded, incoming, weight, 0, stream::kDdgiHit, radiance, counters);
 
     // Step: blend into the probes. Back faces of one-sided materials report a
     // negative distance (the paper's convention: the probe is inside geometry).

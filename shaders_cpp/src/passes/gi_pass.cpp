@@ -10,26 +10,24 @@ std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vec
                                         tracer::TraceCounters& counters) {
     const std::size_t n = ctx.gbuffer.size();
     const int spp = std::max(ctx.settings.spp, 1);
-    SecondaryResult result{std::vector<vec3>(n, vec3(0.f)), std::vector<float>(n, 0.f)};
+    SecondaryResult result(n);
     std::vector<SecondaryRay> rays(n);
     for (int s = 0; s < spp; ++s) {
         for (std::size_t i = 0; i < n; ++i) {
             const GPixel& g = ctx.gbuffer[i];
             rays[i].active = g.hit;
             if (!g.hit) continue;
-            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 1);
-            vec3 dir = glm::normalize(toWorld(makeFrame(g.normal),
-                                               sampleCosineHemisphere(vec2(sampleUniform(key, 0), sampleUniform(key, 1)))));
-            if (glm::dot(dir, g.geometricNormal) <= 0.f)
-                dir = glm::normalize(dir - 2.f * glm::dot(dir, g.geometricNormal) * g.geometricNormal);
+            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kGiBounce);
+            const vec3 dir =
+                cosineDirectionAbove(g.normal, g.geometricNormal, vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
             rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
         }
-        traceAndShadeSecondary(ctx, rays, kRayGi, static_cast<std::uint32_t>(s), 1, result, counters);
+        traceAndShadeSecondary(ctx, rays, kRayGi, static_cast<std::uint32_t>(s), stream::kGiHit, result, counters);
     }
     float* hitT = out.addChannel("gi.hitT", 0.f);
     for (std::size_t i = 0; i < n; ++i) {
         irradiance[i] = kPi * result.radiance[i] / float(spp);
-        hitT[i] = result.hitT[i] / float(spp);
+        hitT[i] = result.meanHitT(i);
     }
     out.addRgbLayer("gi", irradiance);
     return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + 4 * 3 * sizeof(float) + 2 * sizeof(float));

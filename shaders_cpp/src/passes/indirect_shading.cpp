@@ -20,7 +20,7 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
 
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
-               std::uint32_t bounce, std::vector<vec3>& radiance, tracer::TraceCounters& counters) {
+               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters) {
     const std::size_t n = hits.size();
     std::vector<vec3> lightContribution(n, vec3(0.f));
     const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
@@ -35,18 +35,19 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             const ecs::Material& m = ctx.material(h.material);
             radiance[i] += weight[i] * m.emissive;
             const ShadingPoint sp = shadingPointOf(h, m, -incoming[i]);
-            const SampleKey key = ctx.key(i, sample, bounce);
+            const SampleKey key = ctx.key(i, sample, hitStream);
             float pickPdf = 0.f;
-            const ecs::LightSnapshot* light = pickLight(ctx.scene, sp, sampleUniform(key, 12), pickPdf);
+            const ecs::LightSnapshot* light = pickLight(ctx.scene, sp, sampleUniform(key, 0), pickPdf);
             if (!light) return std::nullopt;
             const LightSample ls = light->light.isArea()
                                        ? sampleAreaLight(*light, sp.position,
-                                                         vec2(sampleUniform(key, 13), sampleUniform(key, 14)))
+                                                         vec2(sampleUniform(key, 1), sampleUniform(key, 2)))
                                        : pointLightSample(*light, sp.position);
             if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
             const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
             lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf *
-                                   ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample, 2000 + 400 * bounce);
+                                   ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
+                                                     stream::transmittance(hitStream, 0));
             if (!isFinite(lightContribution[i])) return std::nullopt;
             return ray;
         },
@@ -58,7 +59,7 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
 }
 
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
-                            std::uint32_t sample, std::uint32_t bounce, SecondaryResult& result,
+                            std::uint32_t sample, std::uint32_t hitStream, SecondaryResult& result,
                             tracer::TraceCounters& counters) {
     std::vector<HitPayload> hits;
     const RayGrid grid = imageGrid(ctx);
@@ -68,11 +69,12 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
         incoming[i] = rays[i].ray.direction;
         if (!hits[i].hit) continue;
         result.hitT[i] += hits[i].t;
+        ++result.hits[i];
         // Fog between the surface and the secondary hit.
         weight[i] = vec3(ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
-                                           3000 + 400 * bounce));
+                                           stream::transmittance(hitStream, 1)));
     }
-    shadeHits(ctx, grid, hits, incoming, weight, sample, bounce, result.radiance, counters);
+    shadeHits(ctx, grid, hits, incoming, weight, sample, hitStream, result.radiance, counters);
 }
 
 }  // namespace rtlab::shaders::detail

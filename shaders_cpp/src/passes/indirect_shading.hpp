@@ -15,8 +15,12 @@ struct SecondaryRay {
 };
 
 struct SecondaryResult {
-    std::vector<vec3> radiance;  // incoming radiance along each pixel's secondary ray
-    std::vector<float> hitT;     // its hit distance (0 on a miss)
+    explicit SecondaryResult(std::size_t n) : radiance(n, vec3(0.f)), hitT(n, 0.f), hits(n, 0) {}
+    std::vector<vec3> radiance;      // incoming radiance along each pixel's secondary rays (summed over samples)
+    std::vector<float> hitT;         // their hit distances, summed over the rays that hit
+    std::vector<std::uint32_t> hits; // how many hit
+    // Mean hit distance over the rays that hit; 0 when none did (the "no hit" value of every hitT layer but AO's).
+    float meanHitT(std::size_t i) const { return hits[i] ? hitT[i] / float(hits[i]) : 0.f; }
 };
 
 // The 2D grid a batch of secondary rays is dispatched over: the image
@@ -35,14 +39,15 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
 
 // Outgoing radiance toward -incoming[i] at every hit: emission + one light
 // picked by importance with its shadow ray (type kRayShadow), times
-// weight[i], added to radiance[i]. `bounce` keys the random numbers.
+// weight[i], added to radiance[i]. `hitStream` (namespace stream) keys the
+// random numbers.
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
-               std::uint32_t bounce, std::vector<vec3>& radiance, tracer::TraceCounters& counters);
+               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters);
 
 // traceSecondary + shadeHits, adding radiance and hit distance to `result`.
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
-                            std::uint32_t sample, std::uint32_t bounce, SecondaryResult& result,
+                            std::uint32_t sample, std::uint32_t hitStream, SecondaryResult& result,
                             tracer::TraceCounters& counters);
 
 }  // namespace rtlab::shaders::detail

@@ -12,7 +12,8 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
                                 tracer::TraceCounters& counters) {
     const std::size_t n = ctx.gbuffer.size();
     const int spp = std::max(ctx.settings.spp, 1);
-    SecondaryResult result{std::vector<vec3>(n, vec3(0.f)), std::vector<float>(n, 0.f)};
+    SecondaryResult result(n);
+    std::vector<std::uint32_t> validSamples(n, 0);  // samples that left above the surface
     std::vector<SecondaryRay> rays(n);
     std::vector<vec3> brdf(n, vec3(0.f));
     std::vector<bool> glossy(n, false);
@@ -32,22 +33,26 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
             const GPixel& g = ctx.gbuffer[i];
             const Frame frame = makeFrame(g.normal);
             const vec3 wo = toLocal(frame, g.viewDir);
-            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 1);
+            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kReflection);
             const GgxReflectionSample rs =
-                sampleGgxReflection(wo, ggxAlpha(g.roughness), vec2(sampleUniform(key, 2), sampleUniform(key, 3)));
+                sampleGgxReflection(wo, ggxAlpha(g.roughness), vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
             if (!(rs.pdf > 0.f)) continue;
             const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
-            if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface: no contribution
+            if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface
             rays[i].active = true;
+            ++validSamples[i];
             rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
         }
-        traceAndShadeSecondary(ctx, rays, kRayReflection, static_cast<std::uint32_t>(s), 1, result, counters);
+        traceAndShadeSecondary(ctx, rays, kRayReflection, static_cast<std::uint32_t>(s), stream::kReflectionHit, result,
+                               counters);
     }
     std::vector<vec3> radiance(n);
     float* hitT = out.addChannel("reflection.hitT", 0.f);
     for (std::size_t i = 0; i < n; ++i) {
-        radiance[i] = result.radiance[i] / float(spp);
-        hitT[i] = result.hitT[i] / float(spp);
+        // Incoming radiance over the valid samples: the pre-integrated term already
+        // accounts for the directions GGX sends below the horizon.
+        radiance[i] = validSamples[i] ? result.radiance[i] / float(validSamples[i]) : vec3(0.f);
+        hitT[i] = result.meanHitT(i);
         specular[i] = brdf[i] * radiance[i];
     }
     out.addRgbLayer("reflection", radiance);

@@ -22,34 +22,39 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
     std::uint32_t areaIndex = 0;
     for (std::size_t li = 0; li < ctx.scene.lights.size(); ++li) {
         const ecs::LightSnapshot& light = ctx.scene.lights[li];
-        if (!light.light.isArea() || !(light.light.intensity > 0.f)) continue;
+        if (!light.light.isArea() || !emits(light)) continue;
         const std::string layer = "shadow.light" + std::to_string(areaIndex);
         float* visibility = out.addChannel(layer + ".V", 1.f);
         float* hitT = out.addChannel(layer + ".hitT", 0.f);
         std::vector<vec3> unshadowed(n, vec3(0.f));
         VisibilityTally tally(n);
         std::vector<float> mediumT(n, 1.f);  // this sample's fog transmittance toward the light
+        std::vector<float> sampleWeight(n, 0.f);  // this sample's luminance(f cos Le / pdf): weights its visibility
         bytes += n * (2 * sizeof(float) + 3 * sizeof(float) + sizeof(float)) + tally.bytes();
-        const std::uint32_t dim = 16 + 4 * areaIndex;
+        const std::uint32_t areaStream = stream::kAreaLight + areaIndex;
         for (int s = 0; s < spp; ++s) {
             tracePerPixel(
                 [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
                     const std::size_t i = ctx.pixelIndex(x, y);
                     const GPixel& g = ctx.gbuffer[i];
                     if (!g.hit) return std::nullopt;
-                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
+                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), areaStream);
                     const LightSample ls =
-                        sampleAreaLight(light, g.position, vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)));
+                        sampleAreaLight(light, g.position, vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
                     if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
+                    sampleWeight[i] = luminance(evalBrdfCos(shadingPointOf(g), ls.direction) * ls.radianceOverPdf);
+                    if (!(sampleWeight[i] > 0.f) || !std::isfinite(sampleWeight[i])) return std::nullopt;
                     ++tally.tested[i];
                     const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
                     mediumT[i] = ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s),
-                                                   100 + 300 * areaIndex);
+                                                   stream::transmittance(areaStream));
                     return ray;
                 },
                 [&](int x, int y, const HitPayload& p) {
                     const std::size_t i = ctx.pixelIndex(x, y);
-                    tally.record(i, p, mediumT[i]);  // fog attenuates what the geometry lets through
+                    // Visibility weighted by each sample's contribution (so that unshadowed x
+                    // visibility converges to the shadowed integral); fog attenuates what gets through.
+                    tally.record(i, p, mediumT[i], sampleWeight[i]);
                 });
         }
         for (std::size_t i = 0; i < n; ++i) {
@@ -59,7 +64,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
             hitT[i] = tally.meanOccluderDistance(i, 0.f);
             unshadowed[i] = unshadowedAreaLight(light, shadingPointOf(g),
                                                 static_cast<int>(ctx.settings.areaLightUnshadowedSamples),
-                                                ctx.key(i, 0, 0), dim + 2);
+                                                ctx.key(i, 0, areaStream), 2);
             direct[i] += unshadowed[i] * visibility[i];
         }
         out.addRgbLayer("direct.light" + std::to_string(areaIndex), unshadowed);
@@ -68,7 +73,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
 
     // Step: point / spot / directional lights — one picked per pixel by importance.
     bool anyPoint = false;
-    for (const ecs::LightSnapshot& l : ctx.scene.lights) anyPoint = anyPoint || (!l.light.isArea() && l.light.intensity > 0.f);
+    for (const ecs::LightSnapshot& l : ctx.scene.lights) anyPoint = anyPoint || (!l.light.isArea() && emits(l));
     if (anyPoint) {
         std::vector<vec3> pointDirect(n, vec3(0.f)), contribution(n, vec3(0.f));
         bytes += n * 2 * 3 * sizeof(float);
@@ -81,29 +86,21 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     if (!g.hit) return std::nullopt;
                     const ShadingPoint sp = shadingPointOf(g);
                     // Step: importance = intensity x orientation / distance^2 over the non-area lights.
-                    float total = 0.f;
-                    for (const ecs::LightSnapshot& l : ctx.scene.lights)
-                        if (!l.light.isArea()) total += pointLightImportance(l, sp);
-                    if (!(total > 0.f)) return std::nullopt;
-                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
-                    float target = sampleUniform(key, 8) * total, running = 0.f;
-                    const ecs::LightSnapshot* chosen = nullptr;
+                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kPointLightPick);
                     float pdf = 0.f;
-                    for (const ecs::LightSnapshot& l : ctx.scene.lights) {
-                        if (l.light.isArea()) continue;
-                        const float w = pointLightImportance(l, sp);
-                        if (w <= 0.f) continue;
-                        chosen = &l;
-                        pdf = w / total;
-                        running += w;
-                        if (target < running) break;
-                    }
+                    const ecs::LightSnapshot* chosen = pickByWeight(
+                        ctx.scene.lights,
+                        [&](const ecs::LightSnapshot& l) {
+                            return !l.light.isArea() && emits(l) ? pointLightImportance(l, sp) : 0.f;
+                        },
+                        sampleUniform(key, 0), pdf);
                     if (!chosen) return std::nullopt;
                     const LightSample ls = pointLightSample(*chosen, g.position);
                     const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
                     contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf *
                                       ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
-                                                        static_cast<std::uint32_t>(s), 1000);
+                                                        static_cast<std::uint32_t>(s),
+                                                        stream::transmittance(stream::kPointLightPick));
                     return ray;
                 },
                 [&](int x, int y, const HitPayload& p) {

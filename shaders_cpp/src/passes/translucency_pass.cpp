@@ -72,6 +72,7 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
     std::vector<HitPayload> hits, finals(n);
     std::vector<vec3> incoming(n), weight(n), radiance(n, vec3(0.f));
     std::vector<float> firstT(n, 0.f);
+    std::vector<std::uint32_t> firstHits(n, 0);
     for (int s = 0; s < spp; ++s) {
         // Step: the first interface, at the G-buffer surface.
         for (std::size_t i = 0; i < n; ++i) {
@@ -81,10 +82,10 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
             finals[i] = HitPayload{};
             if (!g.hit || !(g.transmission > 0.f)) continue;
             const ecs::Material& m = ctx.material(g.material);
-            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), 0);
+            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency);
             bool crossed = false;
             rays[i].ray = interfaceEvent(g.position, g.geometricNormal, -g.viewDir, m.ior, g.frontFace,
-                                         sampleUniform(key, 20), g.errorScale, crossed);
+                                         sampleUniform(key, 0), g.errorScale, crossed);
             rays[i].active = true;
             state[i].active = true;
             state[i].inside = crossed == g.frontFace;
@@ -98,17 +99,21 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
                 if (!rays[i].active) continue;
                 PathState& st = state[i];
                 const HitPayload& h = hits[i];
-                if (depth == 1 && h.hit) firstT[i] += h.t;
+                if (depth == 1 && h.hit) {
+                    firstT[i] += h.t;
+                    ++firstHits[i];
+                }
                 rays[i].active = false;
                 if (!h.hit) continue;  // left the scene: no environment light
                 if (st.inside) st.throughput *= glm::exp(-st.sigmaA * h.t);
                 const ecs::Material& m = ctx.material(h.material);
                 if (m.transmission > 0.f && depth < maxDepth &&
                     std::max({st.throughput.x, st.throughput.y, st.throughput.z}) >= ctx.settings.throughputCutoff) {
-                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), static_cast<std::uint32_t>(depth));
+                    const SampleKey key =
+                        ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency + static_cast<std::uint32_t>(depth));
                     bool crossed = false;
                     rays[i].ray = interfaceEvent(h.position, h.geometricNormal, rays[i].ray.direction, m.ior, h.frontFace,
-                                                 sampleUniform(key, 20), h.errorScale, crossed);
+                                                 sampleUniform(key, 0), h.errorScale, crossed);
                     rays[i].active = true;
                     if (crossed) {
                         st.inside = h.frontFace;
@@ -122,12 +127,13 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
                 }
             }
         }
-        shadeHits(ctx, imageGrid(ctx), finals, incoming, weight, static_cast<std::uint32_t>(s), 9, radiance, counters);
+        shadeHits(ctx, imageGrid(ctx), finals, incoming, weight, static_cast<std::uint32_t>(s), stream::kTranslucencyHit,
+                  radiance, counters);
     }
     float* hitT = out.addChannel("translucency.hitT", 0.f);
     for (std::size_t i = 0; i < n; ++i) {
         transmitted[i] = radiance[i] / float(spp);
-        hitT[i] = firstT[i] / float(spp);
+        hitT[i] = firstHits[i] ? firstT[i] / float(firstHits[i]) : 0.f;
     }
     out.addRgbLayer("translucency", transmitted);
     return n * (sizeof(PathState) + sizeof(SecondaryRay) + 2 * sizeof(HitPayload) + 4 * 3 * sizeof(float) +

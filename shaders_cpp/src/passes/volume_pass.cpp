@@ -24,47 +24,38 @@ std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& 
                 const float tEnd = g.hit ? g.t : kInfinity;
                 const std::uint32_t sample = static_cast<std::uint32_t>(s);
                 // Step: the camera -> surface transmittance.
-                tSum[i] += ctx.transmittance(cam.origin, cam.direction, tEnd, i, sample, 0);
+                tSum[i] += ctx.transmittance(cam.origin, cam.direction, tEnd, i, sample,
+                                             stream::transmittance(stream::kVolumeScatter, 0));
                 contribution[i] = vec3(0.f);
                 // Step: one scattering point, uniform over the first medium's segment.
                 const Medium& m = ctx.media.front();
                 float t0, t1;
                 if (!clipToBox(m.bounds, cam.origin, cam.direction, 0.f, tEnd, t0, t1)) return std::nullopt;
-                const SampleKey key = ctx.key(i, sample, 6);
+                const SampleKey key = ctx.key(i, sample, stream::kVolumeScatter);
                 const float t = t0 + sampleUniform(key, 0) * (t1 - t0);
                 const vec3 xs = cam.origin + t * cam.direction;
                 const float sigmaT = extinction(m, xs);
                 if (!(sigmaT > 0.f)) return std::nullopt;
-                ShadingPoint sp;  // a point in the medium: every direction counts
-                sp.position = xs;
-                sp.normal = sp.geometricNormal = -cam.direction;
+                // Pick among all lights by unoriented importance (a medium has no normal).
                 float pickPdf = 0.f;
-                const ecs::LightSnapshot* light = nullptr;
-                {
-                    // Pick among all lights by unoriented importance (a medium has no normal).
-                    float total = 0.f;
-                    for (const ecs::LightSnapshot& l : ctx.scene.lights) {
+                const ecs::LightSnapshot* light = pickByWeight(
+                    ctx.scene.lights,
+                    [&](const ecs::LightSnapshot& l) -> float {
+                        if (!emits(l)) return 0.f;
+                        if (l.light.type == ecs::LightType::Directional) return luminance(l.light.color * l.light.intensity);
                         const vec3 d = vec3(l.worldFromLight[3]) - xs;
-                        total += luminance(l.light.color * l.light.intensity) / std::max(glm::dot(d, d), 1e-2f);
-                    }
-                    float target = sampleUniform(key, 1) * total, running = 0.f;
-                    for (const ecs::LightSnapshot& l : ctx.scene.lights) {
-                        const vec3 d = vec3(l.worldFromLight[3]) - xs;
-                        const float wgt = luminance(l.light.color * l.light.intensity) / std::max(glm::dot(d, d), 1e-2f);
-                        if (!(wgt > 0.f)) continue;
-                        light = &l;
-                        pickPdf = wgt / total;
-                        running += wgt;
-                        if (target < running) break;
-                    }
-                }
+                        return luminance(l.light.color * l.light.intensity) / std::max(glm::dot(d, d), 1e-2f);
+                    },
+                    sampleUniform(key, 1), pickPdf);
                 if (!light || !(pickPdf > 0.f)) return std::nullopt;
                 const LightSample ls = light->light.isArea()
                                            ? sampleAreaLight(*light, xs, vec2(sampleUniform(key, 2), sampleUniform(key, 3)))
                                            : pointLightSample(*light, xs);
                 if (!ls.valid) return std::nullopt;
-                const float camT = ctx.transmittance(cam.origin, cam.direction, t, i, sample, 500);
-                const float lightT = ctx.transmittance(xs, ls.direction, ls.distance, i, sample, 900);
+                const float camT = ctx.transmittance(cam.origin, cam.direction, t, i, sample,
+                                                     stream::transmittance(stream::kVolumeScatter, 1));
+                const float lightT = ctx.transmittance(xs, ls.direction, ls.distance, i, sample,
+                                                       stream::transmittance(stream::kVolumeScatter, 2));
                 const vec3 sigmaS = m.albedo * sigmaT;
                 // L_s = sigma_s T_cam (1/4pi) Le/pdf T_light / p(t), p(t) = 1 / (t1 - t0).
                 contribution[i] = sigmaS * camT * (1.f / (4.f * kPi)) * ls.radianceOverPdf * lightT / pickPdf * (t1 - t0);
