@@ -1,0 +1,49 @@
+#pragma once
+// Edge-avoiding a-trous wavelet filter guided by variance (SVGF, Schied et
+// al. 2017, section 4.3; Dammertz et al. 2010).
+#include <rtlab/denoise/guides.hpp>
+
+#include <span>
+
+namespace rtlab::denoise {
+
+struct AtrousParams {
+    // Number of iterations; iteration i uses step 2^i. Source: paper (5);
+    // Falcor's SVGFPass default is 4.
+    int iterations = 5;
+    // Depth edge-stopping: exp(-|z - z'| / (sigmaZ |grad z . (p - q)| + depthEpsilon * z)).
+    // sigmaZ source: paper (1). Falcor uses |dz/dx|+|dz/dy| * step * |offset| instead
+    // of the projected gradient, i.e. also 1.
+    float sigmaZ = 1.f;
+    // Normal edge-stopping: max(0, n.n')^sigmaN. Source: paper and Falcor (128).
+    float sigmaN = 128.f;
+    // Luminance edge-stopping: exp(-|l - l'| / (sigmaL sqrt(g3x3(Var)) + luminanceEpsilon)).
+    // Source: paper (4); Falcor's PhiColor default is 10.
+    float sigmaL = 4.f;
+    // The depth epsilon, relative to the centre depth (paper: "small epsilon").
+    // Source: rtlab.
+    float depthEpsilon = 1e-3f;
+    // The luminance epsilon (paper: "small epsilon"). Source: rtlab, chosen to
+    // equal Falcor's floor sigmaL * sqrt(1e-10) for sigmaL = 1.
+    float luminanceEpsilon = 1e-5f;
+};
+
+// One a-trous iteration with the given step (1, 2, 4, ...): the 5x5 kernel
+// h = (1/16, 1/4, 3/8, 1/4, 1/16) x h at offsets step * (-2..2), times the
+// edge-stopping weights (centre weight 1; off-screen and, for a geometry
+// centre, sky taps skipped; sky centres pass through unchanged):
+//   colorOut    = sum h w c / sum h w
+//   varianceOut = sum h^2 w^2 Var / (sum h w)^2
+// Outputs must not alias inputs.
+void atrousIteration(const GuideBuffers& guides, std::span<const vec3> color, std::span<const float> variance,
+                     int step, const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut);
+
+// params.iterations iterations with steps 1, 2, 4, ... . When `tapColor` is not
+// empty it receives the colour after min(tapIterations, iterations) iterations
+// (0 = the input): SVGF's colour history ("feedback tap"). Outputs may not
+// alias inputs; with 0 iterations the outputs are copies of the inputs.
+void atrousFilter(const GuideBuffers& guides, std::span<const vec3> color, std::span<const float> variance,
+                  const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
+                  int tapIterations = 0, std::span<vec3> tapColor = {});
+
+}  // namespace rtlab::denoise

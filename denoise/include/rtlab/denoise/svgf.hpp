@@ -1,0 +1,107 @@
+#pragma once
+// Spatiotemporal Variance-Guided Filtering (Schied et al. 2017, HPG,
+// "Spatiotemporal Variance-Guided Filtering: Real-Time Reconstruction for
+// Path-Traced Global Illumination"), assembled from the shared stages:
+//
+//   [firefly clamp] -> reproject -> [history clamp] -> temporal accumulation
+//   -> variance (temporal, or spatial 7x7 while history < 4)
+//   -> a-trous x iterations (colour history taken after `historyTap` of them)
+//
+// Parameters follow the paper; where Falcor's SVGFPass defaults differ, the
+// comment says so and SvgfParams::falcor() gives Falcor's set.
+#include <rtlab/denoise/atrous.hpp>
+#include <rtlab/denoise/clamp.hpp>
+#include <rtlab/denoise/guides.hpp>
+#include <rtlab/denoise/reprojection.hpp>
+#include <rtlab/denoise/temporal.hpp>
+#include <rtlab/denoise/variance.hpp>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace rtlab::denoise {
+
+struct SvgfParams {
+    ReprojectionParams reprojection;  // depth 10 / eps 1e-2 (Falcor), normal dot 0.9 (rtlab)
+    TemporalParams temporal;          // alpha 0.2 (paper; Falcor 0.05), moments 0.2 (both), cap 32 (Falcor)
+    VarianceParams variance;          // spatial 7x7 while history < 4 (paper and Falcor)
+    AtrousParams atrous;              // 5 iterations (paper; Falcor 4), sigma z/n/l 1/128/4 (paper; Falcor l 10)
+    // The colour history fed back to the next frame is the output after this
+    // many a-trous iterations (0 = unfiltered accumulation). Source: paper (1,
+    // "the first wavelet iteration"); Falcor's FeedbackTap = 1 counts from 0,
+    // i.e. 2 here.
+    int historyTap = 1;
+    // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
+    bool clampFireflies = false;
+    FireflyClampParams firefly;
+    // Clamp of the reprojected colour history. Source: paper (none).
+    HistoryClampParams historyClamp;
+
+    // The paper's set (= the defaults).
+    static SvgfParams paper() { return {}; }
+    // Falcor SVGFPass's default values: Iterations 4, FeedbackTap 1
+    // (historyTap 2), PhiColor 10, PhiNormal 128, Alpha 0.05, MomentsAlpha 0.2,
+    // and its 4/h boost of the spatial variance estimate. Values only: the
+    // formulas stay the paper's (Falcor's depth weight uses fwidth(z) * step *
+    // |offset|, its short-history pass also filters the colour, and it falls
+    // back to a 3x3 bilateral search when all four reprojection taps fail).
+    static SvgfParams falcor() {
+        SvgfParams p;
+        p.temporal.alpha = 0.05f;
+        p.atrous.iterations = 4;
+        p.atrous.sigmaL = 10.f;
+        p.historyTap = 2;
+        p.variance.boostShortHistory = true;
+        return p;
+    }
+};
+
+// SVGF with its history buffers held across frames. Deterministic: the output
+// of a frame depends only on the frames since the last reset, never on the
+// thread count.
+class SvgfFilter {
+public:
+    explicit SvgfFilter(const SvgfParams& params = {}) : params_(params) {}
+
+    const SvgfParams& params() const { return params_; }
+    // New parameters apply from the next frame; the history is kept.
+    void setParams(const SvgfParams& params) { params_ = params; }
+
+    // Forgets all history: the next frame starts every pixel at history 1.
+    void reset();
+
+    // Filters one frame of (typically demodulated) noisy colour, guided by
+    // `current`, into `out` (sizes must match the guides, else
+    // std::invalid_argument; `out` may alias `noisyColor`). A change of image
+    // size resets the history.
+    void filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out);
+
+    // Inspection of the last filtered frame (empty before the first).
+    std::span<const float> historyLength() const { return history_.length; }
+    std::span<const vec2> moments() const { return history_.moments; }
+    // The variance estimate that guided the filter (before the a-trous passes).
+    std::span<const float> variance() const { return variance_; }
+    // The variance after the last a-trous iteration.
+    std::span<const float> filteredVariance() const { return filteredVariance_; }
+    // 1 where the last frame found history by reprojection.
+    std::span<const std::uint8_t> reprojectionValid() const { return valid_; }
+    // Frames filtered since construction or the last reset.
+    std::uint64_t frameCount() const { return frames_; }
+
+private:
+    SvgfParams params_;
+    bool hasHistory_ = false;
+    std::uint64_t frames_ = 0;
+    GuideBuffers prevGuides_;
+    GuideBuffers curGuides_;
+    HistoryBuffers history_;      // colour = feedback tap, moments, length
+    HistoryBuffers reprojected_;  // scratch
+    std::vector<vec3> input_;
+    std::vector<vec3> tapColor_;
+    std::vector<float> variance_;
+    std::vector<float> filteredVariance_;
+    std::vector<std::uint8_t> valid_;
+};
+
+}  // namespace rtlab::denoise

@@ -1,0 +1,67 @@
+#include <rtlab/denoise/svgf.hpp>
+
+#include "detail.hpp"
+
+#include <algorithm>
+#include <utility>
+
+namespace rtlab::denoise {
+
+void SvgfFilter::reset() {
+    hasHistory_ = false;
+    frames_ = 0;
+    history_ = HistoryBuffers{};
+    prevGuides_ = GuideBuffers{};
+    variance_.clear();
+    filteredVariance_.clear();
+    valid_.clear();
+}
+
+void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out) {
+    current.validate();
+    const std::size_t n = current.pixelCount();
+    detail::checkSize(noisyColor.size(), n, "SvgfFilter::filter: noisyColor");
+    detail::checkSize(out.size(), n, "SvgfFilter::filter: out");
+    const int w = current.width, h = current.height;
+    if (hasHistory_ && (prevGuides_.width != w || prevGuides_.height != h)) reset();
+
+    curGuides_ = current;
+    ensureDepthGradient(curGuides_);
+
+    // Input: sanitised, optionally firefly-clamped (copied, so out may alias it).
+    input_.resize(n);
+    if (params_.clampFireflies) {
+        clampFireflies(w, h, noisyColor, input_, params_.firefly);
+    } else {
+        detail::forEachIndex(n, [&](std::size_t i) { input_[i] = sanitize(noisyColor[i]); });
+    }
+
+    // Reprojection of the history.
+    if (hasHistory_) {
+        const Reprojection r = reproject(curGuides_, prevGuides_, params_.reprojection);
+        reprojectHistory(r, history_, reprojected_);
+        valid_ = r.valid;
+    } else {
+        reprojected_.resize(w, h);
+        valid_.assign(n, 0);
+    }
+    clampHistory(w, h, input_, reprojected_.color, reprojected_.length, params_.historyClamp);
+
+    // Temporal accumulation (in place in reprojected_), variance, a-trous.
+    accumulateTemporal(input_, reprojected_, params_.temporal, reprojected_);
+    variance_.resize(n);
+    estimateVariance(curGuides_, reprojected_, params_.variance, variance_);
+    filteredVariance_.resize(n);
+    tapColor_.resize(n);
+    atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
+                 params_.historyTap, tapColor_);
+
+    // The next frame's history: the feedback-tap colour, the accumulated moments and lengths.
+    std::swap(history_, reprojected_);
+    std::swap(history_.color, tapColor_);
+    std::swap(prevGuides_, curGuides_);
+    hasHistory_ = true;
+    ++frames_;
+}
+
+}  // namespace rtlab::denoise
