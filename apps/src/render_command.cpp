@@ -40,7 +40,8 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--seed", o.seed, "Random seed")->capture_default_str();
     cmd->add_option("--effects", o.effects, "auto (what the scene needs; see rtlab plan) or a comma-separated list "
-                                            "narrowing it: alpha,shadows,reflections,ao,gi,translucency,volumes")
+                                            "narrowing it: alpha,shadows,reflections,ao,gi,translucency,volumes "
+                                            "(gbuffer alone: primary rays only)")
         ->capture_default_str();
     cmd->add_option("--gi", o.gi, "Diffuse GI technique")->check(CLI::IsMember({"path", "ddgi"}))->capture_default_str();
     cmd->add_option("--reflection-roughness", o.reflectionRoughness, "Reflections trace where roughness <= this")
