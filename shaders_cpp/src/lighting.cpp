@@ -28,6 +28,7 @@ ShadingPoint shadingPointOf(const GPixel& g) {
     sp.metalness = g.metalness;
     sp.transmission = g.transmission;
     sp.errorScale = g.errorScale;
+    finishShadingPoint(sp);
     return sp;
 }
 
@@ -42,7 +43,13 @@ ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const
     sp.metalness = glm::clamp(m.metallic, 0.f, 1.f);
     sp.transmission = glm::clamp(m.transmission, 0.f, 1.f);
     sp.errorScale = hit.errorScale;
+    finishShadingPoint(sp);
     return sp;
+}
+
+void finishShadingPoint(ShadingPoint& sp) {
+    sp.frame = makeFrame(sp.normal);
+    sp.woLocal = toLocal(sp.frame, sp.wo);
 }
 
 vec3 specularF0(const ShadingPoint& sp) { return glm::mix(vec3(0.04f), sp.albedo, sp.metalness); }
@@ -60,8 +67,8 @@ vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi) {
     vec3 f = evalDiffuseCos(sp, wi);
     if (cosO > 0.f) {
         // Step: GGX specular D G F / (4 cosI cosO) x cosI, in the shading frame.
-        const Frame frame = makeFrame(sp.normal);
-        const vec3 wo = toLocal(frame, sp.wo), wiLocal = toLocal(frame, wi);
+        const vec3& wo = sp.woLocal;
+        const vec3 wiLocal = toLocal(sp.frame, wi);
         const vec3 h = glm::normalize(wo + wiLocal);
         const float alpha = ggxAlpha(sp.roughness);
         const vec3 F = fresnelSchlick(specularF0(sp), glm::dot(wiLocal, h));

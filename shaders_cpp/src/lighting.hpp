@@ -21,7 +21,11 @@ struct ShadingPoint {
     float metalness = 0.f;
     float transmission = 0.f;  // scales the diffuse lobe by (1 - transmission)
     float errorScale = 0.f;    // for ray offsets (rayOriginLeaving)
+    Frame frame;               // shading frame around `normal` (set by finishShadingPoint)
+    vec3 woLocal{0.f, 0.f, 1.f};  // wo in that frame
 };
+// Sets the cached frame and local wo once the fields above are filled.
+void finishShadingPoint(ShadingPoint& sp);
 ShadingPoint shadingPointOf(const GPixel& g);
 ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const vec3& wo);
 
