@@ -4,6 +4,7 @@
 #include <rtlab/core/image.hpp>
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/core/timer.hpp>
+#include <rtlab/denoise/effect_layers.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
@@ -19,6 +20,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 
 namespace rtlab::app {
@@ -54,7 +56,9 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
                     "Refraction/reflection events along a translucent path")
         ->check(CLI::Range(1, 64))
         ->capture_default_str();
-    cmd->add_option("--denoise", o.denoise, "auto|none|LIST (the denoise stack is not built yet: auto = none)")
+    cmd->add_option("--denoise", o.denoise,
+                    "auto (every effect's signal), none, or a comma-separated list of shadows,reflections,ao,gi,"
+                    "translucency,volumes: SVGF per signal layer, noisy layers kept as noisy.*")
         ->capture_default_str();
     cmd->add_option("--out", o.out, "Output directory")->capture_default_str();
 }
@@ -142,8 +146,23 @@ int runRender(const RenderOptions& o) {
     // Step: options checked before anything is loaded.
     shaders::PlanOptions planOptions = app::planOptions(o.effects, o.gi);
     planOptions.reflectionMaxRoughness = o.reflectionRoughness;
-    if (o.denoise != "auto" && o.denoise != "none")
-        throw InputError("--denoise", "'" + o.denoise + "': no denoiser is built yet (auto and none both mean none)");
+    std::unique_ptr<denoise::EffectLayerDenoiser> denoiser;
+    if (o.denoise != "none") {
+        std::vector<std::string> effects;
+        if (o.denoise != "auto") {
+            std::stringstream in(o.denoise);
+            std::string item;
+            while (std::getline(in, item, ','))
+                if (!item.empty()) effects.push_back(item);
+            if (effects.empty()) throw InputError("--denoise", "empty list (use auto, none or effect names)");
+        }
+        try {
+            denoiser = std::make_unique<denoise::EffectLayerDenoiser>(effects);
+        } catch (const std::invalid_argument& e) {
+            throw InputError("--denoise", std::string(e.what()) + " (known: auto, none, shadows, reflections, ao, gi, "
+                                                                  "translucency, volumes)");
+        }
+    }
     // Step: the RT-core model, configured before anything is loaded (a bad key is the clearer error).
     std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
     if (o.backend == "rtcore") {
@@ -174,7 +193,7 @@ int runRender(const RenderOptions& o) {
     stats["settings"]["reflectionRoughness"] = o.reflectionRoughness;
     stats["settings"]["aoRadius"] = o.aoRadius;
     stats["settings"]["maxTranslucencyDepth"] = o.maxTranslucencyDepth;
-    stats["settings"]["denoise"] = "none";
+    stats["settings"]["denoise"] = o.denoise;
     if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
     shaders::FrameHistory history;
     std::uint64_t totalMismatches = 0, totalVerified = 0;
@@ -210,8 +229,17 @@ int runRender(const RenderOptions& o) {
         }
         const double modelBuildMs = modelClock.elapsedMs();
         const Stopwatch renderClock;
-        const shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, settings, history);
+        shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, settings, history);
         const double renderMs = renderClock.elapsedMs();
+        // Step: denoise the effect signals, keep the noisy beauty, compose again.
+        std::vector<std::string> denoised;
+        const Stopwatch denoiseClock;
+        if (denoiser) {
+            frame.image.addRgbLayer("noisy", frame.image.rgbLayer(""));
+            denoised = denoiser->apply(frame.image);
+            shaders::composeBeauty(frame.image);
+        }
+        const double denoiseMs = denoiseClock.elapsedMs();
 
         char name[32];
         std::snprintf(name, sizeof name, "frame_%04d", f);
@@ -249,6 +277,7 @@ int runRender(const RenderOptions& o) {
                 {"rays", frame.passes[p].rays},
                 {"bytesAllocated", frame.passes[p].bytesAllocated}};
         fj["nonFiniteValuesRepaired"] = frame.nonFiniteValuesRepaired;
+        fj["denoised"] = denoised;
         fj["shaders"] = {{"anyHit", c.anyHitInvocations},
                          {"intersection", c.intersectionInvocations},
                          {"closestHit", c.closestHitInvocations},
@@ -274,7 +303,7 @@ int runRender(const RenderOptions& o) {
             fj["rtcore"] = std::move(r);
         }
         // Timings vary run to run; everything outside "timing" is deterministic.
-        fj["timing"] = {{"accelBuildMs", accelStats.buildMs}, {"renderMs", renderMs}};
+        fj["timing"] = {{"accelBuildMs", accelStats.buildMs}, {"renderMs", renderMs}, {"denoiseMs", denoiseMs}};
         for (std::size_t p = 0; p < shaders::kPassCount; ++p)
             if (plan.passes[p].planned)
                 fj["timing"]["passMs"][std::string(shaders::passName(static_cast<shaders::Pass>(p)))] =

@@ -21,6 +21,56 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
     }
 }
 
+void composeBeauty(Image& frame) {
+    const std::size_t n = frame.pixelCount();
+    const auto rgb = [&](const std::string& layer) -> std::vector<vec3> {
+        return frame.hasChannel(layer.empty() ? "R" : layer + ".R") ? frame.rgbLayer(layer) : std::vector<vec3>();
+    };
+    const auto scalar = [&](const std::string& name) -> const float* { return frame.channel(name); };
+    const std::vector<vec3> albedo = rgb("albedo"), emissive = rgb("emissive"), point = rgb("direct.point"),
+                            gi = rgb("gi"), reflection = rgb("reflection"), brdf = rgb("reflection.brdf"),
+                            translucency = rgb("translucency"), inscatter = rgb("volume.inscatter");
+    const float* metalness = scalar("metalness.Y");
+    const float* transmission = scalar("transmission.Y");
+    const float* T = scalar("volume.transmittance");
+    const float* mesh = scalar("id.mesh");
+    std::vector<std::vector<vec3>> unshadowed;
+    std::vector<const float*> visibility;
+    for (int i = 0; frame.hasChannel("direct.light" + std::to_string(i) + ".R"); ++i) {
+        unshadowed.push_back(rgb("direct.light" + std::to_string(i)));
+        visibility.push_back(scalar("shadow.light" + std::to_string(i) + ".V"));
+    }
+    std::vector<vec3> beauty(n, vec3(0.f));
+    for (std::size_t p = 0; p < n; ++p) {
+        beauty[p] = inscatter.empty() ? vec3(0.f) : inscatter[p];
+        if (!mesh || mesh[p] < 0.f) continue;
+        vec3 direct(0.f);
+        for (std::size_t l = 0; l < unshadowed.size(); ++l)
+            direct += unshadowed[l][p] * (visibility[l] ? visibility[l][p] : 1.f);
+        if (!point.empty()) direct += point[p];
+        const float m = metalness ? metalness[p] : 0.f, t = transmission ? transmission[p] : 0.f;
+        const vec3 a = albedo.empty() ? vec3(0.f) : albedo[p];
+        const vec3 diffuseAlbedo = (1.f - m) * (1.f - t) * a;
+        const vec3 e = emissive.empty() ? vec3(0.f) : emissive[p];
+        const vec3 irradiance = gi.empty() ? vec3(0.f) : gi[p];
+        const vec3 specular = brdf.empty() || reflection.empty() ? vec3(0.f) : brdf[p] * reflection[p];
+        const vec3 transmitted = translucency.empty() ? vec3(0.f) : translucency[p];
+        beauty[p] += (T ? T[p] : 1.f) * (e + direct + diffuseAlbedo * irradiance / kPi + specular + t * transmitted);
+    }
+    if (frame.hasChannel("R")) {
+        float* r = frame.channel("R");
+        float* g = frame.channel("G");
+        float* b = frame.channel("B");
+        for (std::size_t p = 0; p < n; ++p) {
+            r[p] = beauty[p].x;
+            g[p] = beauty[p].y;
+            b[p] = beauty[p].z;
+        }
+    } else {
+        frame.addRgbLayer("", beauty);
+    }
+}
+
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
                         const RenderSettings& settings) {
     FrameHistory none;
@@ -76,18 +126,8 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     // Any-hit calls belong to the alpha pass: it has no rays of its own.
     out.passes[static_cast<std::size_t>(Pass::AlphaMask)].rays = 0;
 
-    // Step: compose = in-scattered + T x (emission + direct + diffuse x irradiance / pi
-    //                 + specular x reflected radiance + transmission x translucency).
-    std::vector<vec3> beauty(n, vec3(0.f));
-    for (std::size_t i = 0; i < n; ++i) {
-        const detail::GPixel& g = ctx.gbuffer[i];
-        beauty[i] = inscatter[i];
-        if (!g.hit) continue;
-        const vec3 diffuseAlbedo = (1.f - g.metalness) * (1.f - g.transmission) * g.albedo;
-        beauty[i] += primaryTransmittance[i] * (g.emissive + direct[i] + diffuseAlbedo * irradiance[i] / kPi +
-                                                specular[i] + g.transmission * transmitted[i]);
-    }
-    out.image.addRgbLayer("", beauty);
+    // Step: compose (from the layers, as after denoising).
+    composeBeauty(out.image);
     // Step: nothing non-finite leaves a pass.
     for (const std::string& name : out.image.channelNames()) {
         float* c = out.image.channel(name);

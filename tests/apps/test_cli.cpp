@@ -124,6 +124,7 @@ TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
         "render --scene /no/such/file.gltf --backend rtcore --verify --out " + out.string(),
         "render --scene builtin:cornell --effects ao,glitter --out " + out.string(),
         "render --scene builtin:cornell --denoise svgf --out " + out.string(),
+        "render --scene builtin:cornell --denoise , --out " + out.string(),
         "render --scene builtin:cornell --gi photons --out " + out.string(),
         "plan --scene /no/such/file.gltf",
         "plan --scene builtin:cornell --effects nope",
@@ -272,4 +273,42 @@ TEST(Cli, ShowcaseEffectsAndDdgiRender) {
     EXPECT_GT(stats["frames"][1]["shaders"]["anyHit"].get<std::uint64_t>(), 0u);
     EXPECT_EQ(stats["frames"][1]["nonFiniteValuesRepaired"].get<int>(), 0);
     EXPECT_EQ(stats["plan"]["gi"], "ddgi");
+}
+
+// --denoise auto filters every effect's signal (SVGF per layer) and composes
+// again: the 1-spp beauty gets closer to a 64-spp reference than the raw one.
+TEST(Cli, DenoisedBeautyIsCloserToTheReference) {
+    const fs::path raw = freshDir("dn_raw"), den = freshDir("dn_den"), ref = freshDir("dn_ref");
+    const std::string common = "render --scene builtin:cornell --width 64 --height 48 --frames 2 ";
+    ASSERT_EQ(runCli(common + "--denoise none --out " + raw.string()).exitCode, 0);
+    ASSERT_EQ(runCli(common + "--denoise auto --out " + den.string()).exitCode, 0);
+    ASSERT_EQ(runCli(common + "--denoise none --spp 64 --out " + ref.string()).exitCode, 0);
+    const rtlab::Image r = rtlab::readExr(raw / "frame_0001.exr");
+    const rtlab::Image d = rtlab::readExr(den / "frame_0001.exr");
+    const rtlab::Image reference = rtlab::readExr(ref / "frame_0001.exr");
+    EXPECT_TRUE(d.hasChannel("noisy.R"));
+    EXPECT_TRUE(d.hasChannel("noisy.gi.R"));
+    EXPECT_TRUE(d.hasChannel("noisy.shadow.light0.V"));
+    // The noisy layers of the denoised run are the raw run's layers.
+    const float* a = d.channel("noisy.gi.G");
+    const float* b = r.channel("gi.G");
+    for (std::size_t i = 0; i < r.pixelCount(); ++i) ASSERT_EQ(a[i], b[i]) << i;
+    // Beauty error against the reference (relMSE over R, G, B).
+    const auto relMse = [&](const rtlab::Image& img) {
+        double sum = 0.0;
+        for (const char* c : {"R", "G", "B"}) {
+            const float* x = img.channel(c);
+            const float* y = reference.channel(c);
+            for (std::size_t i = 0; i < img.pixelCount(); ++i)
+                sum += double(x[i] - y[i]) * double(x[i] - y[i]) / (double(y[i]) * double(y[i]) + 1e-2);
+        }
+        return sum / (3.0 * double(img.pixelCount()));
+    };
+    const double rawError = relMse(r), denoisedError = relMse(d);
+    std::printf("[ denoise  ] cornell 1 spp relMSE: raw %.5f, denoised %.5f\n", rawError, denoisedError);
+    EXPECT_LT(denoisedError, 0.5 * rawError);
+    std::ifstream in(den / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    EXPECT_EQ(stats["settings"]["denoise"], "auto");
+    EXPECT_GE(stats["frames"][1]["denoised"].size(), 3u);  // shadow.light0.V, ao.V, gi
 }

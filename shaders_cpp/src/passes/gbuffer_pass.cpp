@@ -60,6 +60,7 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
     float* depth = out.addChannel("depth.Z");
     float* roughness = out.addChannel("roughness.Y");
     float* metalness = out.addChannel("metalness.Y");
+    float* transmission = out.addChannel("transmission.Y");
     float* meshId = out.addChannel("id.mesh");
     float* instanceId = out.addChannel("id.instance");
     float* motionX = out.addChannel("motion.X");
@@ -73,6 +74,7 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
         depth[i] = g.depth;
         roughness[i] = g.roughness;
         metalness[i] = g.metalness;
+        transmission[i] = g.transmission;
         meshId[i] = g.hit ? float(g.mesh) : -1.f;
         instanceId[i] = g.hit ? float(g.instance) : -1.f;
         motionX[i] = g.motion.x;
@@ -82,8 +84,8 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
     out.addRgbLayer("normal", normal);
     out.addRgbLayer("geonormal", geoNormal);
     out.addRgbLayer("emissive", emissive);
-    // G-buffer in memory + its 17 output floats per pixel.
-    return n * (sizeof(GPixel) + 17 * sizeof(float));
+    // G-buffer in memory + its 18 output floats per pixel.
+    return n * (sizeof(GPixel) + 18 * sizeof(float));
 }
 
 }  // namespace rtlab::shaders::detail

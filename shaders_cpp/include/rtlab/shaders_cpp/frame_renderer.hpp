@@ -75,6 +75,14 @@ struct FrameOutput {
     Image ddgiAtlas;  // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
 };
 
+// The beauty image (R, G, B) from a frame's layers, the renderer's compose:
+//   in-scattered + T x (emission + sum_i direct.light<i> x shadow.light<i>.V
+//   + direct.point + diffuse albedo / pi x gi + reflection.brdf x reflection
+//   + transmission x translucency), diffuse albedo = (1 - metalness)(1 -
+//   transmission) albedo; sky pixels (id.mesh < 0) get the in-scattered light
+//   only. Absent layers count as 0 (T as 1). Used again after denoising.
+void composeBeauty(Image& frame);
+
 // Renders one frame; `history` holds the previous frame (motion vectors,
 // DDGI probes) and is updated to this one.
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
