@@ -189,7 +189,78 @@ ImageDifference compareImages(const Image& test, const Image& reference) {
     diff.rmse = std::sqrt(mse);
     diff.relMse = finitePairs > 0 ? sumRelative / static_cast<double>(finitePairs) : 0.0;
     diff.psnr = mse == 0.0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(peak * peak / mse);
+
+    // SSIM of the display-referred luminance.
+    diff.ssim = std::numeric_limits<double>::quiet_NaN();
+    const char* rgb[3] = {"R", "G", "B"};
+    bool haveRgb = true;
+    for (const char* c : rgb) haveRgb = haveRgb && test.hasChannel(c) && reference.hasChannel(c);
+    if (haveRgb && n > 0) {
+        const auto luminance = [&](const Image& img) {
+            std::vector<float> y(n);
+            const float *r = img.channel("R"), *g = img.channel("G"), *b = img.channel("B");
+            for (std::size_t i = 0; i < n; ++i) {
+                const float v = 0.2126f * r[i] + 0.7152f * g[i] + 0.0722f * b[i];
+                y[i] = std::isfinite(v) ? std::clamp(v, 0.f, 1.f) : 0.f;
+            }
+            return y;
+        };
+        diff.ssim = ssim(luminance(test), luminance(reference), test.width(), test.height());
+    }
     return diff;
+}
+
+double ssim(const std::vector<float>& x, const std::vector<float>& y, int width, int height) {
+    const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    if (n == 0 || x.size() != n || y.size() != n) throw std::invalid_argument("ssim: image sizes do not match");
+    // Step: the 11-tap Gaussian (sigma 1.5), renormalised where the window leaves the image.
+    constexpr int kRadius = 5;
+    double kernel[2 * kRadius + 1];
+    for (int k = -kRadius; k <= kRadius; ++k) kernel[k + kRadius] = std::exp(-0.5 * (k * k) / (1.5 * 1.5));
+    const auto blur = [&](const std::vector<double>& in) {
+        std::vector<double> tmp(n), out(n);
+        for (int row = 0; row < height; ++row)
+            for (int col = 0; col < width; ++col) {
+                double s = 0.0, w = 0.0;
+                for (int k = -kRadius; k <= kRadius; ++k) {
+                    const int c = col + k;
+                    if (c < 0 || c >= width) continue;
+                    s += kernel[k + kRadius] * in[std::size_t(row) * width + c];
+                    w += kernel[k + kRadius];
+                }
+                tmp[std::size_t(row) * width + col] = s / w;
+            }
+        for (int row = 0; row < height; ++row)
+            for (int col = 0; col < width; ++col) {
+                double s = 0.0, w = 0.0;
+                for (int k = -kRadius; k <= kRadius; ++k) {
+                    const int r = row + k;
+                    if (r < 0 || r >= height) continue;
+                    s += kernel[k + kRadius] * tmp[std::size_t(r) * width + col];
+                    w += kernel[k + kRadius];
+                }
+                out[std::size_t(row) * width + col] = s / w;
+            }
+        return out;
+    };
+    std::vector<double> xd(n), yd(n), xx(n), yy(n), xy(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        xd[i] = x[i];
+        yd[i] = y[i];
+        xx[i] = xd[i] * xd[i];
+        yy[i] = yd[i] * yd[i];
+        xy[i] = xd[i] * yd[i];
+    }
+    const std::vector<double> mx = blur(xd), my = blur(yd), sxx = blur(xx), syy = blur(yy), sxy = blur(xy);
+    // Step: the SSIM map and its mean.
+    constexpr double c1 = (0.01 * 1.0) * (0.01 * 1.0), c2 = (0.03 * 1.0) * (0.03 * 1.0);
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double vx = std::max(0.0, sxx[i] - mx[i] * mx[i]), vy = std::max(0.0, syy[i] - my[i] * my[i]);
+        const double cov = sxy[i] - mx[i] * my[i];
+        sum += ((2.0 * mx[i] * my[i] + c1) * (2.0 * cov + c2)) / ((mx[i] * mx[i] + my[i] * my[i] + c1) * (vx + vy + c2));
+    }
+    return sum / double(n);
 }
 
 }  // namespace rtlab

@@ -1,6 +1,7 @@
 // Image storage, EXR/PNG files, atomic writes and comparison metrics.
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/rng.hpp>
 
 #define STB_IMAGE_IMPLEMENTATION
 #include <stb_image.h>
@@ -474,4 +475,39 @@ TEST_F(ImageFiles, TextWriteIntoMissingDirectoryFails) {
     const fs::path target = dir / "absent" / "stats.json";
     expectInputError([&] { writeTextFileAtomically(target, "x"); }, {target.string(), "does not exist"});
     EXPECT_FALSE(fs::exists(target.parent_path()));
+}
+
+// SSIM (Wang et al. 2004) literal cases: identical images give exactly 1; a
+// structure against its flat mean is near 0; mild noise lands in between,
+// and more noise scores lower.
+TEST(Ssim, KnownCases) {
+    const int w = 32, h = 24;
+    std::vector<float> checker(w * h), flat(w * h), noisy(w * h), noisier(w * h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = std::size_t(y) * w + x;
+            checker[i] = ((x / 2 + y / 2) % 2) ? 0.8f : 0.2f;
+            flat[i] = 0.5f;
+            const float n = float(rtlab::pcgHash(std::uint32_t(i)) >> 8) / 16777216.f - 0.5f;
+            noisy[i] = checker[i] + 0.05f * n;
+            noisier[i] = checker[i] + 0.3f * n;
+        }
+    EXPECT_EQ(rtlab::ssim(checker, checker, w, h), 1.0);
+    EXPECT_LT(rtlab::ssim(flat, checker, w, h), 0.05);
+    const double mild = rtlab::ssim(noisy, checker, w, h), strong = rtlab::ssim(noisier, checker, w, h);
+    EXPECT_GT(mild, 0.9);
+    EXPECT_LT(mild, 1.0);
+    EXPECT_LT(strong, mild);
+    EXPECT_THROW(rtlab::ssim(checker, std::vector<float>(3), w, h), std::invalid_argument);
+}
+
+TEST(Ssim, CompareImagesReportsItForRgbImages) {
+    rtlab::Image a(8, 8), b(8, 8);
+    a.addRgbLayer("", std::vector<rtlab::vec3>(64, rtlab::vec3(0.3f)));
+    b.addRgbLayer("", std::vector<rtlab::vec3>(64, rtlab::vec3(0.3f)));
+    EXPECT_NEAR(rtlab::compareImages(a, b).ssim, 1.0, 1e-12);
+    rtlab::Image c(8, 8), d(8, 8);
+    c.addChannel("depth.Z", 1.f);
+    d.addChannel("depth.Z", 1.f);
+    EXPECT_TRUE(std::isnan(rtlab::compareImages(c, d).ssim));
 }

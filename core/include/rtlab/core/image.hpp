@@ -89,7 +89,13 @@ struct ImageDifference {
     bool identical = false;          // every shared channel bit-identical and channel sets equal
     std::size_t channelsCompared = 0;
     std::size_t nonFiniteValues = 0;  // NaN/Inf found in either image (excluded from the sums)
+    // SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01,
+    // K2 0.03, L 1) of the beauty's Rec.709 luminance clamped to [0, 1] (a
+    // display-referred comparison); NaN when either image lacks R, G, B.
+    double ssim = 0.0;
 };
+// The mean SSIM of two single-channel images (same size), as above.
+double ssim(const std::vector<float>& test, const std::vector<float>& reference, int width, int height);
 ImageDifference compareImages(const Image& test, const Image& reference);
 
 }  // namespace rtlab
