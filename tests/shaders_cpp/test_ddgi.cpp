@@ -77,9 +77,13 @@ RayFn uniformSky(vec3 L) {
 }
 
 // |a - b| <= tol * |b| per component (plus a tiny absolute floor for zeros).
-void expectRelNear(vec3 a, vec3 b, float tol, const char* what) {
+// Every component of a within tol (relative to b) of b's; used as EXPECT_TRUE(relNear(...)).
+::testing::AssertionResult relNear(vec3 a, vec3 b, float tol) {
     for (int c = 0; c < 3; ++c)
-        EXPECT_NEAR(a[c], b[c], tol * std::fabs(b[c]) + 1e-30f) << what << " component " << c;
+        if (!(std::fabs(a[c] - b[c]) <= tol * std::fabs(b[c]) + 1e-30f))
+            return ::testing::AssertionFailure() << "component " << c << ": " << a[c] << " vs " << b[c]
+                                                 << " (relative tolerance " << tol << ")";
+    return ::testing::AssertionSuccess();
 }
 
 // ------------------------------------------------------------------ layout --
@@ -146,17 +150,17 @@ TEST(DdgiUpdate, UniformEnvironmentGivesPiL) {
     EXPECT_EQ(v.lastUpdateStats().misses, v.lastUpdateStats().rays);
     // Every probe, every direction (texel centres, borders via random directions).
     for (std::uint32_t p = 0; p < v.probeCount(); ++p)
-        for (std::uint32_t i = 0; i < 64; ++i) expectRelNear(v.probeIrradiance(p, randomDirection(i, p)), kPiF * L, 1e-4f, "probe");
-    for (const vec3& t : v.irradianceAtlas()) expectRelNear(t, kPiF * L, 1e-4f, "atlas");
+        for (std::uint32_t i = 0; i < 64; ++i) EXPECT_TRUE(relNear(v.probeIrradiance(p, randomDirection(i, p)), kPiF * L, 1e-4f)) << "probe";
+    for (const vec3& t : v.irradianceAtlas()) EXPECT_TRUE(relNear(t, kPiF * L, 1e-4f)) << "atlas";
     // Misses record maxRayDistance.
     const vec2 m = v.probeDistanceMoments(3, vec3(0.f, 1.f, 0.f));
     EXPECT_NEAR(m.x, v.maxRayDistance(), 1e-5f * v.maxRayDistance());
     // The query anywhere inside (and outside: clamped to the grid).
     for (std::uint32_t i = 0; i < 200; ++i) {
         const vec3 pos = randomPointIn(scene, i, 1);
-        expectRelNear(v.irradiance(pos, randomDirection(i, 2), randomDirection(i, 3)), kPiF * L, 1e-4f, "query");
+        EXPECT_TRUE(relNear(v.irradiance(pos, randomDirection(i, 2), randomDirection(i, 3)), kPiF * L, 1e-4f)) << "query";
     }
-    expectRelNear(v.irradiance(vec3(100.f, -50.f, 3.f), vec3(0.f, 1.f, 0.f), vec3(0.f)), kPiF * L, 1e-4f, "outside");
+    EXPECT_TRUE(relNear(v.irradiance(vec3(100.f, -50.f, 3.f), vec3(0.f, 1.f, 0.f), vec3(0.f)), kPiF * L, 1e-4f)) << "outside";
 }
 
 // ------------------------------------------------------- (2) hysteresis --
@@ -171,14 +175,14 @@ TEST(DdgiUpdate, HysteresisBlendsExponentially) {
     auto hits = [](vec3 L, float d) { return [L, d](std::uint32_t, vec3) { return DdgiRayResult{L, d}; }; };
 
     updateWith(v, 0, 1, hits(L1, d1));  // first frame: no history, the new value is taken
-    for (const vec3& t : v.irradianceAtlas()) expectRelNear(t, kPiF * L1, 1e-5f, "frame 0");
+    for (const vec3& t : v.irradianceAtlas()) EXPECT_TRUE(relNear(t, kPiF * L1, 1e-5f)) << "frame 0";
     for (const vec2& m : v.distanceAtlas()) {
         ASSERT_NEAR(m.x, d1, 1e-6f);
         ASSERT_NEAR(m.y, d1 * d1, 1e-6f);
     }
     updateWith(v, 1, 1, hits(L2, d2));  // the exact blend after two frames
     const vec3 e1 = h * kPiF * L1 + (1.f - h) * kPiF * L2;
-    for (const vec3& t : v.irradianceAtlas()) expectRelNear(t, e1, 1e-5f, "frame 1");
+    for (const vec3& t : v.irradianceAtlas()) EXPECT_TRUE(relNear(t, e1, 1e-5f)) << "frame 1";
     for (const vec2& m : v.distanceAtlas()) {
         ASSERT_NEAR(m.x, h * d1 + (1.f - h) * d2, 1e-6f);
         ASSERT_NEAR(m.y, h * d1 * d1 + (1.f - h) * d2 * d2, 1e-6f);
@@ -188,13 +192,13 @@ TEST(DdgiUpdate, HysteresisBlendsExponentially) {
     for (int k = 2; k <= 40; ++k) {
         updateWith(v, static_cast<std::uint32_t>(k), 1, hits(L2, d2));
         const vec3 expected = kPiF * L2 + std::pow(h, static_cast<float>(k)) * kPiF * (L1 - L2);
-        expectRelNear(v.probeIrradiance(0, vec3(0.3f, -0.2f, 0.9f)), expected, 1e-4f, "frame k");
+        EXPECT_TRUE(relNear(v.probeIrradiance(0, vec3(0.3f, -0.2f, 0.9f)), expected, 1e-4f)) << "frame k";
     }
     EXPECT_EQ(v.updatesSinceReset(), 41u);
     // reset() forgets the history: the next frame is taken as is.
     v.reset();
     updateWith(v, 50, 1, hits(L1, d1));
-    expectRelNear(v.probeIrradiance(7, vec3(0.f, 0.f, 1.f)), kPiF * L1, 1e-5f, "after reset");
+    EXPECT_TRUE(relNear(v.probeIrradiance(7, vec3(0.f, 0.f, 1.f)), kPiF * L1, 1e-5f)) << "after reset";
 }
 
 TEST(DdgiUpdate, GammaEncodingStoresEncodedValuesAndDecodesOnQuery) {
@@ -209,10 +213,10 @@ TEST(DdgiUpdate, GammaEncodingStoresEncodedValuesAndDecodesOnQuery) {
     const auto enc = [](vec3 e) { return vec3(std::pow(e.x, 0.2f), std::pow(e.y, 0.2f), std::pow(e.z, 0.2f)); };
     // Hysteresis blends the encoded values (that is the point of the encoding).
     const vec3 stored = h * enc(kPiF * L1) + (1.f - h) * enc(kPiF * L2);
-    expectRelNear(v.irradianceAtlas()[55], stored, 1e-5f, "encoded");
+    EXPECT_TRUE(relNear(v.irradianceAtlas()[55], stored, 1e-5f)) << "encoded";
     const vec3 decoded(std::pow(stored.x, 5.f), std::pow(stored.y, 5.f), std::pow(stored.z, 5.f));
-    expectRelNear(v.irradiance(vec3(0.5f), vec3(0.f, 1.f, 0.f), vec3(0.f, 0.f, 1.f)), decoded, 1e-4f, "decoded");
-    expectRelNear(v.irradianceAtlasImage().texels[0], decoded, 1e-4f, "image decoded");
+    EXPECT_TRUE(relNear(v.irradiance(vec3(0.5f), vec3(0.f, 1.f, 0.f), vec3(0.f, 0.f, 1.f)), decoded, 1e-4f)) << "decoded";
+    EXPECT_TRUE(relNear(v.irradianceAtlasImage().texels[0], decoded, 1e-4f)) << "image decoded";
 }
 
 // ------------------------------------------------------ (3) directional --
@@ -500,7 +504,7 @@ TEST(DdgiStiff, DegenerateBoundsGiveAUsableVolume) {
         }
         updateWith(v, 0, 1, uniformSky(L));
         const vec3 e = v.irradiance(v.bounds().center(), vec3(0.f, 1.f, 0.f), vec3(0.f, 0.f, 1.f));
-        expectRelNear(e, kPiF * L, 1e-4f, "degenerate bounds");
+        EXPECT_TRUE(relNear(e, kPiF * L, 1e-4f)) << "degenerate bounds";
     }
 }
 
@@ -539,8 +543,7 @@ TEST(DdgiStiff, HugeRadianceStaysFinite) {
         st.irradianceGamma = gamma;
         DdgiVolume v(box(vec3(0.f), vec3(1.f)), st);
         updateWith(v, 0, 1, uniformSky(vec3(1e20f)));
-        expectRelNear(v.irradiance(vec3(0.5f), vec3(0.f, 0.f, 1.f), vec3(0.f, 1.f, 0.f)), vec3(kPiF * 1e20f), 1e-4f,
-                      "1e20");
+        EXPECT_TRUE(relNear(v.irradiance(vec3(0.5f), vec3(0.f, 0.f, 1.f), vec3(0.f, 1.f, 0.f)), vec3(kPiF * 1e20f), 1e-4f)) << "1e20";
         // Beyond the safety clamp (and FLT_MAX itself): clamped to 1e30, counted.
         updateWith(v, 1, 1, uniformSky(vec3(3e38f)));
         EXPECT_EQ(v.lastUpdateStats().clampedSamples, v.lastUpdateStats().rays);
@@ -570,7 +573,7 @@ TEST(DdgiStiff, NonFiniteSamplesAreSkippedAndCounted) {
     EXPECT_EQ(v.lastUpdateStats().rejectedSamples, 3u);
     // The rest of the probe is untouched: the ratio estimator of a constant is exact.
     for (std::uint32_t i = 0; i < 100; ++i)
-        expectRelNear(v.probeIrradiance(3, randomDirection(i, 77)), kPiF * L, 1e-4f, "probe 3");
+        EXPECT_TRUE(relNear(v.probeIrradiance(3, randomDirection(i, 77)), kPiF * L, 1e-4f)) << "probe 3";
     for (const vec2& m : v.distanceAtlas()) ASSERT_TRUE(std::isfinite(m.x) && std::isfinite(m.y));
 }
 
@@ -599,8 +602,8 @@ TEST(DdgiStiff, FewRaysAndBackFaces) {
     updateWith(one, 0, 1, uniformSky(vec3(1.f)));
     for (const vec3& t : one.irradianceAtlas()) ASSERT_TRUE(isFinite(t));
     const vec3 d = one.rayDirection(0, 0, 0, 1);
-    expectRelNear(one.probeIrradiance(0, -d), vec3(0.f), 0.f, "away");
-    expectRelNear(one.probeIrradiance(0, d), vec3(kPiF), 1e-4f, "toward");
+    EXPECT_TRUE(relNear(one.probeIrradiance(0, -d), vec3(0.f), 0.f)) << "away";
+    EXPECT_TRUE(relNear(one.probeIrradiance(0, d), vec3(kPiF), 1e-4f)) << "toward";
 
     // Back faces (negative distance): radiance ignored, |d| recorded.
     DdgiSettings s2;
@@ -617,7 +620,7 @@ TEST(DdgiStiff, FewRaysAndBackFaces) {
         const vec3 e = v.probeIrradiance(1, randomDirection(i, 5));
         ASSERT_LE(e.x, kPiF * L.x * 1.0001f);
     }
-    expectRelNear(v.probeIrradiance(1, vec3(0.f, 1.f, 0.f)), kPiF * L, 1e-4f, "up");
+    EXPECT_TRUE(relNear(v.probeIrradiance(1, vec3(0.f, 1.f, 0.f)), kPiF * L, 1e-4f)) << "up";
     EXPECT_NEAR(v.probeDistanceMoments(1, vec3(0.f, -1.f, 0.f)).x, 0.2f, 1e-5f);
 }
 
