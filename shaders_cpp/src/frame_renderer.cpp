@@ -123,8 +123,6 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
         run(Pass::Volumes, [&](tracer::TraceCounters& c) {
             return detail::runVolumePass(ctx, out.image, primaryTransmittance, inscatter, c);
         });
-    // Any-hit calls belong to the alpha pass: it has no rays of its own.
-    out.passes[static_cast<std::size_t>(Pass::AlphaMask)].rays = 0;
 
     // Step: compose (from the layers, as after denoising).
     composeBeauty(out.image);

@@ -189,32 +189,6 @@ bool emits(const ecs::LightSnapshot& l) {
     return l.light.intensity > 0.f && glm::length(l.light.color) > 0.f && std::isfinite(l.light.intensity);
 }
 
-const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& lights,
-                                       const std::function<float(const ecs::LightSnapshot&)>& weight, float u,
-                                       float& pdf) {
-    // Step: the weights once, then invert the CDF.
-    std::vector<float> w(lights.size(), 0.f);
-    double total = 0.0;
-    for (std::size_t i = 0; i < lights.size(); ++i) {
-        const float wi = weight(lights[i]);
-        w[i] = std::isfinite(wi) && wi > 0.f ? wi : 0.f;
-        total += w[i];
-    }
-    pdf = 0.f;
-    if (!(total > 0.0)) return nullptr;
-    const double target = double(u) * total;
-    double running = 0.0;
-    std::size_t chosen = lights.size();
-    for (std::size_t i = 0; i < lights.size(); ++i) {
-        if (w[i] <= 0.f) continue;
-        chosen = i;  // rounding can leave target at the very end: the last contributing light
-        running += w[i];
-        if (target < running) break;
-    }
-    pdf = static_cast<float>(w[chosen] / total);
-    return &lights[chosen];
-}
-
 const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf) {
     return pickByWeight(
         scene.lights,

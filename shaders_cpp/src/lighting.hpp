@@ -6,7 +6,8 @@
 
 #include <rtlab/shaders_cpp/sampling.hpp>
 
-#include <functional>
+#include <cmath>
+#include <vector>
 
 namespace rtlab::shaders::detail {
 
@@ -68,10 +69,34 @@ bool emits(const ecs::LightSnapshot& light);
 
 // One light of `lights` picked with probability weight(light) / sum of
 // weights (non-finite or negative weights count as 0); nullptr when every
-// weight is 0. `pdf` is the pick probability. Deterministic, any number of lights.
-const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& lights,
-                                       const std::function<float(const ecs::LightSnapshot&)>& weight, float u,
-                                       float& pdf);
+// weight is 0. `pdf` is the pick probability. Deterministic, any number of
+// lights, no allocation (the weights are evaluated twice: sum, then walk).
+template <class Weight>
+const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& lights, Weight&& weight, float u,
+                                       float& pdf) {
+    const auto clean = [&](const ecs::LightSnapshot& l) {
+        const float w = weight(l);
+        return std::isfinite(w) && w > 0.f ? w : 0.f;
+    };
+    double total = 0.0;
+    for (const ecs::LightSnapshot& l : lights) total += clean(l);
+    pdf = 0.f;
+    if (!(total > 0.0)) return nullptr;
+    const double target = double(u) * total;
+    double running = 0.0;
+    const ecs::LightSnapshot* chosen = nullptr;
+    float chosenWeight = 0.f;
+    for (const ecs::LightSnapshot& l : lights) {
+        const float w = clean(l);
+        if (w <= 0.f) continue;
+        chosen = &l;  // rounding can leave target at the very end: the last contributing light
+        chosenWeight = w;
+        running += w;
+        if (target < running) break;
+    }
+    pdf = static_cast<float>(chosenWeight / total);
+    return chosen;
+}
 
 // One light picked among all lights by importance (area lights weighted by
 // intensity x area / distance^2); nullptr when none contributes. `pdf` is

@@ -3,15 +3,14 @@
 // motion vectors, emissive).
 #include "../render_context.hpp"
 
+#include <rtlab/tracer/instance_transform.hpp>
+
 namespace rtlab::shaders::detail {
 
 std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, Image& out,
                              std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters) {
     const int w = ctx.width, h = ctx.height;
     const vec3 forward = -glm::normalize(vec3(ctx.scene.camera.worldFromCamera[2]));
-    std::vector<mat4> objectFromWorld(ctx.scene.instances.size());
-    for (std::size_t i = 0; i < objectFromWorld.size(); ++i)
-        objectFromWorld[i] = glm::inverse(ctx.scene.instances[i].worldFromObject);
     // Step: primary rays through pixel centres.
     counters.add(ctx.pipeline().dispatchCoherent(
         w, h, ctx.args(kRayPrimary),
@@ -46,7 +45,9 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             if (previous.valid) {
                 vec3 prevWorld = p.position;
                 if (p.entity < previous.present.size() && previous.present[p.entity]) {
-                    const vec3 object = vec3(objectFromWorld[p.instance] * vec4(p.position, 1.f));
+                    // The instance transform the tracer caches (instance_transform.hpp).
+                    const vec3 object =
+                        tracer::objectSpacePoint(ctx.accel.instanceFacts(p.instance).objectFromWorld, p.position);
                     prevWorld = vec3(previous.worldFromObject[p.entity] * vec4(object, 1.f));
                 }
                 const std::optional<vec2> prev = projectToPixel(previous.camera, w, h, prevWorld);
