@@ -83,6 +83,33 @@ ecs::Entity place(ecs::World& world, ecs::MeshId mesh, const vec3& t, const quat
     return e;
 }
 
+// A 40 x 40 grey (albedo 0.5) floor at y = 0, facing up; returns its material.
+ecs::MaterialId addGreyFloor(ecs::World& world) {
+    ecs::Material floor;
+    floor.baseColor = vec4(0.5f, 0.5f, 0.5f, 1.f);
+    const ecs::MaterialId id = world.addMaterial(floor);
+    place(world, world.addMesh(ecs::load::makeMesh("floor", ecs::load::makeGrid(40.f, 1, id))), vec3(0.f));
+    return id;
+}
+
+// `light` at `position`, facing straight down.
+void addLightFacingDown(ecs::World& world, const ecs::Light& light, const vec3& position) {
+    const ecs::Entity e = world.create("light");
+    world.emplace(e, ecs::LocalTransform{position, orientationLookingAlong(vec3(0, -1, 0)), vec3(1.f)});
+    world.emplace(e, light);
+}
+
+// The shadows pass alone, `spp` 4, on a small image.
+Rendered renderShadowsOnly(ecs::World& world, int width, int height) {
+    RenderSettings s;
+    s.width = width;
+    s.height = height;
+    s.spp = 4;
+    PlanOptions o;
+    o.requested = {Pass::Shadows};
+    return renderWorld(world, s, o);
+}
+
 }  // namespace
 
 // ---- the plan --------------------------------------------------------------------
@@ -234,26 +261,15 @@ TEST(Effects, KnownOccluderShadowAndUnshadowedLight) {
     // The world, with the camera looking straight down at the floor point (cameraX, 0, 0).
     const auto render = [](float cameraX) {
         ecs::World world;
-        ecs::Material floor;
-        floor.baseColor = vec4(0.5f, 0.5f, 0.5f, 1.f);
-        const ecs::MaterialId floorId = world.addMaterial(floor);
-        place(world, world.addMesh(ecs::load::makeMesh("floor", ecs::load::makeGrid(40.f, 1, floorId))), vec3(0.f));
+        const ecs::MaterialId floorId = addGreyFloor(world);
         // Occluder: a quad at height 1 covering x in [-20, -0.5].
         place(world, world.addMesh(ecs::load::makeMesh("occluder", ecs::load::makeGrid(19.5f, 1, floorId))),
               vec3(-10.25f, 1.f, 0.f), quat(1, 0, 0, 0), vec3(1.f, 1.f, 40.f / 19.5f));
         ecs::Light light{ecs::LightType::Rect, vec3(1.f), 100.f};
         light.size = vec2(0.05f, 0.05f);
-        const ecs::Entity le = world.create("light");
-        world.emplace(le, ecs::LocalTransform{vec3(0.f, 2.f, 0.f), orientationLookingAlong(vec3(0, -1, 0)), vec3(1.f)});
-        world.emplace(le, light);
+        addLightFacingDown(world, light, vec3(0.f, 2.f, 0.f));
         addCamera(world, vec3(cameraX, 0.9f, 0.f), vec3(cameraX, 0.f, 0.f), 0.2f);
-        RenderSettings s;
-        s.width = 8;
-        s.height = 8;
-        s.spp = 4;
-        PlanOptions o;
-        o.requested = {Pass::Shadows};
-        return renderWorld(world, s, o);
+        return renderShadowsOnly(world, 8, 8);
     };
     // Step: lit floor around x = 0.5 (the pixels span about +-0.09).
     const Rendered lit = render(0.5f);
@@ -493,21 +509,10 @@ namespace {
 // unshadowed (area) or shadowed (point) direct light of the centre pixel.
 float directAtFloorCentre(const ecs::Light& light, const vec3& lightPosition, const char* layer) {
     ecs::World world;
-    ecs::Material floor;
-    floor.baseColor = vec4(0.5f, 0.5f, 0.5f, 1.f);
-    const ecs::MaterialId floorId = world.addMaterial(floor);
-    place(world, world.addMesh(ecs::load::makeMesh("floor", ecs::load::makeGrid(40.f, 1, floorId))), vec3(0.f));
-    const ecs::Entity le = world.create("light");
-    world.emplace(le, ecs::LocalTransform{lightPosition, orientationLookingAlong(vec3(0, -1, 0)), vec3(1.f)});
-    world.emplace(le, light);
+    addGreyFloor(world);
+    addLightFacingDown(world, light, lightPosition);
     addCamera(world, vec3(0.f, 0.5f, 0.f), vec3(0.f), 0.01f);
-    RenderSettings s;
-    s.width = 3;
-    s.height = 3;
-    s.spp = 4;
-    PlanOptions o;
-    o.requested = {Pass::Shadows};
-    const Rendered r = renderWorld(world, s, o);
+    const Rendered r = renderShadowsOnly(world, 3, 3);
     expectAllFinite(r, layer);
     return r.out.image.channel(layer)[4];
 }
