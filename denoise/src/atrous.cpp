@@ -1,6 +1,7 @@
 #include <rtlab/denoise/atrous.hpp>
 
 #include "detail.hpp"
+#include "simd.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,11 +11,19 @@ namespace rtlab::denoise {
 
 namespace {
 
-constexpr float kKernel[3] = {3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
+using simd::vf;
+using simd::vi;
+constexpr int kLanes = simd::kWidth;
 
-float toFloatVariance(double v) {
-    if (!(v > 0.0)) return 0.f;
-    return v < 3.0e38 ? static_cast<float>(v) : 3.0e38f;
+constexpr float kKernel[3] = {3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
+// Input variances are clamped to this so that sum h^2 w^2 Var over 25 taps,
+// divided by (sum h w)^2 >= (9/64)^2, stays a finite float.
+constexpr float kMaxVariance = 1e36f;
+
+float clampVariance(float v) { return v > 0.f ? (v < kMaxVariance ? v : kMaxVariance) : 0.f; }
+float toFloatVariance(float v) {
+    if (!(v > 0.f)) return 0.f;
+    return v < 3.0e38f ? v : 3.0e38f;
 }
 
 void checkInputs(const GuideBuffers& g, std::span<const vec3> color, std::span<const float> variance,
@@ -26,126 +35,264 @@ void checkInputs(const GuideBuffers& g, std::span<const vec3> color, std::span<c
     detail::checkSize(varianceOut.size(), n, "atrous: varianceOut");
 }
 
-// One iteration. `color` must be sanitised (finite, |c| <= kMaxRadiance);
-// `lum` is scratch of the image size.
-void iterate(const GuideBuffers& g, const std::vector<vec2>& grad, std::span<const vec3> color,
-             std::span<const float> variance, int step, const AtrousParams& p, std::vector<float>& lum,
-             std::span<vec3> colorOut, std::span<float> varianceOut) {
-    const int w = g.width, h = g.height;
-    const detail::NormalWeight normalWeight(p.sigmaN);
-    lum.resize(color.size());
-    detail::forEachIndex(color.size(), [&](std::size_t i) { lum[i] = luminance(color[i]); });
-    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
-        const vec3 c = color[i];
-        const float varC = variance[i] > 0.f ? variance[i] : 0.f;
-        if (g.isSky(i)) {
-            colorOut[i] = c;
-            varianceOut[i] = toFloatVariance(varC);
-            return;
+// The guides as structure-of-arrays floats, built once per filter call.
+struct GuidePlanes {
+    int width = 0, height = 0;
+    std::vector<float> depth, nx, ny, nz, gradX, gradY;
+    std::vector<float> geometry;  // 1 on geometry, 0 on sky
+    std::vector<float> footprint; // per-pixel reach in pixels; empty = unlimited
+
+    // Fills the planes from the guides; reuses the allocations of a previous call.
+    void assign(const GuideBuffers& g, const std::vector<vec2>& grad, std::span<const float> footprintPx) {
+        width = g.width;
+        height = g.height;
+        // kLanes floats of padding (zeros) after the last pixel: whole-vector loads never leave the arrays.
+        const std::size_t n = g.pixelCount(), padded = n + kLanes;
+        depth.resize(padded), nx.resize(padded), ny.resize(padded), nz.resize(padded);
+        gradX.resize(padded), gradY.resize(padded), geometry.resize(padded);
+        detail::forEachIndex(n, [&](std::size_t i) {
+            const bool sky = g.isSky(i);
+            geometry[i] = sky ? 0.f : 1.f;
+            depth[i] = sky ? 0.f : detail::clampNaNLow(g.depth[i], -kMaxRadiance, kMaxRadiance);
+            nx[i] = sky ? 0.f : sanitize(g.normal[i].x);
+            ny[i] = sky ? 0.f : sanitize(g.normal[i].y);
+            nz[i] = sky ? 0.f : sanitize(g.normal[i].z);
+            gradX[i] = sky ? 0.f : sanitize(grad[i].x);
+            gradY[i] = sky ? 0.f : sanitize(grad[i].y);
+        });
+        footprint.clear();
+        if (!footprintPx.empty()) {
+            footprint.resize(n);
+            detail::forEachIndex(n, [&](std::size_t i) { footprint[i] = footprintPx[i] > 0.f ? footprintPx[i] : 0.f; });
         }
-        // 3x3 Gaussian of the variance around the centre (same sky state only).
-        double gSum = 0.0, gW = 0.0;
+    }
+};
+
+// The signal as structure-of-arrays floats (colour sanitised, variance clamped).
+struct SignalPlanes {
+    std::vector<float> r, g, b, variance, luminance;
+    // Sized n plus kLanes floats of zero padding (see GuidePlanes).
+    void resize(std::size_t n) {
+        const std::size_t padded = n + kLanes;
+        r.resize(padded), g.resize(padded), b.resize(padded), variance.resize(padded), luminance.resize(padded);
+    }
+};
+
+// max(0, d)^sigmaN for d = n.n' (clamped to [0, 1], NaN -> 0): repeated
+// squaring for integer exponents up to 4096 (the paper's 128), exp2/log2
+// otherwise.
+struct NormalPower {
+    float sigma;
+    unsigned integer;
+    bool isInteger;
+    int squarings = -1;  // sigma = 2^squarings (the paper's 128 = 2^7), else -1
+    explicit NormalPower(float sigmaN)
+        : sigma(sigmaN > 0.f ? sigmaN : 0.f),
+          integer(sigma <= 4096.f && std::floor(sigma) == sigma ? static_cast<unsigned>(sigma) : 0u),
+          isInteger(sigma <= 4096.f && std::floor(sigma) == sigma) {
+        if (isInteger && integer != 0u && (integer & (integer - 1u)) == 0u)
+            for (squarings = 0; (1u << squarings) != integer; ++squarings) {}
+    }
+    vf operator()(vf d) const {
+        d = simd::min(simd::positiveOrZero(d), simd::splat(1.f));
+        if (sigma == 0.f) return simd::splat(1.f);
+        if (squarings >= 0) {
+            for (int k = 0; k < squarings; ++k) d *= d;
+            return d;
+        }
+        if (isInteger) {
+            vf r = simd::splat(1.f), b = d;
+            for (unsigned e = integer; e != 0u; e >>= 1u) {
+                if (e & 1u) r *= b;
+                b *= b;
+            }
+            return r;
+        }
+        const vf safe = simd::select(d > 0.f, d, simd::splat(1.f));
+        const vf p = simd::exp2NonPositive(simd::log2Positive(safe) * sigma);
+        return simd::select(d > 0.f, simd::select(d < 1.f, p, simd::splat(1.f)), simd::splat(0.f));
+    }
+};
+
+// One iteration with step `step` from `in` to `out`.
+void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParams& p, std::vector<float>& invLumScale,
+             SignalPlanes& out) {
+    const int w = g.width, h = g.height;
+    const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    // Step: luminance, and the luminance edge-stopping scale 1 / (sigmaL sqrt(g3x3(Var)) + eps).
+    invLumScale.resize(n + kLanes);
+    detail::forEachIndex(n, [&](std::size_t i) { in.luminance[i] = luminance(vec3(in.r[i], in.g[i], in.b[i])); });
+    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
+        float sum = 0.f, weight = 0.f;
         for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
                 const int px = x + dx, py = y + dy;
                 if (px < 0 || py < 0 || px >= w || py >= h) continue;
                 const std::size_t j = static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px;
-                if (g.isSky(j)) continue;
-                const double k = (dx == 0 ? 0.5 : 0.25) * (dy == 0 ? 0.5 : 0.25);
-                const float v = variance[j];
-                gSum += k * (v > 0.f ? static_cast<double>(v) : 0.0);
-                gW += k;
+                if (g.geometry[j] == 0.f) continue;
+                const float k = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f);
+                sum += k * in.variance[j];
+                weight += k;
             }
-        const double blurredVar = gW > 0.0 ? gSum / gW : 0.0;
-        const float lumDen = p.sigmaL * static_cast<float>(std::sqrt(blurredVar)) + p.luminanceEpsilon;
-        const float invLumDen = lumDen > 0.f ? 1.f / lumDen : kInfinity;
+        const float blurred = weight > 0.f ? sum / weight : 0.f;
+        const float den = p.sigmaL * std::sqrt(blurred) + p.luminanceEpsilon;
+        invLumScale[i] = den > 0.f ? 1.f / den : kInfinity;
+    });
 
-        const float z = g.depth[i];
-        const vec3 nrm = g.normal[i];
-        const vec2 gz = grad[i];
-        const float lc = lum[i];
-        const double hc = static_cast<double>(kKernel[0]) * kKernel[0];
-        double sumW = hc;  // centre: edge-stopping weight 1
-        double sumW2Var = hc * hc * static_cast<double>(varC);
-        double sr = hc * c.r, sg = hc * c.g, sb = hc * c.b;
+    const NormalPower normalPower(p.sigmaN);
+    const float sigmaZ = p.sigmaZ, depthEps = p.depthEpsilon;
+    const float hCentre = kKernel[0] * kKernel[0];
+    // tailMask[k]: the first k lanes 1, the rest 0.
+    vf tailMask[kLanes];
+    for (int k = 0; k < kLanes; ++k)
+        for (int lane = 0; lane < kLanes; ++lane) tailMask[k][lane] = lane < k ? 1.f : 0.f;
+    // Step: the 5x5 taps, row by row; per row, lanes are consecutive pixels.
+    parallelForEach(static_cast<std::size_t>(h), [&](std::size_t rowIndex) {
+        const int y = static_cast<int>(rowIndex);
+        const std::size_t row = rowIndex * static_cast<std::size_t>(w);
+        const std::size_t padded = static_cast<std::size_t>(w) + kLanes;
+        std::vector<float> sumW(padded), sumVar(padded), sumR(padded), sumG(padded), sumB(padded);
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = row + x;
+            sumW[x] = hCentre;
+            sumVar[x] = hCentre * hCentre * in.variance[i];
+            sumR[x] = hCentre * in.r[i];
+            sumG[x] = hCentre * in.g[i];
+            sumB[x] = hCentre * in.b[i];
+        }
         for (int ky = -2; ky <= 2; ++ky) {
             const int py = y + ky * step;
             if (py < 0 || py >= h) continue;
-            const std::size_t row = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
+            const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
             for (int kx = -2; kx <= 2; ++kx) {
-                const int px = x + kx * step;
-                if (px < 0 || px >= w || (kx == 0 && ky == 0)) continue;
-                const std::size_t j = row + static_cast<std::size_t>(px);
-                if (g.isSky(j)) continue;
-                const float wn = normalWeight(nrm, g.normal[j]);
-                if (!(wn > 0.f)) continue;
-                const float termZ = detail::depthTerm(
-                    z, g.depth[j], gz, vec2(static_cast<float>(kx * step), static_cast<float>(ky * step)), p.sigmaZ,
-                    p.depthEpsilon);
-                const float dl = std::fabs(lc - lum[j]);
-                const float termL = dl != 0.f ? dl * invLumDen : 0.f;
-                const float wgt = detail::expNeg(termZ + termL) * wn;
-                if (!(wgt > 0.f)) continue;
-                const double hw = static_cast<double>(kKernel[std::abs(kx)]) * kKernel[std::abs(ky)] * wgt;
-                const vec3 cq = color[j];
-                const float vq = variance[j];
-                sumW += hw;
-                sumW2Var += hw * hw * (vq > 0.f ? static_cast<double>(vq) : 0.0);
-                sr += hw * cq.r;
-                sg += hw * cq.g;
-                sb += hw * cq.b;
+                if (kx == 0 && ky == 0) continue;
+                const int dx = kx * step;
+                const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
+                if (x0 >= x1) continue;
+                const float hk = kKernel[std::abs(kx)] * kKernel[std::abs(ky)];
+                const vf offX = simd::splat(static_cast<float>(dx)), offY = simd::splat(static_cast<float>(ky * step));
+                for (int x = x0; x < x1; x += kLanes) {
+                    // Lanes past x1 read padding or the next row and get weight 0.
+                    const vf laneMask = x + kLanes <= x1 ? simd::splat(1.f) : tailMask[x1 - x];
+                    const std::size_t i = row + x, j = rowQ + x + dx;
+                    // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps.
+                    const vf d = simd::loadu(&g.nx[i]) * simd::loadu(&g.nx[j]) +
+                                 simd::loadu(&g.ny[i]) * simd::loadu(&g.ny[j]) +
+                                 simd::loadu(&g.nz[i]) * simd::loadu(&g.nz[j]);
+                    const vf wn = normalPower(d);
+                    const vf z = simd::loadu(&g.depth[i]);
+                    const vf dz = simd::abs(z - simd::loadu(&g.depth[j]));
+                    const vf zDen = simd::abs(simd::loadu(&g.gradX[i]) * offX + simd::loadu(&g.gradY[i]) * offY) * sigmaZ +
+                                    simd::abs(z) * depthEps;
+                    const vf termZ = simd::select(dz == 0.f, simd::splat(0.f),
+                                                  simd::select(zDen > 0.f, dz / zDen, simd::splat(kInfinity)));
+                    const vf dl = simd::abs(simd::loadu(&in.luminance[i]) - simd::loadu(&in.luminance[j]));
+                    const vf termL = simd::select(dl == 0.f, simd::splat(0.f), dl * simd::loadu(&invLumScale[i]));
+                    const vf wgt = simd::expNeg(termZ + termL) * wn * simd::loadu(&g.geometry[j]);
+                    const vf hw = wgt * (laneMask * hk);
+                    simd::storeu(&sumW[x], simd::loadu(&sumW[x]) + hw);
+                    simd::storeu(&sumVar[x], simd::loadu(&sumVar[x]) + hw * hw * simd::loadu(&in.variance[j]));
+                    simd::storeu(&sumR[x], simd::loadu(&sumR[x]) + hw * simd::loadu(&in.r[j]));
+                    simd::storeu(&sumG[x], simd::loadu(&sumG[x]) + hw * simd::loadu(&in.g[j]));
+                    simd::storeu(&sumB[x], simd::loadu(&sumB[x]) + hw * simd::loadu(&in.b[j]));
+                }
             }
         }
-        colorOut[i] = vec3(static_cast<float>(sr / sumW), static_cast<float>(sg / sumW), static_cast<float>(sb / sumW));
-        varianceOut[i] = toFloatVariance(sumW2Var / (sumW * sumW));
+        // Step: normalise; sky centres pass through unchanged.
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = row + x;
+            const bool filtered = g.geometry[i] != 0.f && (g.footprint.empty() || 2.f * step <= g.footprint[i]);
+            if (!filtered) {
+                out.r[i] = in.r[i], out.g[i] = in.g[i], out.b[i] = in.b[i];
+                out.variance[i] = in.variance[i];
+                continue;
+            }
+            const float inv = 1.f / sumW[x];
+            out.r[i] = sumR[x] * inv;
+            out.g[i] = sumG[x] * inv;
+            out.b[i] = sumB[x] * inv;
+            out.variance[i] = clampVariance(toFloatVariance(sumVar[x] * inv * inv));
+        }
     });
 }
 
-std::vector<vec3> sanitizedCopy(std::span<const vec3> color) {
-    std::vector<vec3> out(color.size());
-    detail::forEachIndex(color.size(), [&](std::size_t i) { out[i] = sanitize(color[i]); });
-    return out;
+void loadSignal(std::span<const vec3> color, std::span<const float> variance, SignalPlanes& s) {
+    s.resize(color.size());
+    detail::forEachIndex(color.size(), [&](std::size_t i) {
+        const vec3 c = sanitize(color[i]);
+        s.r[i] = c.r, s.g[i] = c.g, s.b[i] = c.b;
+        s.variance[i] = clampVariance(variance[i]);
+    });
+}
+
+void storeColor(const SignalPlanes& s, std::span<vec3> out) {
+    detail::forEachIndex(out.size(), [&](std::size_t i) { out[i] = vec3(s.r[i], s.g[i], s.b[i]); });
+}
+void storeVariance(const SignalPlanes& s, std::span<float> out) {
+    detail::forEachIndex(out.size(), [&](std::size_t i) { out[i] = s.variance[i]; });
 }
 
 }  // namespace
 
+struct AtrousWorkspace::Buffers {
+    std::vector<vec2> gradient;
+    GuidePlanes guides;
+    SignalPlanes a, b;
+    std::vector<float> invLumScale;
+};
+
+AtrousWorkspace::AtrousWorkspace() : buffers_(std::make_unique<Buffers>()) {}
+AtrousWorkspace::~AtrousWorkspace() = default;
+AtrousWorkspace::AtrousWorkspace(AtrousWorkspace&&) noexcept = default;
+AtrousWorkspace& AtrousWorkspace::operator=(AtrousWorkspace&&) noexcept = default;
+
 void atrousIteration(const GuideBuffers& g, std::span<const vec3> color, std::span<const float> variance, int step,
-                     const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut) {
-    std::vector<vec2> scratch;
-    const std::vector<vec2>& grad = detail::gradientOf(g, scratch);
+                     const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
+                     std::span<const float> footprintPx) {
+    AtrousWorkspace workspace;
+    AtrousWorkspace::Buffers& w = *workspace.buffers_;
+    const std::vector<vec2>& grad = detail::gradientOf(g, w.gradient);
     checkInputs(g, color, variance, colorOut, varianceOut);
-    const std::vector<vec3> input = sanitizedCopy(color);
-    std::vector<float> lum;
-    iterate(g, grad, input, variance, std::clamp(step, 1, 1 << 20), params, lum, colorOut, varianceOut);
+    if (!footprintPx.empty()) detail::checkSize(footprintPx.size(), g.pixelCount(), "atrous: footprintPx");
+    w.guides.assign(g, grad, footprintPx);
+    loadSignal(color, variance, w.a);
+    w.b.resize(g.pixelCount());
+    iterate(w.guides, w.a, std::clamp(step, 1, 1 << 20), params, w.invLumScale, w.b);
+    storeColor(w.b, colorOut);
+    storeVariance(w.b, varianceOut);
 }
 
 void atrousFilter(const GuideBuffers& g, std::span<const vec3> color, std::span<const float> variance,
                   const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
-                  int tapIterations, std::span<vec3> tapColor) {
-    std::vector<vec2> scratch;
-    const std::vector<vec2>& grad = detail::gradientOf(g, scratch);
+                  int tapIterations, std::span<vec3> tapColor, std::span<const float> footprintPx,
+                  AtrousWorkspace* workspace) {
+    AtrousWorkspace local;
+    AtrousWorkspace::Buffers& w = *(workspace ? workspace : &local)->buffers_;
+    const std::vector<vec2>& grad = detail::gradientOf(g, w.gradient);
     checkInputs(g, color, variance, colorOut, varianceOut);
     const std::size_t n = g.pixelCount();
     if (!tapColor.empty()) detail::checkSize(tapColor.size(), n, "atrous: tapColor");
+    if (!footprintPx.empty()) detail::checkSize(footprintPx.size(), n, "atrous: footprintPx");
     const int iterations = params.iterations > 0 ? params.iterations : 0;
     const int tap = std::clamp(tapIterations, 0, iterations);
-
-    std::vector<vec3> c0 = sanitizedCopy(color), c1(n);
-    std::vector<float> v0(variance.begin(), variance.end()), v1(n), lum;
-    if (!tapColor.empty() && tap == 0) std::copy(color.begin(), color.end(), tapColor.begin());
-    for (int it = 0; it < iterations; ++it) {
-        iterate(g, grad, c0, v0, 1 << std::min(it, 20), params, lum, c1, v1);
-        std::swap(c0, c1);
-        std::swap(v0, v1);
-        if (!tapColor.empty() && it + 1 == tap) std::copy(c0.begin(), c0.end(), tapColor.begin());
-    }
     if (iterations == 0) {  // documented: plain copies
         std::copy(color.begin(), color.end(), colorOut.begin());
         std::copy(variance.begin(), variance.end(), varianceOut.begin());
+        if (!tapColor.empty()) std::copy(color.begin(), color.end(), tapColor.begin());
         return;
     }
-    std::copy(c0.begin(), c0.end(), colorOut.begin());
-    std::copy(v0.begin(), v0.end(), varianceOut.begin());
+
+    w.guides.assign(g, grad, footprintPx);
+    loadSignal(color, variance, w.a);
+    w.b.resize(n);
+    if (!tapColor.empty() && tap == 0) std::copy(color.begin(), color.end(), tapColor.begin());
+    for (int it = 0; it < iterations; ++it) {
+        iterate(w.guides, w.a, 1 << std::min(it, 20), params, w.invLumScale, w.b);
+        std::swap(w.a, w.b);
+        if (!tapColor.empty() && it + 1 == tap) storeColor(w.a, tapColor);
+    }
+    storeColor(w.a, colorOut);
+    storeVariance(w.a, varianceOut);
 }
 
 }  // namespace rtlab::denoise

@@ -54,7 +54,7 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     filteredVariance_.resize(n);
     tapColor_.resize(n);
     atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
-                 params_.historyTap, tapColor_);
+                 params_.historyTap, tapColor_, {}, &atrousWorkspace_);
 
     // The next frame's history: the feedback-tap colour, the accumulated moments and lengths.
     std::swap(history_, reprojected_);

@@ -3,6 +3,7 @@
 // al. 2017, section 4.3; Dammertz et al. 2010).
 #include <rtlab/denoise/guides.hpp>
 
+#include <memory>
 #include <span>
 
 namespace rtlab::denoise {
@@ -28,6 +29,19 @@ struct AtrousParams {
     float luminanceEpsilon = 1e-5f;
 };
 
+// Scratch buffers of the filter, kept between calls by a caller that filters
+// every frame (SvgfFilter): large fresh allocations cost page faults that
+// were as expensive as the filtering itself.
+class AtrousWorkspace {
+public:
+    AtrousWorkspace();
+    ~AtrousWorkspace();
+    AtrousWorkspace(AtrousWorkspace&&) noexcept;
+    AtrousWorkspace& operator=(AtrousWorkspace&&) noexcept;
+    struct Buffers;  // private to atrous.cpp
+    std::unique_ptr<Buffers> buffers_;
+};
+
 // One a-trous iteration with the given step (1, 2, 4, ...): the 5x5 kernel
 // h = (1/16, 1/4, 3/8, 1/4, 1/16) x h at offsets step * (-2..2), times the
 // edge-stopping weights (centre weight 1; off-screen and, for a geometry
@@ -35,8 +49,21 @@ struct AtrousParams {
 //   colorOut    = sum h w c / sum h w
 //   varianceOut = sum h^2 w^2 Var / (sum h w)^2
 // Outputs must not alias inputs.
+//
+// `footprintPx` (optional, one value per pixel) limits how far the filter
+// reaches from each pixel, for the per-effect stacks whose footprint follows
+// the signal (penumbra width, glossy lobe, AO hit distance): an iteration
+// with step s, whose kernel reaches 2s pixels, is applied to a pixel only
+// where 2s <= footprintPx; elsewhere colour and variance pass through. So a
+// footprint below 2 means no spatial filtering, 2..3 one iteration, 4..7 two,
+// and so on. Empty = unlimited (plain SVGF).
+//
+// Implementation: 4-wide SIMD over consecutive pixels of a row (lane-wise
+// IEEE arithmetic, so results do not depend on the vector width or the
+// thread count).
 void atrousIteration(const GuideBuffers& guides, std::span<const vec3> color, std::span<const float> variance,
-                     int step, const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut);
+                     int step, const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
+                     std::span<const float> footprintPx = {});
 
 // params.iterations iterations with steps 1, 2, 4, ... . When `tapColor` is not
 // empty it receives the colour after min(tapIterations, iterations) iterations
@@ -44,6 +71,7 @@ void atrousIteration(const GuideBuffers& guides, std::span<const vec3> color, st
 // alias inputs; with 0 iterations the outputs are copies of the inputs.
 void atrousFilter(const GuideBuffers& guides, std::span<const vec3> color, std::span<const float> variance,
                   const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
-                  int tapIterations = 0, std::span<vec3> tapColor = {});
+                  int tapIterations = 0, std::span<vec3> tapColor = {}, std::span<const float> footprintPx = {},
+                  AtrousWorkspace* workspace = nullptr);
 
 }  // namespace rtlab::denoise

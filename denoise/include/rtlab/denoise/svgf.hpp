@@ -102,6 +102,7 @@ private:
     std::vector<float> variance_;
     std::vector<float> filteredVariance_;
     std::vector<std::uint8_t> valid_;
+    AtrousWorkspace atrousWorkspace_;
 };
 
 }  // namespace rtlab::denoise

@@ -1,0 +1,87 @@
+// The denoiser's SIMD math (denoise/src/simd.hpp) against the C library, and
+// the a-trous footprint limit.
+#include "../../denoise/src/simd.hpp"
+#include "denoise/denoise_test_util.hpp"
+
+#include <rtlab/denoise/atrous.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+using namespace rtlab;
+using namespace rtlab::denoise;
+using namespace rtlab::denoise::testing;
+
+TEST(DenoiseSimdMath, ExpNegMatchesStdExp) {
+    for (float e = 0.f; e < 90.f; e += 0.01f) {
+        const simd::vf v = simd::expNeg(simd::splat(e));
+        const float want = std::exp(-e);
+        if (e >= 87.f) { EXPECT_EQ(v[0], 0.f) << e; continue; }
+        if (want < 1e-37f) continue;  // denormal range: only finiteness matters
+        // e * log2(e) is rounded to a float: relative error ~ 6e-8 * e.
+        EXPECT_NEAR(v[0] / want, 1.f, 2e-7f * (1.f + e)) << e;
+    }
+}
+
+TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {
+    const float inf = std::numeric_limits<float>::infinity();
+    const simd::vf v = simd::expNeg(simd::vf{-3.f, std::nanf(""), inf, 0.f});
+    EXPECT_EQ(v[0], 1.f);  // negative counts as 0
+    EXPECT_EQ(v[1], 0.f);
+    EXPECT_EQ(v[2], 0.f);
+    EXPECT_EQ(v[3], 1.f);
+}
+
+TEST(DenoiseSimdMath, Log2MatchesStdLog2) {
+    for (float x = 1e-30f; x < 1e30f; x *= 1.37f) {
+        const simd::vf v = simd::log2Positive(simd::splat(x));
+        EXPECT_NEAR(v[0], std::log2(x), 2e-6f * std::fmax(1.f, std::fabs(std::log2(x)))) << x;
+    }
+}
+
+TEST(DenoiseSimdMath, LanesAreIndependent) {
+    // The same value gives the same result in every lane position.
+    const simd::vf a = simd::expNeg(simd::vf{0.3f, 1.7f, 5.5f, 12.f});
+    const simd::vf b = simd::expNeg(simd::vf{12.f, 0.3f, 1.7f, 5.5f});
+    EXPECT_EQ(a[0], b[1]);
+    EXPECT_EQ(a[1], b[2]);
+    EXPECT_EQ(a[2], b[3]);
+    EXPECT_EQ(a[3], b[0]);
+}
+
+TEST(DenoiseAtrousFootprint, BelowTwoPixelsLeavesThePixelUnfiltered) {
+    const int w = 24, h = 16;
+    const GuideBuffers g = flatGuides(w, h);
+    const std::vector<vec3> noisy = noisyGrey(g.pixelCount(), 1.f, 1.f, 7);
+    const std::vector<float> var(g.pixelCount(), 1.f / 12.f);
+    std::vector<vec3> out(g.pixelCount());
+    std::vector<float> varOut(g.pixelCount());
+    atrousFilter(g, noisy, var, {}, out, varOut, 0, {}, std::vector<float>(g.pixelCount(), 1.9f));
+    EXPECT_EQ(out, noisy);
+}
+
+TEST(DenoiseAtrousFootprint, FootprintSelectsTheNumberOfIterations) {
+    // Footprint 4..7 = the steps 1 and 2 only: the same as a 2-iteration filter.
+    const int w = 40, h = 32;
+    const GuideBuffers g = flatGuides(w, h);
+    const std::vector<vec3> noisy = noisyGrey(g.pixelCount(), 1.f, 1.f, 9);
+    const std::vector<float> var(g.pixelCount(), 1.f / 12.f);
+    std::vector<vec3> limited(g.pixelCount()), two(g.pixelCount());
+    std::vector<float> varOut(g.pixelCount());
+    atrousFilter(g, noisy, var, {}, limited, varOut, 0, {}, std::vector<float>(g.pixelCount(), 7.f));
+    AtrousParams p;
+    p.iterations = 2;
+    atrousFilter(g, noisy, var, p, two, varOut);
+    EXPECT_EQ(limited, two);
+    // An unlimited footprint filters more (lower spread around the mean 1).
+    std::vector<vec3> full(g.pixelCount());
+    atrousFilter(g, noisy, var, {}, full, varOut);
+    double spreadTwo = 0, spreadFull = 0;
+    for (std::size_t i = 0; i < full.size(); ++i) {
+        spreadTwo += (two[i].r - 1.0) * (two[i].r - 1.0);
+        spreadFull += (full[i].r - 1.0) * (full[i].r - 1.0);
+    }
+    EXPECT_LT(spreadFull, 0.5 * spreadTwo);
+}
