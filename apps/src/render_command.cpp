@@ -232,11 +232,12 @@ int runRender(const RenderOptions& o) {
         shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, settings, history);
         const double renderMs = renderClock.elapsedMs();
         // Step: denoise the effect signals, keep the noisy beauty, compose again.
-        std::vector<std::string> denoised;
+        nlohmann::json denoised = nlohmann::json::array();
         const Stopwatch denoiseClock;
         if (denoiser) {
             frame.image.addRgbLayer("noisy", frame.image.rgbLayer(""));
-            denoised = denoiser->apply(frame.image);
+            for (const denoise::DenoisedLayer& d : denoiser->apply(frame.image))
+                denoised.push_back({{"layer", d.layer}, {"effect", d.effect}, {"stack", denoise::stackName(d.stack)}});
             shaders::composeBeauty(frame.image);
         }
         const double denoiseMs = denoiseClock.elapsedMs();

@@ -1,6 +1,7 @@
 #include <rtlab/denoise/effect_layers.hpp>
 
 #include <algorithm>
+#include <span>
 #include <stdexcept>
 
 namespace rtlab::denoise {
@@ -9,59 +10,120 @@ namespace {
 struct SignalLayer {
     std::string layer;  // "gi" (RGB) or "ao.V" (one channel)
     bool scalar = false;
+    DenoiseStack stack = DenoiseStack::Svgf;
+    std::string footprintSource;  // shadows: the penumbra channel
 };
 
 std::vector<SignalLayer> signalsOf(const Image& frame, const std::string& effect) {
     std::vector<SignalLayer> out;
-    const auto rgb = [&](const std::string& layer) {
-        if (frame.hasChannel(layer + ".R")) out.push_back({layer, false});
+    const auto rgb = [&](const std::string& layer, DenoiseStack stack) {
+        if (frame.hasChannel(layer + ".R")) out.push_back({layer, false, stack, {}});
     };
-    const auto one = [&](const std::string& channel) {
-        if (frame.hasChannel(channel)) out.push_back({channel, true});
+    const auto one = [&](const std::string& channel, DenoiseStack stack, std::string source = {}) {
+        if (frame.hasChannel(channel)) out.push_back({channel, true, stack, std::move(source)});
     };
     if (effect == "shadows") {
-        for (int i = 0; frame.hasChannel("shadow.light" + std::to_string(i) + ".V"); ++i)
-            one("shadow.light" + std::to_string(i) + ".V");
-        rgb("direct.point");
+        for (int i = 0; frame.hasChannel("shadow.light" + std::to_string(i) + ".V"); ++i) {
+            const std::string layer = "shadow.light" + std::to_string(i);
+            one(layer + ".V", DenoiseStack::Shadow, layer + ".penumbra");
+        }
+        rgb("direct.point", DenoiseStack::Svgf);
     } else if (effect == "reflections") {
-        rgb("reflection");
+        rgb("reflection", DenoiseStack::Reflection);
     } else if (effect == "ao") {
-        one("ao.V");
+        one("ao.V", DenoiseStack::AmbientOcclusion);
     } else if (effect == "gi") {
-        rgb("gi");
+        rgb("gi", DenoiseStack::Svgf);
     } else if (effect == "translucency") {
-        rgb("translucency");
+        rgb("translucency", DenoiseStack::Svgf);
     } else if (effect == "volumes") {
-        rgb("volume.inscatter");
-        one("volume.transmittance");
+        rgb("volume.inscatter", DenoiseStack::Svgf);
+        one("volume.transmittance", DenoiseStack::Svgf);
     }
     return out;
 }
 
-const float* require(const Image& frame, const std::string& channel) {
+const float* require(const Image& frame, const std::string& channel, const std::string& why = "guide") {
     const float* c = frame.channel(channel);
-    if (!c) throw std::invalid_argument("denoise: the frame has no guide channel '" + channel + "'");
+    if (!c) throw std::invalid_argument("denoise: the frame has no " + why + " channel '" + channel + "'");
     return c;
 }
 
+std::span<const float> channelSpan(const Image& frame, const std::string& channel, const std::string& why) {
+    return {require(frame, channel, why), frame.pixelCount()};
+}
+
+// The footprint of a stack's layer (empty for Svgf).
+std::vector<float> footprintOf(const Image& frame, const SignalLayer& s, const GuideBuffers& guides,
+                               std::span<const float> pixelWorld, const FootprintParams& params) {
+    const int w = frame.width(), h = frame.height();
+    switch (s.stack) {
+        case DenoiseStack::Shadow:
+            return shadowFootprint(w, h, channelSpan(frame, s.footprintSource, "penumbra"), pixelWorld, guides.meshId,
+                                   params);
+        case DenoiseStack::Reflection:
+            return reflectionFootprint(w, h, channelSpan(frame, "roughness.Y", "roughness"),
+                                       channelSpan(frame, "reflection.hitT", "hit distance"), pixelWorld,
+                                       guides.meshId, params);
+        case DenoiseStack::AmbientOcclusion:
+            return aoFootprint(w, h, channelSpan(frame, "ao.hitT", "hit distance"), pixelWorld, guides.meshId, params);
+        case DenoiseStack::Svgf:
+            break;
+    }
+    return {};
+}
+
 }  // namespace
+
+const char* stackName(DenoiseStack stack) {
+    switch (stack) {
+        case DenoiseStack::Svgf: return "svgf";
+        case DenoiseStack::Shadow: return "shadow";
+        case DenoiseStack::Reflection: return "reflection";
+        case DenoiseStack::AmbientOcclusion: return "ao";
+    }
+    return "?";
+}
+
+StackParams StackParams::svgfPaper() { return {SvgfParams::paper(), {}}; }
+StackParams StackParams::shadow() {
+    StackParams p = svgfPaper();
+    p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
+    return p;
+}
+StackParams StackParams::reflection() {
+    StackParams p = svgfPaper();
+    p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
+    return p;
+}
+StackParams StackParams::ambientOcclusion() { return svgfPaper(); }
+StackParams StackParams::of(DenoiseStack stack) {
+    switch (stack) {
+        case DenoiseStack::Shadow: return shadow();
+        case DenoiseStack::Reflection: return reflection();
+        case DenoiseStack::AmbientOcclusion: return ambientOcclusion();
+        case DenoiseStack::Svgf: break;
+    }
+    return svgfPaper();
+}
 
 const std::vector<std::string>& EffectLayerDenoiser::effectNames() {
     static const std::vector<std::string> names = {"shadows", "reflections", "ao", "gi", "translucency", "volumes"};
     return names;
 }
 
-EffectLayerDenoiser::EffectLayerDenoiser(std::vector<std::string> effects, const SvgfParams& params)
-    : effects_(std::move(effects)), params_(params) {
+EffectLayerDenoiser::EffectLayerDenoiser(std::vector<std::string> effects, bool forceSvgf)
+    : effects_(std::move(effects)), forceSvgf_(forceSvgf) {
     if (effects_.empty()) effects_ = effectNames();
     for (const std::string& e : effects_)
         if (std::find(effectNames().begin(), effectNames().end(), e) == effectNames().end())
             throw std::invalid_argument("denoise: unknown effect '" + e + "'");
 }
 
-std::vector<std::string> EffectLayerDenoiser::apply(Image& frame) {
+std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
     // Step: the guides, from the frame's G-buffer layers.
     const int w = frame.width(), h = frame.height();
+    const std::size_t n = frame.pixelCount();
     GuideBuffers guides(w, h);
     const float* depth = require(frame, "depth.Z");
     const float* mesh = require(frame, "id.mesh");
@@ -70,21 +132,29 @@ std::vector<std::string> EffectLayerDenoiser::apply(Image& frame) {
     const float* nx = require(frame, "normal.R");
     const float* ny = require(frame, "normal.G");
     const float* nz = require(frame, "normal.B");
-    for (std::size_t p = 0; p < frame.pixelCount(); ++p) {
+    for (std::size_t p = 0; p < n; ++p) {
         guides.depth[p] = depth[p];
         guides.meshId[p] = mesh[p] < 0.f ? -1 : static_cast<int>(mesh[p]);
         guides.motion[p] = vec2(mx[p], my[p]);
         guides.normal[p] = vec3(nx[p], ny[p], nz[p]);
     }
+    ensureDepthGradient(guides);
+    const float* pixelWorldChannel = frame.channel("footprint.pixelWorld");
+    const std::span<const float> pixelWorld =
+        pixelWorldChannel ? std::span<const float>(pixelWorldChannel, n) : std::span<const float>();
+
     // Step: every signal of the chosen effects, in a fixed order.
-    std::vector<std::string> filtered;
+    std::vector<DenoisedLayer> filtered;
     for (const std::string& effect : effects_)
-        for (const SignalLayer& s : signalsOf(frame, effect)) {
-            std::vector<vec3> noisy(frame.pixelCount()), out(frame.pixelCount());
+        for (SignalLayer& s : signalsOf(frame, effect)) {
+            if (forceSvgf_ || pixelWorld.empty()) s.stack = DenoiseStack::Svgf;
+            const StackParams params = StackParams::of(s.stack);
+            const std::vector<float> footprint = footprintOf(frame, s, guides, pixelWorld, params.footprint);
+            std::vector<vec3> noisy(n), out(n);
             if (s.scalar) {
                 const float* c = frame.channel(s.layer);
                 float* keep = frame.addChannel("noisy." + s.layer);
-                for (std::size_t p = 0; p < noisy.size(); ++p) {
+                for (std::size_t p = 0; p < n; ++p) {
                     noisy[p] = vec3(c[p]);
                     keep[p] = c[p];
                 }
@@ -92,22 +162,23 @@ std::vector<std::string> EffectLayerDenoiser::apply(Image& frame) {
                 noisy = frame.rgbLayer(s.layer);
                 frame.addRgbLayer("noisy." + s.layer, noisy);
             }
-            auto it = filters_.try_emplace(s.layer, params_).first;
-            it->second.filter(guides, noisy, out);
+            auto it = filters_.try_emplace(s.layer, params.svgf).first;
+            it->second.setParams(params.svgf);
+            it->second.filter(guides, noisy, out, footprint);
             if (s.scalar) {
                 float* c = frame.channel(s.layer);
-                for (std::size_t p = 0; p < out.size(); ++p) c[p] = out[p].x;
+                for (std::size_t p = 0; p < n; ++p) c[p] = out[p].x;
             } else {
                 float* r = frame.channel(s.layer + ".R");
                 float* g = frame.channel(s.layer + ".G");
                 float* b = frame.channel(s.layer + ".B");
-                for (std::size_t p = 0; p < out.size(); ++p) {
+                for (std::size_t p = 0; p < n; ++p) {
                     r[p] = out[p].x;
                     g[p] = out[p].y;
                     b[p] = out[p].z;
                 }
             }
-            filtered.push_back(s.layer);
+            filtered.push_back({s.layer, effect, s.stack});
         }
     return filtered;
 }

@@ -17,7 +17,8 @@ void SvgfFilter::reset() {
     valid_.clear();
 }
 
-void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out) {
+void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out,
+                        std::span<const float> footprintPx) {
     current.validate();
     const std::size_t n = current.pixelCount();
     detail::checkSize(noisyColor.size(), n, "SvgfFilter::filter: noisyColor");
@@ -54,7 +55,7 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     filteredVariance_.resize(n);
     tapColor_.resize(n);
     atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
-                 params_.historyTap, tapColor_, {}, &atrousWorkspace_);
+                 params_.historyTap, tapColor_, footprintPx, &atrousWorkspace_);
 
     // The next frame's history: the feedback-tap colour, the accumulated moments and lengths.
     std::swap(history_, reprojected_);

@@ -87,6 +87,24 @@ tracer::RayDesc shadowRayToward(const LightSample& ls, const vec3& p, const vec3
     return tracer::RayDesc{origin, 0.f, toTarget / length, length};
 }
 
+float penumbraWidth(const ecs::LightSnapshot& l, const vec3& p, float occluderDistance) {
+    if (!(occluderDistance > 0.f)) return 0.f;
+    // Step: the light's size in world units (its transform may scale it).
+    float size = 0.f;
+    if (l.light.type == ecs::LightType::Rect) {
+        const float sx = l.light.size.x * glm::length(vec3(l.worldFromLight[0]));
+        const float sy = l.light.size.y * glm::length(vec3(l.worldFromLight[1]));
+        size = std::sqrt(sx * sx + sy * sy);
+    } else {
+        size = 2.f * std::max(l.light.radius, 0.f);
+    }
+    // Step: similar triangles, light -> occluder -> receiver.
+    const float toLight = glm::length(lightPosition(l) - p);
+    const float occluderToLight = std::max(toLight - occluderDistance, 1e-6f * toLight);
+    const float width = size * occluderDistance / occluderToLight;
+    return std::isfinite(width) ? std::min(width, 1e6f * size) : 0.f;
+}
+
 LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) {
     LightSample s;
     if (l.light.type == ecs::LightType::Rect) {

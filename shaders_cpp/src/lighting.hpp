@@ -53,6 +53,13 @@ tracer::RayDesc shadowRayToward(const LightSample& ls, const vec3& p, const vec3
 
 // Area light (rect or sphere) sample from `p` with two uniforms.
 LightSample sampleAreaLight(const ecs::LightSnapshot& light, const vec3& p, vec2 u);
+// The penumbra width (world units) an area light casts at receiver `p` from
+// an occluder `occluderDistance` away toward the light (the PCSS estimate,
+// Fernando 2005: light size x occluder distance / occluder-to-light
+// distance; light size = the rect's diagonal or the sphere's diameter). 0
+// without an occluder (occluderDistance <= 0); capped at 1e6 light sizes.
+// The shadow denoiser turns it into its kernel footprint.
+float penumbraWidth(const ecs::LightSnapshot& light, const vec3& p, float occluderDistance);
 // Point, spot or directional light toward `p` (no sampling needed).
 LightSample pointLightSample(const ecs::LightSnapshot& light, const vec3& p);
 // Importance of a point/spot/directional light for a surface: intensity x

@@ -73,6 +73,7 @@ struct GPixel {
     std::uint32_t mesh = 0;
     std::uint32_t instance = 0;
     vec2 motion{0.f};           // pixels: previous position - current position
+    float pixelWorld = 0.f;     // world-space width of the pixel at the hit (t x angle between neighbour rays)
     float errorScale = 0.f;     // max |coordinate| of the camera and the hit (offsetRayOriginByError)
 };
 

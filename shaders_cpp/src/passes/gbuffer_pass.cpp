@@ -27,6 +27,9 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             g.hit = true;
             g.t = p.t;
             g.depth = p.t * glm::dot(r.direction, forward);
+            // The pixel's footprint: the primary ray's distance x the angle to the next pixel's ray.
+            const CameraRay next = cameraRay(ctx.scene.camera, w, h, x + 1.5f, y + 0.5f);
+            g.pixelWorld = p.t * glm::length(next.direction - r.direction);
             g.position = p.position;
             g.viewDir = -r.direction;
             g.normal = p.shadingNormal;
@@ -66,6 +69,7 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
     float* instanceId = out.addChannel("id.instance");
     float* motionX = out.addChannel("motion.X");
     float* motionY = out.addChannel("motion.Y");
+    float* pixelWorld = out.addChannel("footprint.pixelWorld");
     for (std::size_t i = 0; i < n; ++i) {
         const GPixel& g = ctx.gbuffer[i];
         albedo[i] = g.albedo;
@@ -80,13 +84,14 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
         instanceId[i] = g.hit ? float(g.instance) : -1.f;
         motionX[i] = g.motion.x;
         motionY[i] = g.motion.y;
+        pixelWorld[i] = g.pixelWorld;
     }
     out.addRgbLayer("albedo", albedo);
     out.addRgbLayer("normal", normal);
     out.addRgbLayer("geonormal", geoNormal);
     out.addRgbLayer("emissive", emissive);
-    // G-buffer in memory + its 18 output floats per pixel.
-    return n * (sizeof(GPixel) + 18 * sizeof(float));
+    // G-buffer in memory + its 19 output floats per pixel.
+    return n * (sizeof(GPixel) + 19 * sizeof(float));
 }
 
 }  // namespace rtlab::shaders::detail

@@ -26,11 +26,12 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
         const std::string layer = "shadow.light" + std::to_string(areaIndex);
         float* visibility = out.addChannel(layer + ".V", 1.f);
         float* hitT = out.addChannel(layer + ".hitT", 0.f);
+        float* penumbra = out.addChannel(layer + ".penumbra", 0.f);
         std::vector<vec3> unshadowed(n, vec3(0.f));
         VisibilityTally tally(n);
         std::vector<float> mediumT(n, 1.f);  // this sample's fog transmittance toward the light
         std::vector<float> sampleWeight(n, 0.f);  // this sample's luminance(f cos Le / pdf): weights its visibility
-        bytes += n * (2 * sizeof(float) + 3 * sizeof(float) + sizeof(float)) + tally.bytes();
+        bytes += n * (3 * sizeof(float) + 3 * sizeof(float) + sizeof(float)) + tally.bytes();
         const std::uint32_t areaStream = stream::kAreaLight + areaIndex;
         for (int s = 0; s < spp; ++s) {
             tracePerPixel(
@@ -62,6 +63,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
             if (!g.hit) continue;
             visibility[i] = tally.visibility(i);
             hitT[i] = tally.meanOccluderDistance(i, 0.f);
+            penumbra[i] = penumbraWidth(light, g.position, hitT[i]);
             unshadowed[i] = unshadowedAreaLight(light, shadingPointOf(g),
                                                 static_cast<int>(ctx.settings.areaLightUnshadowedSamples),
                                                 ctx.key(i, 0, areaStream), 2);

@@ -1,21 +1,26 @@
 #pragma once
 // Denoising a rendered frame's effect layers (docs/effects.md names them):
-// one SvgfFilter per signal layer, its history kept across frames, guided
-// by the frame's own G-buffer layers (depth.Z, normal.*, id.mesh,
-// motion.X/Y). Denoisers see images, never the scene. Before a layer is
-// filtered its noisy values are copied to "noisy.<channel>".
+// each signal layer gets the stack its signal deserves, built from the
+// shared stages, with its history kept across frames and guided by the
+// frame's own G-buffer layers (depth.Z, normal.*, id.mesh, motion.X/Y,
+// footprint.pixelWorld). Denoisers see images, never the scene. Before a
+// layer is filtered its noisy values are copied to "noisy.<channel>".
 //
-// Signals per effect name:
-//   shadows       shadow.light<i>.V (per light), direct.point.RGB
-//   reflections   reflection.RGB (incoming radiance; the BRDF term stays out)
-//   ao            ao.V
-//   gi            gi.RGB (irradiance, albedo demodulated)
-//   translucency  translucency.RGB
-//   volumes       volume.inscatter.RGB, volume.transmittance
-// This is the SVGF stack applied to every effect; the per-effect stacks of
-// the denoise issue (footprints from penumbra, roughness, hit distance) are
-// not built yet.
+//   effect        signal layers                          stack
+//   shadows       shadow.light<i>.V (one per area light)  Shadow: visibility only; footprint from the
+//                                                          penumbra (shadow.light<i>.penumbra); history clamp
+//                 direct.point.RGB                        Svgf (point lights: hard shadows, one light pick)
+//   reflections   reflection.RGB (incoming radiance)      Reflection: footprint from roughness.Y and
+//                                                          reflection.hitT; history clamp
+//   ao            ao.V                                    AmbientOcclusion: footprint from ao.hitT
+//   gi            gi.RGB (irradiance, albedo demodulated)  Svgf (the paper's parameter set)
+//   translucency  translucency.RGB                        Svgf
+//   volumes       volume.inscatter.RGB, .transmittance    Svgf
+//
+// A frame without footprint.pixelWorld (an EXR from before it existed)
+// falls back to Svgf for every layer; apply() reports the stack it used.
 #include <rtlab/core/image.hpp>
+#include <rtlab/denoise/footprint.hpp>
 #include <rtlab/denoise/svgf.hpp>
 
 #include <map>
@@ -24,20 +29,52 @@
 
 namespace rtlab::denoise {
 
+enum class DenoiseStack { Svgf, Shadow, Reflection, AmbientOcclusion };
+const char* stackName(DenoiseStack stack);
+
+// The parameters of one stack: SVGF's stages plus the footprint rule.
+struct StackParams {
+    SvgfParams svgf;
+    FootprintParams footprint;
+
+    // SVGF, the paper's set (5 iterations, alpha 0.2, sigma z/n/l 1/128/4).
+    static StackParams svgfPaper();
+    // Shadows: the paper's set, the footprint from the penumbra, and the
+    // history clamped to mean +- 1 sigma of the 5x5 neighbourhood (rtlab:
+    // a moving occluder must not leave a ghost shadow).
+    static StackParams shadow();
+    // Reflections: the paper's set, the footprint from the glossy lobe, and
+    // the same history clamp (the reflected image moves with the reflected
+    // surface, not with the mirror; reprojection uses the mirror's motion).
+    static StackParams reflection();
+    // AO: the paper's set and the footprint from the occluder distance.
+    static StackParams ambientOcclusion();
+    static StackParams of(DenoiseStack stack);
+};
+
+struct DenoisedLayer {
+    std::string layer;   // "shadow.light0.V", "gi", ...
+    std::string effect;  // "shadows", ...
+    DenoiseStack stack = DenoiseStack::Svgf;
+};
+
 class EffectLayerDenoiser {
 public:
     // `effects`: names from the table above; empty = all of them. Throws
-    // std::invalid_argument for an unknown name.
-    explicit EffectLayerDenoiser(std::vector<std::string> effects = {}, const SvgfParams& params = {});
-    // Filters the frame's signal layers in place; returns the channels' layer
-    // names that were filtered, in a fixed order. Throws std::invalid_argument
-    // when the guide layers are missing.
-    std::vector<std::string> apply(Image& frame);
+    // std::invalid_argument for an unknown name. `forceSvgf` runs plain SVGF
+    // on every layer (for comparisons: `rtlab converge` measures both).
+    explicit EffectLayerDenoiser(std::vector<std::string> effects = {}, bool forceSvgf = false);
+    // Filters the frame's signal layers in place; returns what was filtered
+    // and how, in a fixed order. Throws std::invalid_argument when the guide
+    // layers are missing.
+    std::vector<DenoisedLayer> apply(Image& frame);
     static const std::vector<std::string>& effectNames();
+    // Forgets every layer's history.
+    void reset() { filters_.clear(); }
 
 private:
     std::vector<std::string> effects_;
-    SvgfParams params_;
+    bool forceSvgf_ = false;
     std::map<std::string, SvgfFilter> filters_;  // by layer name
 };
 

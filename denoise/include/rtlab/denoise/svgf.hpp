@@ -75,7 +75,10 @@ public:
     // `current`, into `out` (sizes must match the guides, else
     // std::invalid_argument; `out` may alias `noisyColor`). A change of image
     // size resets the history.
-    void filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out);
+    // `footprintPx` (optional): per-pixel reach of the a-trous passes
+    // (atrousFilter), for the per-effect stacks; empty = plain SVGF.
+    void filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out,
+                std::span<const float> footprintPx = {});
 
     // Inspection of the last filtered frame (empty before the first).
     std::span<const float> historyLength() const { return history_.length; }

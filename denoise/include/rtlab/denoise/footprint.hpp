@@ -1,0 +1,52 @@
+#pragma once
+// Kernel footprints of the per-effect stacks: how far (in pixels) the
+// a-trous filter may reach from each pixel (atrousFilter's footprintPx),
+// derived from what the effect's pass measured. All inputs are images: the
+// G-buffer's per-pixel world width of a pixel (footprint.pixelWorld) and the
+// effect's own buffers. Outputs are >= 0 and finite for any input.
+#include <rtlab/denoise/common.hpp>
+
+#include <span>
+#include <vector>
+
+namespace rtlab::denoise {
+
+struct FootprintParams {
+    // Largest footprint in pixels (the 5-iteration kernel reaches 62). Source: rtlab.
+    float maxPx = 64.f;
+    // Smallest footprint where the signal is noisy at all (2 = one a-trous
+    // iteration, the 5x5 kernel). Source: rtlab.
+    float minPx = 2.f;
+    // The footprint map is averaged over (2 smoothRadius + 1)^2 geometry
+    // pixels, so that a 1-spp distance estimate does not flip the number of
+    // iterations from pixel to pixel. Source: rtlab.
+    int smoothRadius = 2;
+};
+
+// Shadows: the PCSS penumbra width (world units, the shadow pass's
+// shadow.light<i>.penumbra; 0 where no occluder was seen) over the pixel's
+// world width. Pixels with no estimate take the largest estimate within
+// `searchRadius` pixels (PCSS's blocker search, in screen space; none: 0 =
+// unoccluded, nothing to filter). Then smoothed and clamped to
+// [minPx, maxPx] (0 stays 0).
+std::vector<float> shadowFootprint(int width, int height, std::span<const float> penumbraWorld,
+                                   std::span<const float> pixelWorld, std::span<const int> meshId,
+                                   const FootprintParams& params = {}, int searchRadius = 8);
+
+// Reflections: the GGX lobe (alpha = roughness^2) widens to about
+// lobeScale x alpha x hit distance at the reflected surface; over the
+// pixel's world width. A mirror (roughness 0) gets 0: no spatial filter. A
+// miss (hitT 0) counts as maxPx away. Source of lobeScale (2): rtlab, the
+// lobe's half-width at half maximum is about alpha radians.
+std::vector<float> reflectionFootprint(int width, int height, std::span<const float> roughness,
+                                       std::span<const float> hitT, std::span<const float> pixelWorld,
+                                       std::span<const int> meshId, const FootprintParams& params = {},
+                                       float lobeScale = 2.f);
+
+// Ambient occlusion: the mean occluder distance (ao.hitT; the AO radius
+// where nothing was hit) over the pixel's world width: small in contact
+// regions, wide in the open (Jimenez et al. 2016 use the same scale).
+std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> pixelWorld,
+                               std::span<const int> meshId, const FootprintParams& params = {});
+
+}  // namespace rtlab::denoise

@@ -1,0 +1,107 @@
+#include <rtlab/denoise/footprint.hpp>
+
+#include "detail.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rtlab::denoise {
+namespace {
+
+void checkSizes(int width, int height, std::initializer_list<std::size_t> sizes) {
+    const std::size_t n = detail::pixelCount(width, height);
+    for (const std::size_t s : sizes) detail::checkSize(s, n, "footprint: buffer");
+}
+
+// worldSize / pixelWorld in pixels, 0 for non-positive or non-finite input, capped.
+float toPixels(float worldSize, float pixelWorld, float maxPx) {
+    if (!(worldSize > 0.f) || !(pixelWorld > 0.f)) return 0.f;
+    const float px = worldSize / pixelWorld;
+    return px < maxPx ? px : maxPx;  // +inf and NaN-free: worldSize, pixelWorld > 0
+}
+
+// Mean over the (2r+1)^2 window of geometry pixels (same-state only), then
+// [minPx, maxPx] where > 0.
+std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, std::span<const int> meshId,
+                                  const FootprintParams& p) {
+    std::vector<float> out(px.size(), 0.f);
+    const int r = std::max(p.smoothRadius, 0);
+    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
+        if (meshId[i] < 0) return;
+        float sum = 0.f;
+        int count = 0;
+        for (int dy = -r; dy <= r; ++dy)
+            for (int dx = -r; dx <= r; ++dx) {
+                const int qx = x + dx, qy = y + dy;
+                if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+                const std::size_t j = static_cast<std::size_t>(qy) * static_cast<std::size_t>(w) + qx;
+                if (meshId[j] < 0) continue;
+                sum += px[j];
+                ++count;
+            }
+        const float mean = count > 0 ? sum / static_cast<float>(count) : 0.f;
+        out[i] = mean > 0.f ? std::clamp(mean, p.minPx, p.maxPx) : 0.f;
+    });
+    return out;
+}
+
+}  // namespace
+
+std::vector<float> shadowFootprint(int width, int height, std::span<const float> penumbraWorld,
+                                   std::span<const float> pixelWorld, std::span<const int> meshId,
+                                   const FootprintParams& params, int searchRadius) {
+    checkSizes(width, height, {penumbraWorld.size(), pixelWorld.size(), meshId.size()});
+    const std::size_t n = penumbraWorld.size();
+    // Step: the estimate where an occluder was seen.
+    std::vector<float> px(n);
+    detail::forEachIndex(n, [&](std::size_t i) {
+        px[i] = meshId[i] < 0 ? 0.f : toPixels(penumbraWorld[i], pixelWorld[i], params.maxPx);
+    });
+    // Step: blocker search — separable max over the search window fills the gaps.
+    const int r = std::max(searchRadius, 0);
+    std::vector<float> rowMax(n), windowMax(n);
+    detail::forEachPixel(width, height, [&](int x, int y, std::size_t i) {
+        float m = 0.f;
+        const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+        for (int qx = std::max(0, x - r); qx <= std::min(width - 1, x + r); ++qx) m = std::max(m, px[row + qx]);
+        rowMax[i] = m;
+    });
+    detail::forEachPixel(width, height, [&](int x, int y, std::size_t i) {
+        float m = 0.f;
+        for (int qy = std::max(0, y - r); qy <= std::min(height - 1, y + r); ++qy)
+            m = std::max(m, rowMax[static_cast<std::size_t>(qy) * static_cast<std::size_t>(width) + x]);
+        windowMax[i] = m;
+    });
+    detail::forEachIndex(n, [&](std::size_t i) {
+        if (meshId[i] >= 0 && !(px[i] > 0.f)) px[i] = windowMax[i];
+    });
+    return smoothAndClamp(width, height, px, meshId, params);
+}
+
+std::vector<float> reflectionFootprint(int width, int height, std::span<const float> roughness,
+                                       std::span<const float> hitT, std::span<const float> pixelWorld,
+                                       std::span<const int> meshId, const FootprintParams& params, float lobeScale) {
+    checkSizes(width, height, {roughness.size(), hitT.size(), pixelWorld.size(), meshId.size()});
+    std::vector<float> px(roughness.size());
+    detail::forEachIndex(px.size(), [&](std::size_t i) {
+        if (meshId[i] < 0) { px[i] = 0.f; return; }
+        const float r = detail::clampNaNLow(roughness[i], 0.f, 1.f);
+        const float alpha = r * r;
+        if (!(alpha > 0.f)) { px[i] = 0.f; return; }
+        const float lobeWorld = hitT[i] > 0.f ? lobeScale * alpha * hitT[i] : kInfinity;
+        px[i] = std::isinf(lobeWorld) ? params.maxPx : toPixels(lobeWorld, pixelWorld[i], params.maxPx);
+    });
+    return smoothAndClamp(width, height, px, meshId, params);
+}
+
+std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> pixelWorld,
+                               std::span<const int> meshId, const FootprintParams& params) {
+    checkSizes(width, height, {hitT.size(), pixelWorld.size(), meshId.size()});
+    std::vector<float> px(hitT.size());
+    detail::forEachIndex(px.size(), [&](std::size_t i) {
+        px[i] = meshId[i] < 0 ? 0.f : toPixels(hitT[i], pixelWorld[i], params.maxPx);
+    });
+    return smoothAndClamp(width, height, px, meshId, params);
+}
+
+}  // namespace rtlab::denoise
