@@ -56,6 +56,25 @@ struct CompareOptions {
 void addCompareCommand(CLI::App& app, CompareOptions& options);
 int runCompare(const CompareOptions& options);
 
+struct ConvergeOptions {
+    std::string scene = "builtin:showcase";
+    std::string effect;
+    std::string out;                        // "" = out/converge/<scene>-<effect>
+    std::string cache = "out/converge-cache";
+    int width = 480;
+    int height = 270;
+    int referenceSpp = 4096;
+    int maxSpp = 256;
+    int denoiseMaxSpp = 4;
+    int frames = 16;
+    int threads = 0;
+    std::uint32_t seed = 0;
+    float reflectionRoughness = 0.3f;
+    float aoRadius = 1.0f;
+};
+void addConvergeCommand(CLI::App& app, ConvergeOptions& options);
+int runConverge(const ConvergeOptions& options);
+
 // Progress line on stderr, only when stderr is a terminal.
 void progress(const std::string& line);
 

@@ -24,10 +24,12 @@ int main(int argc, char** argv) {
     app::PlanOptions plan;
     app::InfoOptions info;
     app::CompareOptions compare;
+    app::ConvergeOptions converge;
     app::addRenderCommand(app, render);
     app::addPlanCommand(app, plan);
     app::addInfoCommand(app, info);
     app::addCompareCommand(app, compare);
+    app::addConvergeCommand(app, converge);
 
     try {
         app.parse(argc, argv);
@@ -45,6 +47,7 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("plan")) return app::runPlan(plan);
         if (app.got_subcommand("info")) return app::runInfo(info);
         if (app.got_subcommand("compare")) return app::runCompare(compare);
+        if (app.got_subcommand("converge")) return app::runConverge(converge);
     } catch (const InputError& e) {
         std::cerr << "rtlab: " << e.what() << "\n";
         return static_cast<int>(ExitCode::BadInput);

@@ -21,41 +21,68 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
     }
 }
 
-void composeBeauty(Image& frame) {
-    const std::size_t n = frame.pixelCount();
-    const auto rgb = [&](const std::string& layer) -> std::vector<vec3> {
-        return frame.hasChannel(layer.empty() ? "R" : layer + ".R") ? frame.rgbLayer(layer) : std::vector<vec3>();
-    };
-    const auto scalar = [&](const std::string& name) -> const float* { return frame.channel(name); };
-    const std::vector<vec3> albedo = rgb("albedo"), emissive = rgb("emissive"), point = rgb("direct.point"),
-                            gi = rgb("gi"), reflection = rgb("reflection"), brdf = rgb("reflection.brdf"),
-                            translucency = rgb("translucency"), inscatter = rgb("volume.inscatter");
-    const float* metalness = scalar("metalness.Y");
-    const float* transmission = scalar("transmission.Y");
-    const float* T = scalar("volume.transmittance");
-    const float* mesh = scalar("id.mesh");
+namespace {
+
+// A frame's layers as the compose reads them; absent layers count as 0 (T as 1).
+struct ComposeLayers {
+    std::vector<vec3> albedo, emissive, point, gi, reflection, brdf, translucency, inscatter;
+    const float* metalness = nullptr;
+    const float* transmission = nullptr;
+    const float* transmittance = nullptr;
+    const float* mesh = nullptr;
     std::vector<std::vector<vec3>> unshadowed;
     std::vector<const float*> visibility;
-    for (int i = 0; frame.hasChannel("direct.light" + std::to_string(i) + ".R"); ++i) {
-        unshadowed.push_back(rgb("direct.light" + std::to_string(i)));
-        visibility.push_back(scalar("shadow.light" + std::to_string(i) + ".V"));
+
+    explicit ComposeLayers(const Image& frame) {
+        const auto rgb = [&](const std::string& layer) -> std::vector<vec3> {
+            return frame.hasChannel(layer.empty() ? "R" : layer + ".R") ? frame.rgbLayer(layer) : std::vector<vec3>();
+        };
+        albedo = rgb("albedo"), emissive = rgb("emissive"), point = rgb("direct.point"), gi = rgb("gi");
+        reflection = rgb("reflection"), brdf = rgb("reflection.brdf"), translucency = rgb("translucency");
+        inscatter = rgb("volume.inscatter");
+        metalness = frame.channel("metalness.Y");
+        transmission = frame.channel("transmission.Y");
+        transmittance = frame.channel("volume.transmittance");
+        mesh = frame.channel("id.mesh");
+        for (int i = 0; frame.hasChannel("direct.light" + std::to_string(i) + ".R"); ++i) {
+            unshadowed.push_back(rgb("direct.light" + std::to_string(i)));
+            visibility.push_back(frame.channel("shadow.light" + std::to_string(i) + ".V"));
+        }
     }
+    static vec3 at(const std::vector<vec3>& layer, std::size_t p) { return layer.empty() ? vec3(0.f) : layer[p]; }
+    bool geometry(std::size_t p) const { return mesh && mesh[p] >= 0.f; }
+    float transmissionAt(std::size_t p) const { return transmission ? transmission[p] : 0.f; }
+    // Sum over area lights of unshadowed x visibility, plus the point lights.
+    vec3 direct(std::size_t p) const {
+        vec3 d(0.f);
+        for (std::size_t l = 0; l < unshadowed.size(); ++l)
+            d += unshadowed[l][p] * (visibility[l] ? visibility[l][p] : 1.f);
+        if (!point.empty()) d += point[p];
+        return d;
+    }
+    // (1 - metalness)(1 - transmission) albedo / pi x E.
+    vec3 diffuseIndirect(std::size_t p) const {
+        const float m = metalness ? metalness[p] : 0.f;
+        return (1.f - m) * (1.f - transmissionAt(p)) * at(albedo, p) * at(gi, p) / kPi;
+    }
+    vec3 specular(std::size_t p) const {
+        return brdf.empty() || reflection.empty() ? vec3(0.f) : brdf[p] * reflection[p];
+    }
+    vec3 transmitted(std::size_t p) const { return transmissionAt(p) * at(translucency, p); }
+};
+
+}  // namespace
+
+void composeBeauty(Image& frame) {
+    const std::size_t n = frame.pixelCount();
+    const ComposeLayers c(frame);
     std::vector<vec3> beauty(n, vec3(0.f));
     for (std::size_t p = 0; p < n; ++p) {
-        beauty[p] = inscatter.empty() ? vec3(0.f) : inscatter[p];
-        if (!mesh || mesh[p] < 0.f) continue;
-        vec3 direct(0.f);
-        for (std::size_t l = 0; l < unshadowed.size(); ++l)
-            direct += unshadowed[l][p] * (visibility[l] ? visibility[l][p] : 1.f);
-        if (!point.empty()) direct += point[p];
-        const float m = metalness ? metalness[p] : 0.f, t = transmission ? transmission[p] : 0.f;
-        const vec3 a = albedo.empty() ? vec3(0.f) : albedo[p];
-        const vec3 diffuseAlbedo = (1.f - m) * (1.f - t) * a;
-        const vec3 e = emissive.empty() ? vec3(0.f) : emissive[p];
-        const vec3 irradiance = gi.empty() ? vec3(0.f) : gi[p];
-        const vec3 specular = brdf.empty() || reflection.empty() ? vec3(0.f) : brdf[p] * reflection[p];
-        const vec3 transmitted = translucency.empty() ? vec3(0.f) : translucency[p];
-        beauty[p] += (T ? T[p] : 1.f) * (e + direct + diffuseAlbedo * irradiance / kPi + specular + t * transmitted);
+        beauty[p] = ComposeLayers::at(c.inscatter, p);
+        if (!c.geometry(p)) continue;
+        const float T = c.transmittance ? c.transmittance[p] : 1.f;
+        beauty[p] += T * (ComposeLayers::at(c.emissive, p) + c.direct(p) + c.diffuseIndirect(p) + c.specular(p) +
+                          c.transmitted(p));
     }
     if (frame.hasChannel("R")) {
         float* r = frame.channel("R");
@@ -69,6 +96,24 @@ void composeBeauty(Image& frame) {
     } else {
         frame.addRgbLayer("", beauty);
     }
+}
+
+std::vector<vec3> effectContribution(const Image& frame, const std::string& effect) {
+    const std::size_t n = frame.pixelCount();
+    const ComposeLayers c(frame);
+    const float* ao = frame.channel("ao.V");
+    std::vector<vec3> out(n, vec3(0.f));
+    for (std::size_t p = 0; p < n; ++p) {
+        if (effect == "volumes") { out[p] = ComposeLayers::at(c.inscatter, p); continue; }
+        if (!c.geometry(p)) continue;
+        if (effect == "shadows") out[p] = c.direct(p);
+        else if (effect == "reflections") out[p] = c.specular(p);
+        else if (effect == "ao") out[p] = vec3(ao ? ao[p] : 1.f);
+        else if (effect == "gi") out[p] = c.diffuseIndirect(p);
+        else if (effect == "translucency") out[p] = c.transmitted(p);
+        else throw std::invalid_argument("effectContribution: unknown effect '" + effect + "'");
+    }
+    return out;
 }
 
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,

@@ -83,6 +83,14 @@ struct FrameOutput {
 //   only. Absent layers count as 0 (T as 1). Used again after denoising.
 void composeBeauty(Image& frame);
 
+// One effect's term of that compose, per pixel (what `rtlab converge`
+// measures): shadows = sum_i direct.light<i> x shadow.light<i>.V +
+// direct.point; reflections = reflection.brdf x reflection; ao = ao.V
+// (grey); gi = diffuse albedo / pi x gi; translucency = transmission x
+// translucency; volumes = volume.inscatter. 0 on sky pixels (except
+// volumes). Throws std::invalid_argument for another name.
+std::vector<vec3> effectContribution(const Image& frame, const std::string& effect);
+
 // Renders one frame; `history` holds the previous frame (motion vectors,
 // DDGI probes) and is updated to this one.
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,

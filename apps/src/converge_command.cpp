@@ -1,0 +1,428 @@
+// rtlab converge: error against run time for one effect, raw accumulation
+// against its denoisers, measured on a cached many-sample reference.
+#include "commands.hpp"
+
+#include <rtlab/core/error.hpp>
+#include <rtlab/core/flip.hpp>
+#include <rtlab/core/image.hpp>
+#include <rtlab/core/parallel.hpp>
+#include <rtlab/core/plot.hpp>
+#include <rtlab/core/timer.hpp>
+#include <rtlab/denoise/effect_layers.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
+#include <rtlab/ecs/snapshot.hpp>
+#include <rtlab/ecs/world.hpp>
+#include <rtlab/shaders_cpp/frame_plan.hpp>
+#include <rtlab/shaders_cpp/frame_renderer.hpp>
+#include <rtlab/tracer/accel_manager.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+namespace rtlab::app {
+
+void addConvergeCommand(CLI::App& app, ConvergeOptions& o) {
+    CLI::App* cmd = app.add_subcommand(
+        "converge", "Error against run time for one effect: raw accumulation vs its denoisers, on a cached reference");
+    cmd->add_option("--scene", o.scene, "builtin:NAME, .gltf/.glb, or scene .json")->capture_default_str();
+    cmd->add_option("--effect", o.effect, "shadows, reflections, ao, gi, translucency or volumes")->required();
+    cmd->add_option("--out", o.out, "Output directory (default out/converge/<scene>-<effect>)");
+    cmd->add_option("--cache", o.cache, "Directory of cached references")->capture_default_str();
+    cmd->add_option("--width", o.width, "Image width in pixels")->check(CLI::Range(1, 16384))->capture_default_str();
+    cmd->add_option("--height", o.height, "Image height in pixels")->check(CLI::Range(1, 16384))->capture_default_str();
+    cmd->add_option("--reference-spp", o.referenceSpp, "Samples per pixel of the reference")
+        ->check(CLI::Range(1, 1 << 24))
+        ->capture_default_str();
+    cmd->add_option("--max-spp", o.maxSpp, "Raw accumulation is measured at 1, 2, 4 ... this many spp")
+        ->check(CLI::Range(1, 1 << 16))
+        ->capture_default_str();
+    cmd->add_option("--denoise-max-spp", o.denoiseMaxSpp, "Denoisers are measured on 1, 2, 4 ... this many spp")
+        ->check(CLI::Range(1, 1 << 16))
+        ->capture_default_str();
+    cmd->add_option("--frames", o.frames, "Temporal history: denoisers also after 1, 2, 4 ... this many 1-spp frames")
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
+    cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
+    cmd->add_option("--seed", o.seed, "Random seed (the reference uses a different, derived seed)")->capture_default_str();
+    cmd->add_option("--reflection-roughness", o.reflectionRoughness, "Reflections trace where roughness <= this")
+        ->check(CLI::Range(0.f, 1.f))
+        ->capture_default_str();
+    cmd->add_option("--ao-radius", o.aoRadius, "Ambient-occlusion ray length (world units)")
+        ->check(CLI::Range(0.f, 1e30f))
+        ->capture_default_str();
+}
+
+namespace {
+
+// The reference's samples must not be the measured runs' samples.
+constexpr std::uint32_t kReferenceSeedSalt = 0x9e3779b9u;
+// The reference is accumulated in frames of at most this many spp.
+constexpr int kReferenceChunkSpp = 64;
+
+std::vector<int> powersOfTwoUpTo(int n) {
+    std::vector<int> out;
+    for (int v = 1; v <= n; v *= 2) out.push_back(v);
+    if (out.back() != n) out.push_back(n);
+    return out;
+}
+
+std::string slug(const std::string& s) {
+    std::string out;
+    for (const char c : s) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '-';
+    return out;
+}
+
+// FNV-1a 64 of the text.
+std::uint64_t fingerprint(const std::string& text) {
+    std::uint64_t h = 1469598103934665603ull;
+    for (const unsigned char c : text) h = (h ^ c) * 1099511628211ull;
+    return h;
+}
+
+// What identifies a scene source for the cache: the name, and for files
+// their size and modification time.
+std::string sceneIdentity(const std::string& scene) {
+    std::string id = scene;
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(scene, ec)) {
+        id += "|" + std::to_string(std::filesystem::file_size(scene, ec));
+        id += "|" + std::to_string(std::filesystem::last_write_time(scene, ec).time_since_epoch().count());
+    }
+    return id;
+}
+
+Image rgbImage(int w, int h, const std::vector<vec3>& rgb) {
+    Image image(w, h);
+    image.addRgbLayer("", rgb);
+    return image;
+}
+
+struct Measured {
+    std::string method;  // "raw", "shadow", "svgf", ...
+    std::string kind;    // "spp" (one frame) or "frames" (1 spp per frame, temporal history)
+    int spp = 1;
+    int frames = 1;
+    double ms = 0;       // wall ms of everything that produced this image (all its frames)
+    double relMse = 0, psnr = 0, ssim = 0, flip = 0;
+    // Equal-error speed-up: ms raw accumulation needs for this error / ms.
+    double rawMsAtEqualError = 0, speedup = 0;
+    bool extrapolated = false;
+};
+
+// Milliseconds raw accumulation needs to reach `error`, interpolated
+// log-log between the raw points (sorted by spp); beyond the last point
+// extrapolated with relMSE ~ 1/ms from it (Monte Carlo's rate).
+double rawMsAt(const std::vector<Measured>& raw, double error, bool& extrapolated) {
+    extrapolated = false;
+    if (raw.empty() || !(error > 0.0)) return 0.0;
+    if (error >= raw.front().relMse) return raw.front().ms;
+    for (std::size_t i = 1; i < raw.size(); ++i) {
+        if (raw[i].relMse > error) continue;
+        const double e0 = std::log(raw[i - 1].relMse), e1 = std::log(raw[i].relMse);
+        const double m0 = std::log(raw[i - 1].ms), m1 = std::log(raw[i].ms);
+        const double t = e1 != e0 ? (std::log(error) - e0) / (e1 - e0) : 1.0;
+        return std::exp(m0 + t * (m1 - m0));
+    }
+    extrapolated = true;
+    return raw.back().ms * raw.back().relMse / error;
+}
+
+std::string formatDouble(double v, const char* fmt = "%.6g") {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, fmt, v);
+    return buf;
+}
+
+}  // namespace
+
+int runConverge(const ConvergeOptions& o) {
+    // Step: options checked before anything is loaded.
+    const std::vector<std::string>& effects = denoise::EffectLayerDenoiser::effectNames();
+    if (std::find(effects.begin(), effects.end(), o.effect) == effects.end())
+        throw InputError("--effect", "unknown effect '" + o.effect +
+                                         "' (known: shadows, reflections, ao, gi, translucency, volumes)");
+    const std::string out = o.out.empty() ? "out/converge/" + slug(o.scene) + "-" + o.effect : o.out;
+    std::error_code ec;
+    std::filesystem::create_directories(out, ec);
+    if (ec || !std::filesystem::is_directory(out)) throw InputError(out, "cannot create output directory");
+    std::filesystem::create_directories(o.cache, ec);
+    if (ec || !std::filesystem::is_directory(o.cache)) throw InputError(o.cache, "cannot create cache directory");
+
+    // Step: the scene, static (frame time 0), with only the G-buffer and this effect planned.
+    const ThreadLimit threadLimit(o.threads);
+    ecs::World world;
+    ecs::load::loadScene(world, o.scene);
+    const ecs::FrameUpdate update = world.update(0.f);
+    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, update);
+    tracer::AccelOptions accelOptions;
+    accelOptions.threads = o.threads;
+    tracer::AccelManager accel(accelOptions);
+    accel.update(scene);
+    shaders::PlanOptions planOptions = app::planOptions(o.effect, "path");
+    planOptions.reflectionMaxRoughness = o.reflectionRoughness;
+    const shaders::FramePlan plan = shaders::planFrame(scene, planOptions);
+    const nlohmann::json planJson = plan.toJson();
+    for (const std::string& note : plan.notes) std::cerr << "rtlab: note: " << note << "\n";
+    bool planned = false;
+    for (const auto& pass : planJson["passes"])
+        if (pass.value("pass", "") == o.effect && pass.value("planned", false))
+            planned = true;
+    if (!planned)
+        throw InputError(o.scene, "has no " + o.effect + " to measure (rtlab plan --scene " + o.scene + " says why)");
+
+    const int w = o.width, h = o.height;
+    const auto settingsFor = [&](int spp, std::uint32_t frame, std::uint32_t seed) {
+        shaders::RenderSettings s;
+        s.width = w;
+        s.height = h;
+        s.spp = spp;
+        s.frame = frame;
+        s.seed = seed;
+        s.aoRadius = o.aoRadius;
+        return s;
+    };
+    const auto render = [&](const shaders::RenderSettings& s, shaders::FrameHistory& history, double& ms) {
+        const Stopwatch clock;
+        shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, s, history);
+        ms = clock.elapsedMs();
+        return std::move(frame.image);
+    };
+
+    // Step: the reference, from the cache or accumulated now.
+    std::ostringstream key;
+    key << sceneIdentity(o.scene) << "|" << o.effect << "|" << w << "x" << h << "|" << o.referenceSpp << "|" << o.seed
+        << "|" << o.reflectionRoughness << "|" << o.aoRadius;
+    char hash[17];
+    std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fingerprint(key.str())));
+    const std::filesystem::path cacheFile = std::filesystem::path(o.cache) /
+                                            (slug(o.scene) + "_" + o.effect + "_" + std::to_string(w) + "x" +
+                                             std::to_string(h) + "_" + std::to_string(o.referenceSpp) + "spp_" +
+                                             std::string(hash) + ".exr");
+    std::vector<vec3> reference;
+    double referenceMs = 0;
+    bool referenceCached = false;
+    if (std::filesystem::exists(cacheFile)) {
+        const Image cached = readExr(cacheFile);
+        if (cached.width() == w && cached.height() == h && cached.hasChannel("R")) {
+            reference = cached.rgbLayer("");
+            referenceCached = true;
+        }
+    }
+    if (!referenceCached) {
+        std::vector<glm::dvec3> sum(static_cast<std::size_t>(w) * h, glm::dvec3(0.0));
+        int done = 0;
+        std::uint32_t frame = 0;
+        const Stopwatch clock;
+        while (done < o.referenceSpp) {
+            const int spp = std::min(kReferenceChunkSpp, o.referenceSpp - done);
+            shaders::FrameHistory none;
+            double ms = 0;
+            const Image image = render(settingsFor(spp, frame++, o.seed ^ kReferenceSeedSalt), none, ms);
+            const std::vector<vec3> c = shaders::effectContribution(image, o.effect);
+            for (std::size_t p = 0; p < c.size(); ++p) sum[p] += glm::dvec3(c[p]) * static_cast<double>(spp);
+            done += spp;
+            const double eta = clock.elapsedMs() / done * (o.referenceSpp - done) / 1000.0;
+            progress("reference: " + std::to_string(done) + "/" + std::to_string(o.referenceSpp) + " spp, ~" +
+                     formatDouble(eta, "%.0f") + " s left");
+        }
+        referenceMs = clock.elapsedMs();
+        reference.resize(sum.size());
+        for (std::size_t p = 0; p < sum.size(); ++p) reference[p] = vec3(sum[p] / static_cast<double>(done));
+        writeExr(cacheFile, rgbImage(w, h, reference), ExrPixelType::Float);
+    }
+    const Image referenceImage = rgbImage(w, h, reference);
+
+    // Display exposure for the PNGs: the reference's 99th-percentile luminance -> 0.8.
+    std::vector<float> referenceLuminance(reference.size());
+    for (std::size_t p = 0; p < reference.size(); ++p)
+        referenceLuminance[p] = 0.2126f * reference[p].r + 0.7152f * reference[p].g + 0.0722f * reference[p].b;
+    const float q99 = quantile(referenceLuminance.data(), referenceLuminance.size(), 0.99);
+    const float exposure = q99 > 0.f ? std::log2(0.8f / q99) : 0.f;
+    writePng(std::filesystem::path(out) / "reference.png", referenceImage, "", exposure);
+
+    std::vector<Measured> rows;
+    const auto measure = [&](Measured m, const std::vector<vec3>& contribution, const std::string& imageName) {
+        const Image test = rgbImage(w, h, contribution);
+        const ImageDifference d = compareImages(test, referenceImage);
+        const FlipResult flip = hdrFlip(contribution, reference, w, h);
+        m.relMse = d.relMse;
+        m.psnr = d.psnr;
+        m.ssim = d.ssim;
+        m.flip = flip.mean;
+        if (!imageName.empty()) {
+            writePng(std::filesystem::path(out) / (imageName + ".png"), test, "", exposure);
+            writePng(std::filesystem::path(out) / ("flip_" + imageName + ".png"), flipErrorImage(flip));
+        }
+        rows.push_back(m);
+        progress("measured " + m.method + " " + std::to_string(m.kind == "spp" ? m.spp : m.frames) + " " + m.kind);
+    };
+
+    // Step: raw accumulation at 1, 2, 4 ... max spp (frame 0). The fastest
+    // of two runs counts, so that one scheduling hiccup does not bend the curve.
+    std::map<int, Image> rawImages;  // the denoisers' inputs
+    const std::vector<int> denoiseSpps = powersOfTwoUpTo(std::min(o.denoiseMaxSpp, o.maxSpp));
+    for (const int spp : powersOfTwoUpTo(o.maxSpp)) {
+        double best = 0;
+        Image image;
+        for (int run = 0; run < (spp <= 16 ? 2 : 1); ++run) {
+            shaders::FrameHistory none;
+            double ms = 0;
+            image = render(settingsFor(spp, 0, o.seed), none, ms);
+            best = run == 0 ? ms : std::min(best, ms);
+        }
+        Measured m{"raw", "spp", spp, 1, best};
+        measure(m, shaders::effectContribution(image, o.effect), spp == 1 ? "raw_1spp" : "");
+        if (std::find(denoiseSpps.begin(), denoiseSpps.end(), spp) != denoiseSpps.end()) rawImages[spp] = std::move(image);
+    }
+    std::vector<Measured> raw(rows.begin(), rows.end());
+
+    // Step: the denoisers: the effect's own stack, and plain SVGF where that differs.
+    struct Method {
+        std::string name;
+        bool forceSvgf;
+    };
+    std::vector<Method> methods;
+    {
+        Image probe = rawImages.at(1);
+        denoise::EffectLayerDenoiser d({o.effect});
+        std::string stack = "svgf";
+        for (const denoise::DenoisedLayer& l : d.apply(probe))
+            if (l.stack != denoise::DenoiseStack::Svgf) stack = denoise::stackName(l.stack);
+        methods.push_back({stack, false});
+        if (stack != "svgf") methods.push_back({"svgf", true});
+    }
+    for (const Method& method : methods) {
+        // One frame, no history, at 1, 2, 4 ... spp.
+        for (const int spp : denoiseSpps) {
+            Image image = rawImages.at(spp);
+            denoise::EffectLayerDenoiser denoiser({o.effect}, method.forceSvgf);
+            const Stopwatch clock;
+            denoiser.apply(image);
+            const double denoiseMs = clock.elapsedMs();
+            const auto rawRow = std::find_if(raw.begin(), raw.end(), [&](const Measured& r) { return r.spp == spp; });
+            Measured m{method.name, "spp", spp, 1, rawRow->ms + denoiseMs};
+            measure(m, shaders::effectContribution(image, o.effect),
+                    spp == 1 ? method.name + "_1spp" : "");
+        }
+        // 1 spp per frame with history (static camera), measured after 1, 2, 4 ... frames.
+        denoise::EffectLayerDenoiser denoiser({o.effect}, method.forceSvgf);
+        shaders::FrameHistory history;
+        const std::vector<int> checkpoints = powersOfTwoUpTo(o.frames);
+        double totalMs = 0;
+        for (int f = 1; f <= o.frames; ++f) {
+            double renderMs = 0;
+            Image image = render(settingsFor(1, static_cast<std::uint32_t>(f - 1), o.seed), history, renderMs);
+            const Stopwatch clock;
+            denoiser.apply(image);
+            totalMs += renderMs + clock.elapsedMs();
+            if (std::find(checkpoints.begin(), checkpoints.end(), f) == checkpoints.end()) continue;
+            Measured m{method.name + " temporal", "frames", 1, f, totalMs};
+            measure(m, shaders::effectContribution(image, o.effect),
+                    f == o.frames && f > 1 ? method.name + "_" + std::to_string(f) + "frames" : "");
+        }
+    }
+    progress("");
+
+    // Step: equal-error speed-ups against raw accumulation.
+    for (Measured& m : rows) {
+        if (m.method == "raw") continue;
+        m.rawMsAtEqualError = rawMsAt(raw, m.relMse, m.extrapolated);
+        m.speedup = m.ms > 0 ? m.rawMsAtEqualError / m.ms : 0.0;
+    }
+
+    // Step: converge.json, converge.csv, converge.png.
+    nlohmann::json j;
+    j["scene"] = o.scene;
+    j["effect"] = o.effect;
+    j["settings"] = {{"width", w}, {"height", h}, {"referenceSpp", o.referenceSpp}, {"maxSpp", o.maxSpp},
+                     {"denoiseMaxSpp", o.denoiseMaxSpp}, {"frames", o.frames}, {"threads", o.threads},
+                     {"seed", o.seed}, {"reflectionRoughness", o.reflectionRoughness}, {"aoRadius", o.aoRadius}};
+    j["reference"] = {{"file", cacheFile.string()}, {"cached", referenceCached}, {"ms", referenceMs},
+                      {"seed", o.seed ^ kReferenceSeedSalt}};
+    j["plan"] = planJson;
+    j["metrics"] = {{"relMse", "mean over pixels and R,G,B of (x - ref)^2 / (ref^2 + 1e-2)"},
+                    {"psnr", "10 log10(peak^2 / MSE), peak = max(1, max |ref|)"},
+                    {"ssim", "Wang et al. 2004 on Rec.709 luminance clamped to [0, 1]"},
+                    {"flip", "mean HDR-FLIP (Andersson et al. 2020, 2021), 67 pixels per degree"},
+                    {"ms", "wall milliseconds of every render and denoise that produced the image"},
+                    {"speedup", "ms raw accumulation needs to reach the same relMSE (log-log interpolation; "
+                                "beyond the last raw point relMSE ~ 1/ms) / ms"}};
+    j["displayExposure"] = exposure;
+    j["rows"] = nlohmann::json::array();
+    std::string csv = "method,kind,spp,frames,ms,relmse,psnr,ssim,flip,raw_ms_at_equal_error,speedup,extrapolated\n";
+    for (const Measured& m : rows) {
+        nlohmann::json r = {{"method", m.method}, {"kind", m.kind}, {"spp", m.spp}, {"frames", m.frames},
+                            {"ms", m.ms}, {"relMse", m.relMse}, {"psnr", std::isinf(m.psnr) ? 1e300 : m.psnr},
+                            {"ssim", m.ssim}, {"flip", m.flip}};
+        if (m.method != "raw")
+            r.update({{"rawMsAtEqualError", m.rawMsAtEqualError}, {"speedup", m.speedup},
+                      {"extrapolated", m.extrapolated}});
+        j["rows"].push_back(r);
+        csv += m.method + "," + m.kind + "," + std::to_string(m.spp) + "," + std::to_string(m.frames) + "," +
+               formatDouble(m.ms) + "," + formatDouble(m.relMse) + "," + formatDouble(m.psnr) + "," +
+               formatDouble(m.ssim) + "," + formatDouble(m.flip) + "," + formatDouble(m.rawMsAtEqualError) + "," +
+               formatDouble(m.speedup) + "," + (m.extrapolated ? "true" : "false") + "\n";
+    }
+    // The headline: the effect's own stack at 1 spp, one frame.
+    const auto headline = std::find_if(rows.begin(), rows.end(), [&](const Measured& m) {
+        return m.method == methods.front().name && m.kind == "spp" && m.spp == 1;
+    });
+    j["summary"] = {{"stack", methods.front().name},
+                    {"rawRelMse1spp", raw.front().relMse},
+                    {"denoisedRelMse1spp", headline->relMse},
+                    {"relMseReduction", headline->relMse > 0 ? raw.front().relMse / headline->relMse : 0.0},
+                    {"equalErrorSpeedup", headline->speedup},
+                    {"extrapolated", headline->extrapolated}};
+    writeTextFileAtomically(std::filesystem::path(out) / "converge.json", j.dump(2) + "\n");
+    writeTextFileAtomically(std::filesystem::path(out) / "converge.csv", csv);
+
+    std::vector<PlotSeries> series;
+    const auto seriesOf = [&](const std::string& method, const std::string& kind, const std::string& label) {
+        PlotSeries s{label, {}, {}, false};
+        for (const Measured& m : rows)
+            if (m.method == method && m.kind == kind) {
+                s.x.push_back(m.ms);
+                s.y.push_back(m.relMse);
+            }
+        if (!s.x.empty()) series.push_back(s);
+    };
+    seriesOf("raw", "spp", "raw accumulation (1, 2, 4 ... spp)");
+    for (const Method& method : methods) {
+        seriesOf(method.name, "spp", method.name + " (1 frame, 1, 2 ... spp)");
+        seriesOf(method.name + " temporal", "frames", method.name + " (1 spp, after 1, 2, 4 ... frames)");
+    }
+    PlotOptions plotOptions;
+    plotOptions.title = o.effect + " on " + o.scene + " (" + std::to_string(w) + "x" + std::to_string(h) + ")";
+    plotOptions.xLabel = "wall milliseconds";
+    plotOptions.yLabel = "relMSE";
+    const PlotReport plotted = writeLogLogPlot(std::filesystem::path(out) / "converge.png", series, plotOptions);
+    if (plotted.pointsSkipped)
+        std::cerr << "rtlab: note: converge.png leaves out " << plotted.pointsSkipped
+                  << " points with relMSE 0 (identical to the reference)\n";
+
+    // Step: the table.
+    std::printf("%s on %s, %dx%d, reference %d spp%s\n", o.effect.c_str(), o.scene.c_str(), w, h, o.referenceSpp,
+                referenceCached ? " (cached)" : "");
+    std::printf("%-22s %6s %6s %10s %11s %8s %7s %7s %9s\n", "method", "spp", "frames", "ms", "relMSE", "PSNR", "SSIM",
+                "FLIP", "speed-up");
+    for (const Measured& m : rows)
+        std::printf("%-22s %6d %6d %10.1f %11.5g %8.2f %7.4f %7.4f %9s\n", m.method.c_str(), m.spp, m.frames, m.ms,
+                    m.relMse, m.psnr, m.ssim, m.flip,
+                    m.method == "raw" ? "" : (formatDouble(m.speedup, "%.1fx") + (m.extrapolated ? "*" : "")).c_str());
+    std::printf("%s, 1 spp: relMSE %.4g raw -> %.4g denoised (%.1fx lower); equal-error speed-up %.1fx%s\n",
+                methods.front().name.c_str(), raw.front().relMse, headline->relMse,
+                headline->relMse > 0 ? raw.front().relMse / headline->relMse : 0.0, headline->speedup,
+                headline->extrapolated ? " (* extrapolated beyond the last raw point with relMSE ~ 1/ms)" : "");
+    std::printf("wrote %s/converge.{json,csv,png}\n", out.c_str());
+    return 0;
+}
+
+}  // namespace rtlab::app
