@@ -112,9 +112,12 @@ struct Measured {
     int frames = 1;
     double ms = 0;       // wall ms of everything that produced this image (all its frames)
     double relMse = 0, psnr = 0, ssim = 0, flip = 0;
-    // Equal-error speed-up: ms raw accumulation needs for this error / ms.
+    // Equal-error speed-ups: ms raw needs for this error / ms, against raw
+    // samples in one frame (spp) and against accumulated 1-spp frames.
     double rawMsAtEqualError = 0, speedup = 0;
     bool extrapolated = false;
+    double rawFramesMsAtEqualError = 0, speedupFrames = 0;
+    bool extrapolatedFrames = false;
 };
 
 // Milliseconds raw accumulation needs to reach `error`, interpolated
@@ -284,6 +287,29 @@ int runConverge(const ConvergeOptions& o) {
     }
     std::vector<Measured> raw(rows.begin(), rows.end());
 
+    // Step: raw accumulation of 1-spp frames (frame f uses frame index f):
+    // what a progressive renderer does; every frame pays the whole pass.
+    {
+        std::vector<glm::dvec3> sum(static_cast<std::size_t>(w) * h, glm::dvec3(0.0));
+        const std::vector<int> checkpoints = powersOfTwoUpTo(o.maxSpp);
+        double totalMs = 0;
+        for (int f = 1; f <= o.maxSpp; ++f) {
+            shaders::FrameHistory none;
+            double ms = 0;
+            const Image image = render(settingsFor(1, static_cast<std::uint32_t>(f - 1), o.seed), none, ms);
+            totalMs += ms;
+            const std::vector<vec3> c = shaders::effectContribution(image, o.effect);
+            for (std::size_t p = 0; p < c.size(); ++p) sum[p] += glm::dvec3(c[p]);
+            if (std::find(checkpoints.begin(), checkpoints.end(), f) == checkpoints.end()) continue;
+            std::vector<vec3> mean(sum.size());
+            for (std::size_t p = 0; p < sum.size(); ++p) mean[p] = vec3(sum[p] / static_cast<double>(f));
+            measure(Measured{"raw frames", "frames", 1, f, totalMs}, mean, "");
+        }
+    }
+    std::vector<Measured> rawFrames;
+    for (const Measured& m : rows)
+        if (m.method == "raw frames") rawFrames.push_back(m);
+
     // Step: the denoisers: the effect's own stack, and plain SVGF where that differs.
     struct Method {
         std::string name;
@@ -333,9 +359,11 @@ int runConverge(const ConvergeOptions& o) {
 
     // Step: equal-error speed-ups against raw accumulation.
     for (Measured& m : rows) {
-        if (m.method == "raw") continue;
+        if (m.method == "raw" || m.method == "raw frames") continue;
         m.rawMsAtEqualError = rawMsAt(raw, m.relMse, m.extrapolated);
         m.speedup = m.ms > 0 ? m.rawMsAtEqualError / m.ms : 0.0;
+        m.rawFramesMsAtEqualError = rawMsAt(rawFrames, m.relMse, m.extrapolatedFrames);
+        m.speedupFrames = m.ms > 0 ? m.rawFramesMsAtEqualError / m.ms : 0.0;
     }
 
     // Step: converge.json, converge.csv, converge.png.
@@ -353,23 +381,29 @@ int runConverge(const ConvergeOptions& o) {
                     {"ssim", "Wang et al. 2004 on Rec.709 luminance clamped to [0, 1]"},
                     {"flip", "mean HDR-FLIP (Andersson et al. 2020, 2021), 67 pixels per degree"},
                     {"ms", "wall milliseconds of every render and denoise that produced the image"},
-                    {"speedup", "ms raw accumulation needs to reach the same relMSE (log-log interpolation; "
-                                "beyond the last raw point relMSE ~ 1/ms) / ms"}};
+                    {"speedup", "ms raw (N spp in one frame) needs to reach the same relMSE (log-log "
+                                "interpolation; beyond the last raw point relMSE ~ 1/ms) / ms"},
+                    {"speedupFrames", "the same against raw accumulation of 1-spp frames"}};
     j["displayExposure"] = exposure;
     j["rows"] = nlohmann::json::array();
-    std::string csv = "method,kind,spp,frames,ms,relmse,psnr,ssim,flip,raw_ms_at_equal_error,speedup,extrapolated\n";
+    std::string csv = "method,kind,spp,frames,ms,relmse,psnr,ssim,flip,raw_ms_at_equal_error,speedup,extrapolated,"
+                      "raw_frames_ms_at_equal_error,speedup_frames,extrapolated_frames\n";
     for (const Measured& m : rows) {
         nlohmann::json r = {{"method", m.method}, {"kind", m.kind}, {"spp", m.spp}, {"frames", m.frames},
                             {"ms", m.ms}, {"relMse", m.relMse}, {"psnr", std::isinf(m.psnr) ? 1e300 : m.psnr},
                             {"ssim", m.ssim}, {"flip", m.flip}};
-        if (m.method != "raw")
+        const bool isRaw = m.method == "raw" || m.method == "raw frames";
+        if (!isRaw)
             r.update({{"rawMsAtEqualError", m.rawMsAtEqualError}, {"speedup", m.speedup},
-                      {"extrapolated", m.extrapolated}});
+                      {"extrapolated", m.extrapolated}, {"rawFramesMsAtEqualError", m.rawFramesMsAtEqualError},
+                      {"speedupFrames", m.speedupFrames}, {"extrapolatedFrames", m.extrapolatedFrames}});
         j["rows"].push_back(r);
         csv += m.method + "," + m.kind + "," + std::to_string(m.spp) + "," + std::to_string(m.frames) + "," +
                formatDouble(m.ms) + "," + formatDouble(m.relMse) + "," + formatDouble(m.psnr) + "," +
                formatDouble(m.ssim) + "," + formatDouble(m.flip) + "," + formatDouble(m.rawMsAtEqualError) + "," +
-               formatDouble(m.speedup) + "," + (m.extrapolated ? "true" : "false") + "\n";
+               formatDouble(m.speedup) + "," + (m.extrapolated ? "true" : "false") + "," +
+               formatDouble(m.rawFramesMsAtEqualError) + "," + formatDouble(m.speedupFrames) + "," +
+               (m.extrapolatedFrames ? "true" : "false") + "\n";
     }
     // The headline: the effect's own stack at 1 spp, one frame.
     const auto headline = std::find_if(rows.begin(), rows.end(), [&](const Measured& m) {
@@ -380,7 +414,9 @@ int runConverge(const ConvergeOptions& o) {
                     {"denoisedRelMse1spp", headline->relMse},
                     {"relMseReduction", headline->relMse > 0 ? raw.front().relMse / headline->relMse : 0.0},
                     {"equalErrorSpeedup", headline->speedup},
-                    {"extrapolated", headline->extrapolated}};
+                    {"extrapolated", headline->extrapolated},
+                    {"equalErrorSpeedupFrames", headline->speedupFrames},
+                    {"extrapolatedFrames", headline->extrapolatedFrames}};
     writeTextFileAtomically(std::filesystem::path(out) / "converge.json", j.dump(2) + "\n");
     writeTextFileAtomically(std::filesystem::path(out) / "converge.csv", csv);
 
@@ -394,7 +430,8 @@ int runConverge(const ConvergeOptions& o) {
             }
         if (!s.x.empty()) series.push_back(s);
     };
-    seriesOf("raw", "spp", "raw accumulation (1, 2, 4 ... spp)");
+    seriesOf("raw", "spp", "raw (1, 2, 4 ... spp in one frame)");
+    seriesOf("raw frames", "frames", "raw (1, 2, 4 ... 1-spp frames accumulated)");
     for (const Method& method : methods) {
         seriesOf(method.name, "spp", method.name + " (1 frame, 1, 2 ... spp)");
         seriesOf(method.name + " temporal", "frames", method.name + " (1 spp, after 1, 2, 4 ... frames)");
@@ -411,16 +448,25 @@ int runConverge(const ConvergeOptions& o) {
     // Step: the table.
     std::printf("%s on %s, %dx%d, reference %d spp%s\n", o.effect.c_str(), o.scene.c_str(), w, h, o.referenceSpp,
                 referenceCached ? " (cached)" : "");
-    std::printf("%-22s %6s %6s %10s %11s %8s %7s %7s %9s\n", "method", "spp", "frames", "ms", "relMSE", "PSNR", "SSIM",
-                "FLIP", "speed-up");
-    for (const Measured& m : rows)
-        std::printf("%-22s %6d %6d %10.1f %11.5g %8.2f %7.4f %7.4f %9s\n", m.method.c_str(), m.spp, m.frames, m.ms,
-                    m.relMse, m.psnr, m.ssim, m.flip,
-                    m.method == "raw" ? "" : (formatDouble(m.speedup, "%.1fx") + (m.extrapolated ? "*" : "")).c_str());
-    std::printf("%s, 1 spp: relMSE %.4g raw -> %.4g denoised (%.1fx lower); equal-error speed-up %.1fx%s\n",
+    std::printf("%-22s %6s %6s %10s %11s %8s %7s %7s %10s %10s\n", "method", "spp", "frames", "ms", "relMSE", "PSNR",
+                "SSIM", "FLIP", "vs spp", "vs frames");
+    const auto speedupText = [](double v, bool extrapolated) {
+        return formatDouble(v, "%.1fx") + (extrapolated ? "*" : "");
+    };
+    for (const Measured& m : rows) {
+        const bool isRaw = m.method == "raw" || m.method == "raw frames";
+        std::printf("%-22s %6d %6d %10.1f %11.5g %8.2f %7.4f %7.4f %10s %10s\n", m.method.c_str(), m.spp, m.frames,
+                    m.ms, m.relMse, m.psnr, m.ssim, m.flip, isRaw ? "" : speedupText(m.speedup, m.extrapolated).c_str(),
+                    isRaw ? "" : speedupText(m.speedupFrames, m.extrapolatedFrames).c_str());
+    }
+    std::printf("(speed-up = ms raw needs for the same relMSE / ms; vs spp: N spp in one frame, vs frames: N 1-spp "
+                "frames accumulated; * = beyond the last raw point, extrapolated with relMSE ~ 1/ms)\n");
+    std::printf("%s, 1 spp: relMSE %.4g raw -> %.4g denoised (%.1fx lower); equal-error speed-up %s vs spp, %s vs "
+                "frames\n",
                 methods.front().name.c_str(), raw.front().relMse, headline->relMse,
-                headline->relMse > 0 ? raw.front().relMse / headline->relMse : 0.0, headline->speedup,
-                headline->extrapolated ? " (* extrapolated beyond the last raw point with relMSE ~ 1/ms)" : "");
+                headline->relMse > 0 ? raw.front().relMse / headline->relMse : 0.0,
+                speedupText(headline->speedup, headline->extrapolated).c_str(),
+                speedupText(headline->speedupFrames, headline->extrapolatedFrames).c_str());
     std::printf("wrote %s/converge.{json,csv,png}\n", out.c_str());
     return 0;
 }
