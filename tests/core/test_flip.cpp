@@ -669,18 +669,3 @@ TEST(FlipErrorImage, OfARealResult) {
     EXPECT_EQ(image.height(), 10);
     EXPECT_TRUE(image.hasChannel("R") && image.hasChannel("G") && image.hasChannel("B"));
 }
-
-// Timing of a 640x360 HDR-FLIP; run with --gtest_also_run_disabled_tests.
-TEST(FlipPerf, DISABLED_Hdr640x360) {
-    const std::vector<vec3> reference = seededHdrImage(640, 360, 3);
-    std::vector<vec3> test = reference;
-    for (std::size_t i = 0; i < test.size(); ++i) test[i] *= 0.8f + 0.4f * uniform01(4, std::uint32_t(i), 0);
-    const auto start = std::chrono::steady_clock::now();
-    const FlipResult r = hdrFlip(test, reference, 640, 360);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("hdrFlip 640x360: %.3f s, %d exposures, mean %.6f\n", seconds, r.exposureCount, r.mean);
-    const auto ldrStart = std::chrono::steady_clock::now();
-    const FlipResult l = ldrFlip(seededImage(640, 360, 1), seededImage(640, 360, 2), 640, 360);
-    const double ldrSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ldrStart).count();
-    std::printf("ldrFlip 640x360: %.3f s, mean %.6f\n", ldrSeconds, l.mean);
-}
