@@ -146,12 +146,30 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
     vf tailMask[kLanes];
     for (int k = 0; k < kLanes; ++k)
         for (int lane = 0; lane < kLanes; ++lane) tailMask[k][lane] = lane < k ? 1.f : 0.f;
+    const auto isFiltered = [&](std::size_t i) {
+        return g.geometry[i] != 0.f && (g.footprint.empty() || 2.f * static_cast<float>(step) <= g.footprint[i]);
+    };
     // Step: the 5x5 taps, row by row; per row, lanes are consecutive pixels.
     parallelForEach(static_cast<std::size_t>(h), [&](std::size_t rowIndex) {
         const int y = static_cast<int>(rowIndex);
         const std::size_t row = rowIndex * static_cast<std::size_t>(w);
         const std::size_t padded = static_cast<std::size_t>(w) + kLanes;
         std::vector<float> sumW(padded), sumVar(padded), sumR(padded), sumG(padded), sumB(padded);
+        // Step: which pixels this iteration filters (geometry, within the footprint);
+        // whole vectors of pixels it does not filter skip the taps.
+        std::vector<int> activeBefore(static_cast<std::size_t>(w) + 1, 0);  // prefix count
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = row + x;
+            activeBefore[x + 1] = activeBefore[x] + (isFiltered(i) ? 1 : 0);
+        }
+        if (activeBefore[w] == 0) {
+            for (int x = 0; x < w; ++x) {
+                const std::size_t i = row + x;
+                out.r[i] = in.r[i], out.g[i] = in.g[i], out.b[i] = in.b[i];
+                out.variance[i] = in.variance[i];
+            }
+            return;
+        }
         for (int x = 0; x < w; ++x) {
             const std::size_t i = row + x;
             sumW[x] = hCentre;
@@ -160,6 +178,12 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
             sumG[x] = hCentre * in.g[i];
             sumB[x] = hCentre * in.b[i];
         }
+        // Plain pointers: stores to the sums cannot alias them (the vectors' own pointers could be reloaded).
+        const float *nx = g.nx.data(), *ny = g.ny.data(), *nz = g.nz.data(), *depth = g.depth.data();
+        const float *gradX = g.gradX.data(), *gradY = g.gradY.data(), *geometry = g.geometry.data();
+        const float *lum = in.luminance.data(), *invLum = invLumScale.data(), *var = in.variance.data();
+        const float *red = in.r.data(), *green = in.g.data(), *blue = in.b.data();
+        float *sW = sumW.data(), *sVar = sumVar.data(), *sR = sumR.data(), *sG = sumG.data(), *sB = sumB.data();
         for (int ky = -2; ky <= 2; ++ky) {
             const int py = y + ky * step;
             if (py < 0 || py >= h) continue;
@@ -172,37 +196,36 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
                 const float hk = kKernel[std::abs(kx)] * kKernel[std::abs(ky)];
                 const vf offX = simd::splat(static_cast<float>(dx)), offY = simd::splat(static_cast<float>(ky * step));
                 for (int x = x0; x < x1; x += kLanes) {
+                    if (activeBefore[std::min(x + kLanes, w)] == activeBefore[x]) continue;
                     // Lanes past x1 read padding or the next row and get weight 0.
                     const vf laneMask = x + kLanes <= x1 ? simd::splat(1.f) : tailMask[x1 - x];
                     const std::size_t i = row + x, j = rowQ + x + dx;
                     // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps.
-                    const vf d = simd::loadu(&g.nx[i]) * simd::loadu(&g.nx[j]) +
-                                 simd::loadu(&g.ny[i]) * simd::loadu(&g.ny[j]) +
-                                 simd::loadu(&g.nz[i]) * simd::loadu(&g.nz[j]);
+                    const vf d = simd::loadu(nx + i) * simd::loadu(nx + j) + simd::loadu(ny + i) * simd::loadu(ny + j) +
+                                 simd::loadu(nz + i) * simd::loadu(nz + j);
                     const vf wn = normalPower(d);
-                    const vf z = simd::loadu(&g.depth[i]);
-                    const vf dz = simd::abs(z - simd::loadu(&g.depth[j]));
-                    const vf zDen = simd::abs(simd::loadu(&g.gradX[i]) * offX + simd::loadu(&g.gradY[i]) * offY) * sigmaZ +
+                    const vf z = simd::loadu(depth + i);
+                    const vf dz = simd::abs(z - simd::loadu(depth + j));
+                    const vf zDen = simd::abs(simd::loadu(gradX + i) * offX + simd::loadu(gradY + i) * offY) * sigmaZ +
                                     simd::abs(z) * depthEps;
                     const vf termZ = simd::select(dz == 0.f, simd::splat(0.f),
                                                   simd::select(zDen > 0.f, dz / zDen, simd::splat(kInfinity)));
-                    const vf dl = simd::abs(simd::loadu(&in.luminance[i]) - simd::loadu(&in.luminance[j]));
-                    const vf termL = simd::select(dl == 0.f, simd::splat(0.f), dl * simd::loadu(&invLumScale[i]));
-                    const vf wgt = simd::expNeg(termZ + termL) * wn * simd::loadu(&g.geometry[j]);
+                    const vf dl = simd::abs(simd::loadu(lum + i) - simd::loadu(lum + j));
+                    const vf termL = simd::select(dl == 0.f, simd::splat(0.f), dl * simd::loadu(invLum + i));
+                    const vf wgt = simd::expNeg(termZ + termL) * wn * simd::loadu(geometry + j);
                     const vf hw = wgt * (laneMask * hk);
-                    simd::storeu(&sumW[x], simd::loadu(&sumW[x]) + hw);
-                    simd::storeu(&sumVar[x], simd::loadu(&sumVar[x]) + hw * hw * simd::loadu(&in.variance[j]));
-                    simd::storeu(&sumR[x], simd::loadu(&sumR[x]) + hw * simd::loadu(&in.r[j]));
-                    simd::storeu(&sumG[x], simd::loadu(&sumG[x]) + hw * simd::loadu(&in.g[j]));
-                    simd::storeu(&sumB[x], simd::loadu(&sumB[x]) + hw * simd::loadu(&in.b[j]));
+                    simd::storeu(sW + x, simd::loadu(sW + x) + hw);
+                    simd::storeu(sVar + x, simd::loadu(sVar + x) + hw * hw * simd::loadu(var + j));
+                    simd::storeu(sR + x, simd::loadu(sR + x) + hw * simd::loadu(red + j));
+                    simd::storeu(sG + x, simd::loadu(sG + x) + hw * simd::loadu(green + j));
+                    simd::storeu(sB + x, simd::loadu(sB + x) + hw * simd::loadu(blue + j));
                 }
             }
         }
         // Step: normalise; sky centres pass through unchanged.
         for (int x = 0; x < w; ++x) {
             const std::size_t i = row + x;
-            const bool filtered = g.geometry[i] != 0.f && (g.footprint.empty() || 2.f * step <= g.footprint[i]);
-            if (!filtered) {
+            if (!isFiltered(i)) {
                 out.r[i] = in.r[i], out.g[i] = in.g[i], out.b[i] = in.b[i];
                 out.variance[i] = in.variance[i];
                 continue;

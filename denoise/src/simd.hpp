@@ -17,13 +17,14 @@ inline constexpr int kWidth = 4;
 typedef float vf __attribute__((vector_size(kWidth * sizeof(float))));
 typedef std::int32_t vi __attribute__((vector_size(kWidth * sizeof(std::int32_t))));
 
+// Unaligned vectors of float: loads and stores through this type are float
+// accesses (type-based alias analysis applies), unlike memcpy, which the
+// compiler must assume may overwrite any pointer it holds.
+typedef float vfUnaligned __attribute__((vector_size(kWidth * sizeof(float)), aligned(alignof(float))));
+
 inline vf splat(float v) { return vf{} + v; }
-inline vf loadu(const float* p) {
-    vf v;
-    std::memcpy(&v, p, sizeof(v));
-    return v;
-}
-inline void storeu(float* p, const vf& v) { std::memcpy(p, &v, sizeof(v)); }
+inline vf loadu(const float* p) { return *reinterpret_cast<const vfUnaligned*>(p); }
+inline void storeu(float* p, const vf& v) { *reinterpret_cast<vfUnaligned*>(p) = v; }
 // Loads `count` (< kWidth) lanes, the rest `fill`.
 inline vf loadPartial(const float* p, int count, float fill) {
     vf v = splat(fill);
