@@ -1,4 +1,5 @@
 #include <rtlab/denoise/effect_layers.hpp>
+#include <rtlab/denoise/modulation.hpp>
 
 #include <algorithm>
 #include <span>
@@ -12,6 +13,7 @@ struct SignalLayer {
     bool scalar = false;
     DenoiseStack stack = DenoiseStack::Svgf;
     std::string footprintSource;  // shadows: the penumbra channel
+    bool demodulateAlbedo = false;  // filter colour / albedo.RGB, then multiply back (texture stays sharp)
 };
 
 std::vector<SignalLayer> signalsOf(const Image& frame, const std::string& effect) {
@@ -28,6 +30,7 @@ std::vector<SignalLayer> signalsOf(const Image& frame, const std::string& effect
             one(layer + ".V", DenoiseStack::Shadow, layer + ".penumbra");
         }
         rgb("direct.point", DenoiseStack::Svgf);
+        if (!out.empty() && out.back().layer == "direct.point") out.back().demodulateAlbedo = true;
     } else if (effect == "reflections") {
         rgb("reflection", DenoiseStack::Reflection);
     } else if (effect == "ao") {
@@ -162,9 +165,15 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
                 noisy = frame.rgbLayer(s.layer);
                 frame.addRgbLayer("noisy." + s.layer, noisy);
             }
+            std::vector<vec3> albedo;
+            if (s.demodulateAlbedo && frame.hasChannel("albedo.R")) {
+                albedo = frame.rgbLayer("albedo");
+                demodulate(noisy, albedo, noisy);
+            }
             auto it = filters_.try_emplace(s.layer, params.svgf).first;
             it->second.setParams(params.svgf);
             it->second.filter(guides, noisy, out, footprint);
+            if (!albedo.empty()) remodulate(out, albedo, out);
             if (s.scalar) {
                 float* c = frame.channel(s.layer);
                 for (std::size_t p = 0; p < n; ++p) c[p] = out[p].x;

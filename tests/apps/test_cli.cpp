@@ -312,3 +312,48 @@ TEST(Cli, DenoisedBeautyIsCloserToTheReference) {
     EXPECT_EQ(stats["settings"]["denoise"], "auto");
     EXPECT_GE(stats["frames"][1]["denoised"].size(), 3u);  // shadow.light0.V, ao.V, gi
 }
+
+TEST(Cli, ConvergeMeasuresRawAndDenoisedAgainstACachedReference) {
+    const fs::path out = freshDir("converge"), cache = freshDir("converge_cache");
+    const std::string args = "converge --scene builtin:cornell --effect ao --width 48 --height 32 --reference-spp 64 "
+                             "--max-spp 8 --denoise-max-spp 2 --frames 2 --out " + out.string() + " --cache " +
+                             cache.string();
+    const CliRun first = runCli(args);
+    ASSERT_EQ(first.exitCode, 0) << first.out;
+    for (const char* f : {"converge.json", "converge.csv", "converge.png", "reference.png", "raw_1spp.png",
+                          "ao_1spp.png", "flip_raw_1spp.png", "flip_ao_1spp.png", "ao_2frames.png"})
+        EXPECT_TRUE(fs::exists(out / f)) << f;
+    std::ifstream in(out / "converge.json");
+    const nlohmann::json j = nlohmann::json::parse(in);
+    EXPECT_FALSE(j["reference"]["cached"].get<bool>());
+    // Raw error falls with samples; the AO stack beats raw 1 spp; every metric is finite.
+    std::vector<double> raw;
+    for (const auto& r : j["rows"]) {
+        for (const char* k : {"ms", "relMse", "ssim", "flip"}) EXPECT_TRUE(std::isfinite(r[k].get<double>())) << k;
+        EXPECT_GE(r["flip"].get<double>(), 0.0);
+        EXPECT_LE(r["flip"].get<double>(), 1.0);
+        if (r["method"] == "raw") raw.push_back(r["relMse"].get<double>());
+    }
+    ASSERT_EQ(raw.size(), 4u);  // 1, 2, 4, 8 spp
+    for (std::size_t i = 1; i < raw.size(); ++i) EXPECT_LT(raw[i], raw[i - 1]);
+    EXPECT_EQ(j["summary"]["stack"], "ao");
+    EXPECT_GT(j["summary"]["relMseReduction"].get<double>(), 2.0);
+    EXPECT_GT(j["summary"]["equalErrorSpeedup"].get<double>(), 0.0);
+    // The second run reads the reference from the cache.
+    const CliRun second = runCli(args);
+    ASSERT_EQ(second.exitCode, 0) << second.out;
+    EXPECT_NE(second.out.find("(cached)"), std::string::npos) << second.out;
+}
+
+TEST(Cli, ConvergeRejectsBadInputWithExitTwo) {
+    const fs::path out = freshDir("converge_bad");
+    for (const std::string& args : std::vector<std::string>{
+             "converge --scene builtin:cornell --effect sparkles", "converge --scene builtin:cornell --effect reflections",
+          "converge --scene " + (kAssimp / "IndexOutOfRange/IndexOutOfRange.gltf").string() + " --effect ao",
+          std::string("converge --scene builtin:cornell")}) {
+        const CliRun r = runCli(args + " --width 16 --height 16 --reference-spp 4 --out " + out.string() +
+                                " --cache " + out.string());
+        EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.out;
+        EXPECT_FALSE(fs::exists(out / "converge.json")) << args;
+    }
+}

@@ -9,7 +9,8 @@
 //   effect        signal layers                          stack
 //   shadows       shadow.light<i>.V (one per area light)  Shadow: visibility only; footprint from the
 //                                                          penumbra (shadow.light<i>.penumbra); history clamp
-//                 direct.point.RGB                        Svgf (point lights: hard shadows, one light pick)
+//                 direct.point.RGB                        Svgf on direct.point / albedo.RGB (point lights: hard
+//                                                          shadows, one light pick; remodulated after)
 //   reflections   reflection.RGB (incoming radiance)      Reflection: footprint from roughness.Y and
 //                                                          reflection.hitT; history clamp
 //   ao            ao.V                                    AmbientOcclusion: footprint from ao.hitT

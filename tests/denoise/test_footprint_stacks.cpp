@@ -1,0 +1,175 @@
+// Per-effect stacks: the footprint rules (known answers) and the layer
+// denoiser's choice of stack.
+#include "denoise/denoise_test_util.hpp"
+
+#include <rtlab/core/image.hpp>
+#include <rtlab/denoise/effect_layers.hpp>
+#include <rtlab/denoise/footprint.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+using namespace rtlab;
+using namespace rtlab::denoise;
+
+namespace {
+
+std::vector<int> allGeometry(std::size_t n) { return std::vector<int>(n, 0); }
+
+bool allFinite(const std::vector<float>& v) {
+    for (const float x : v)
+        if (!std::isfinite(x)) return false;
+    return true;
+}
+
+}  // namespace
+
+TEST(DenoiseFootprint, ShadowPenumbraOverPixelWidth) {
+    // A uniform 0.5-unit penumbra seen at 0.05 units per pixel: 10 pixels everywhere.
+    const int w = 16, h = 12;
+    const std::size_t n = std::size_t(w) * h;
+    const std::vector<float> fp = shadowFootprint(w, h, std::vector<float>(n, 0.5f), std::vector<float>(n, 0.05f),
+                                                  allGeometry(n));
+    for (const float v : fp) EXPECT_NEAR(v, 10.f, 1e-4f);
+}
+
+TEST(DenoiseFootprint, ShadowBlockerSearchFillsPixelsWithoutAnOccluder) {
+    // One column saw an occluder (penumbra 20 px); pixels within the search
+    // radius inherit it, pixels beyond it stay 0 (lit: nothing to filter).
+    const int w = 40, h = 1;
+    std::vector<float> penumbra(w, 0.f);
+    penumbra[5] = 2.f;
+    FootprintParams p;
+    p.smoothRadius = 0;
+    const std::vector<float> fp = shadowFootprint(w, h, penumbra, std::vector<float>(w, 0.1f), allGeometry(w), p, 8);
+    EXPECT_NEAR(fp[5], 20.f, 1e-4f);
+    EXPECT_NEAR(fp[13], 20.f, 1e-4f);  // 8 pixels away: inside the search
+    EXPECT_EQ(fp[14], 0.f);            // 9 away: outside
+    EXPECT_EQ(fp[39], 0.f);
+}
+
+TEST(DenoiseFootprint, ClampedToTheRangeAndZeroOnSky) {
+    const int w = 4, h = 1;
+    std::vector<int> mesh = {0, 0, 0, -1};
+    FootprintParams p;
+    p.smoothRadius = 0;
+    // 1e9 world / 1e-9 pixel: capped; a tiny penumbra: raised to minPx.
+    const std::vector<float> fp =
+        shadowFootprint(w, h, std::vector<float>{1e9f, 1e-6f, 0.f, 5.f}, std::vector<float>{1e-9f, 1.f, 1.f, 1.f}, mesh, p, 0);
+    EXPECT_EQ(fp[0], p.maxPx);
+    EXPECT_EQ(fp[1], p.minPx);
+    EXPECT_EQ(fp[2], 0.f);
+    EXPECT_EQ(fp[3], 0.f);  // sky
+}
+
+TEST(DenoiseFootprint, ReflectionFromRoughnessAndHitDistance) {
+    const int w = 4, h = 1;
+    FootprintParams p;
+    p.smoothRadius = 0;
+    // roughness 0 (mirror): 0; 0.5 at hitT 4 and 0.1 per pixel: 2 * 0.25 * 4 / 0.1 = 20; a miss: maxPx.
+    const std::vector<float> fp =
+        reflectionFootprint(w, h, std::vector<float>{0.f, 0.5f, 0.5f, 0.1f}, std::vector<float>{3.f, 4.f, 0.f, 1.f}, std::vector<float>(4, 0.1f),
+                            allGeometry(4), p);
+    EXPECT_EQ(fp[0], 0.f);
+    EXPECT_NEAR(fp[1], 20.f, 1e-4f);
+    EXPECT_EQ(fp[2], p.maxPx);
+    EXPECT_EQ(fp[3], p.minPx);  // 2 * 0.01 * 1 / 0.1 = 0.2 -> raised to 2
+}
+
+TEST(DenoiseFootprint, AoFromOccluderDistance) {
+    FootprintParams p;
+    p.smoothRadius = 0;
+    const std::vector<float> fp = aoFootprint(3, 1, std::vector<float>{0.05f, 0.5f, 100.f}, std::vector<float>(3, 0.1f), allGeometry(3), p);
+    EXPECT_EQ(fp[0], p.minPx);         // contact: 0.5 px -> the smallest kernel
+    EXPECT_NEAR(fp[1], 5.f, 1e-4f);
+    EXPECT_EQ(fp[2], p.maxPx);         // open
+}
+
+TEST(DenoiseFootprint, NonFiniteInputGivesFiniteFootprints) {
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    const std::vector<float> bad = {nan, inf, -inf, -1.f, 0.f, 1e30f};
+    const std::vector<int> mesh = allGeometry(bad.size());
+    EXPECT_TRUE(allFinite(shadowFootprint(6, 1, bad, bad, mesh)));
+    EXPECT_TRUE(allFinite(reflectionFootprint(6, 1, bad, bad, bad, mesh)));
+    EXPECT_TRUE(allFinite(aoFootprint(6, 1, bad, bad, mesh)));
+    EXPECT_THROW(aoFootprint(5, 1, bad, bad, mesh), std::invalid_argument);
+}
+
+namespace {
+
+// A frame with the guide layers (flat, facing the camera) and one shadow
+// layer: visibility 1 left, 0 right, a hard edge (penumbra 0 left of the
+// edge's occluder, i.e. no occluder seen on the lit side; 0 on the shadowed
+// side too: a contact shadow with no penumbra).
+Image shadowFrame(int w, int h, float penumbraOnShadowedSide, bool withPixelWorld = true) {
+    Image f(w, h);
+    f.addChannel("depth.Z", 1.f);
+    f.addChannel("id.mesh", 0.f);
+    f.addChannel("motion.X", 0.f);
+    f.addChannel("motion.Y", 0.f);
+    f.addChannel("normal.R", 0.f);
+    f.addChannel("normal.G", 0.f);
+    f.addChannel("normal.B", 1.f);
+    if (withPixelWorld) f.addChannel("footprint.pixelWorld", 0.01f);
+    float* v = f.addChannel("shadow.light0.V", 1.f);
+    float* pen = f.addChannel("shadow.light0.penumbra", 0.f);
+    for (int y = 0; y < h; ++y)
+        for (int x = w / 2; x < w; ++x) {
+            v[y * w + x] = 0.f;
+            pen[y * w + x] = penumbraOnShadowedSide;
+        }
+    return f;
+}
+
+}  // namespace
+
+TEST(DenoiseStacks, ShadowLayersUseTheShadowStackAndOthersSvgf) {
+    Image f = shadowFrame(16, 8, 0.f);
+    f.addChannel("ao.V", 1.f);
+    f.addChannel("ao.hitT", 1.f);
+    EffectLayerDenoiser d({"shadows", "ao"});
+    const std::vector<DenoisedLayer> layers = d.apply(f);
+    ASSERT_EQ(layers.size(), 2u);
+    EXPECT_EQ(layers[0].layer, "shadow.light0.V");
+    EXPECT_EQ(layers[0].stack, DenoiseStack::Shadow);
+    EXPECT_EQ(layers[1].layer, "ao.V");
+    EXPECT_EQ(layers[1].stack, DenoiseStack::AmbientOcclusion);
+    EXPECT_TRUE(f.hasChannel("noisy.shadow.light0.V"));
+    // Without the pixel footprint (an older EXR) every layer falls back to SVGF.
+    Image old = shadowFrame(16, 8, 0.f, false);
+    EXPECT_EQ(EffectLayerDenoiser({"shadows"}).apply(old)[0].stack, DenoiseStack::Svgf);
+}
+
+TEST(DenoiseStacks, ZeroPenumbraLeavesAHardShadowUnfiltered) {
+    // No occluder distance anywhere within reach -> footprint 0 -> the noisy
+    // (here: exact) visibility passes through bit-exactly.
+    Image f = shadowFrame(24, 8, 0.f);
+    const std::vector<float> before(f.channel("shadow.light0.V"), f.channel("shadow.light0.V") + f.pixelCount());
+    EffectLayerDenoiser({"shadows"}).apply(f);
+    for (std::size_t i = 0; i < before.size(); ++i) EXPECT_EQ(f.channel("shadow.light0.V")[i], before[i]) << i;
+}
+
+TEST(DenoiseStacks, NoisyPenumbraIsSmoothedAndStaysInRange) {
+    // A wide penumbra (1 unit = 100 px) with 1-spp binary visibility noise
+    // around 0.5: the stack lowers the spread and keeps values in [0, 1].
+    const int w = 48, h = 32;
+    Image f = shadowFrame(w, h, 1.f);
+    float* v = f.channel("shadow.light0.V");
+    float* pen = f.channel("shadow.light0.penumbra");
+    double spreadBefore = 0, spreadAfter = 0;
+    const std::vector<vec3> noise = rtlab::denoise::testing::noisyGrey(f.pixelCount(), 0.5f, 1.f, 3);
+    for (std::size_t i = 0; i < f.pixelCount(); ++i) {
+        pen[i] = 1.f;
+        v[i] = noise[i].r > 0.5f ? 1.f : 0.f;
+        spreadBefore += (v[i] - 0.5) * (v[i] - 0.5);
+    }
+    EffectLayerDenoiser({"shadows"}).apply(f);
+    for (std::size_t i = 0; i < f.pixelCount(); ++i) {
+        EXPECT_GE(f.channel("shadow.light0.V")[i], 0.f);
+        EXPECT_LE(f.channel("shadow.light0.V")[i], 1.f + 1e-6f);
+        spreadAfter += (f.channel("shadow.light0.V")[i] - 0.5) * (f.channel("shadow.light0.V")[i] - 0.5);
+    }
+    EXPECT_LT(spreadAfter, 0.2 * spreadBefore);
+}
