@@ -78,42 +78,6 @@ struct SignalPlanes {
     }
 };
 
-// max(0, d)^sigmaN for d = n.n' (clamped to [0, 1], NaN -> 0): repeated
-// squaring for integer exponents up to 4096 (the paper's 128), exp2/log2
-// otherwise.
-struct NormalPower {
-    float sigma;
-    unsigned integer;
-    bool isInteger;
-    int squarings = -1;  // sigma = 2^squarings (the paper's 128 = 2^7), else -1
-    explicit NormalPower(float sigmaN)
-        : sigma(sigmaN > 0.f ? sigmaN : 0.f),
-          integer(sigma <= 4096.f && std::floor(sigma) == sigma ? static_cast<unsigned>(sigma) : 0u),
-          isInteger(sigma <= 4096.f && std::floor(sigma) == sigma) {
-        if (isInteger && integer != 0u && (integer & (integer - 1u)) == 0u)
-            for (squarings = 0; (1u << squarings) != integer; ++squarings) {}
-    }
-    vf operator()(vf d) const {
-        d = simd::min(simd::positiveOrZero(d), simd::splat(1.f));
-        if (sigma == 0.f) return simd::splat(1.f);
-        if (squarings >= 0) {
-            for (int k = 0; k < squarings; ++k) d *= d;
-            return d;
-        }
-        if (isInteger) {
-            vf r = simd::splat(1.f), b = d;
-            for (unsigned e = integer; e != 0u; e >>= 1u) {
-                if (e & 1u) r *= b;
-                b *= b;
-            }
-            return r;
-        }
-        const vf safe = simd::select(d > 0.f, d, simd::splat(1.f));
-        const vf p = simd::exp2NonPositive(simd::log2Positive(safe) * sigma);
-        return simd::select(d > 0.f, simd::select(d < 1.f, p, simd::splat(1.f)), simd::splat(0.f));
-    }
-};
-
 // One iteration with step `step` from `in` to `out`.
 void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParams& p, std::vector<float>& invLumScale,
              SignalPlanes& out) {
@@ -139,13 +103,9 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
         invLumScale[i] = den > 0.f ? 1.f / den : kInfinity;
     });
 
-    const NormalPower normalPower(p.sigmaN);
+    const simd::NormalPower normalPower(p.sigmaN);
     const float sigmaZ = p.sigmaZ, depthEps = p.depthEpsilon;
     const float hCentre = kKernel[0] * kKernel[0];
-    // tailMask[k]: the first k lanes 1, the rest 0.
-    vf tailMask[kLanes];
-    for (int k = 0; k < kLanes; ++k)
-        for (int lane = 0; lane < kLanes; ++lane) tailMask[k][lane] = lane < k ? 1.f : 0.f;
     const auto isFiltered = [&](std::size_t i) {
         return g.geometry[i] != 0.f && (g.footprint.empty() || 2.f * static_cast<float>(step) <= g.footprint[i]);
     };
@@ -198,7 +158,7 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
                 for (int x = x0; x < x1; x += kLanes) {
                     if (activeBefore[std::min(x + kLanes, w)] == activeBefore[x]) continue;
                     // Lanes past x1 read padding or the next row and get weight 0.
-                    const vf laneMask = x + kLanes <= x1 ? simd::splat(1.f) : tailMask[x1 - x];
+                    const vf laneMask = x + kLanes <= x1 ? simd::splat(1.f) : simd::tailMask(x1 - x);
                     const std::size_t i = row + x, j = rowQ + x + dx;
                     // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps.
                     const vf d = simd::loadu(nx + i) * simd::loadu(nx + j) + simd::loadu(ny + i) * simd::loadu(ny + j) +

@@ -7,6 +7,7 @@
 // FMA is off), and the output does not depend on which lanes share a vector.
 #include <cstddef>
 #include <cstdint>
+#include <cmath>
 #include <cstring>
 
 namespace rtlab::denoise::simd {
@@ -101,5 +102,48 @@ inline vf log2Positive(const vf& x) {
     p = p * s2 + 1.f;
     return __builtin_convertvector(e, vf) + p * s * 2.88539008178f;
 }
+
+// The first `count` lanes 1, the rest 0 (a row's last, partial vector).
+inline vf tailMask(int count) {
+    vf m = splat(0.f);
+    for (int lane = 0; lane < count && lane < kWidth; ++lane) m[lane] = 1.f;
+    return m;
+}
+
+// max(0, d)^sigmaN for d = n.n' (clamped to [0, 1], NaN -> 0): repeated
+// squaring for integer exponents up to 4096 (the paper's 128), exp2/log2
+// otherwise.
+struct NormalPower {
+    float sigma;
+    unsigned integer;
+    bool isInteger;
+    int squarings = -1;  // sigma = 2^squarings (the paper's 128 = 2^7), else -1
+    explicit NormalPower(float sigmaN)
+        : sigma(sigmaN > 0.f ? sigmaN : 0.f),
+          integer(sigma <= 4096.f && std::floor(sigma) == sigma ? static_cast<unsigned>(sigma) : 0u),
+          isInteger(sigma <= 4096.f && std::floor(sigma) == sigma) {
+        if (isInteger && integer != 0u && (integer & (integer - 1u)) == 0u)
+            for (squarings = 0; (1u << squarings) != integer; ++squarings) {}
+    }
+    vf operator()(vf d) const {
+        d = min(positiveOrZero(d), splat(1.f));
+        if (sigma == 0.f) return splat(1.f);
+        if (squarings >= 0) {
+            for (int k = 0; k < squarings; ++k) d *= d;
+            return d;
+        }
+        if (isInteger) {
+            vf r = splat(1.f), b = d;
+            for (unsigned e = integer; e != 0u; e >>= 1u) {
+                if (e & 1u) r *= b;
+                b *= b;
+            }
+            return r;
+        }
+        const vf safe = select(d > 0.f, d, splat(1.f));
+        const vf p = exp2NonPositive(log2Positive(safe) * sigma);
+        return select(d > 0.f, select(d < 1.f, p, splat(1.f)), splat(0.f));
+    }
+};
 
 }  // namespace rtlab::denoise::simd
