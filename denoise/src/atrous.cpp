@@ -11,9 +11,7 @@ namespace rtlab::denoise {
 
 namespace {
 
-using simd::vf;
-using simd::vi;
-constexpr int kLanes = simd::kWidth;
+constexpr int kLanes = simd::kMaxWidth;  // padding after the planes' last pixel
 
 constexpr float kKernel[3] = {3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
 // Input variances are clamped to this so that sum h^2 w^2 Var over 25 taps,
@@ -78,6 +76,66 @@ struct SignalPlanes {
     }
 };
 
+// One output row's 24 off-centre taps, accumulated into the row's sums.
+struct TapRow {
+    const float *nx, *ny, *nz, *depth, *gradX, *gradY, *geometry, *lum, *invLum, *var, *red, *green, *blue;
+    float *sW, *sVar, *sR, *sG, *sB;
+    const int* activeBefore;  // prefix count of the pixels this iteration filters
+    int w, h, y, step;
+    std::size_t row;
+    float sigmaZ, depthEps;
+    const simd::NormalPower* normalPower;
+};
+
+template <int N>
+RTLAB_SIMD_INLINE void accumulateTaps(const TapRow& t) {
+    using V = simd::vfloat<N>;
+    const int w = t.w;
+    for (int ky = -2; ky <= 2; ++ky) {
+        const int py = t.y + ky * t.step;
+        if (py < 0 || py >= t.h) continue;
+        const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
+        for (int kx = -2; kx <= 2; ++kx) {
+            if (kx == 0 && ky == 0) continue;
+            const int dx = kx * t.step;
+            const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
+            if (x0 >= x1) continue;
+            const float hk = kKernel[std::abs(kx)] * kKernel[std::abs(ky)];
+            const V offX = simd::splat<N>(static_cast<float>(dx)), offY = simd::splat<N>(static_cast<float>(ky * t.step));
+            for (int x = x0; x < x1; x += N) {
+                if (t.activeBefore[std::min(x + N, w)] == t.activeBefore[x]) continue;
+                // Lanes past x1 read padding or the next row and get weight 0.
+                const V laneMask = x + N <= x1 ? simd::splat<N>(1.f) : simd::tailMask<N>(x1 - x);
+                const std::size_t i = t.row + x, j = rowQ + x + dx;
+                // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps.
+                const V d = simd::loadu<N>(t.nx + i) * simd::loadu<N>(t.nx + j) +
+                            simd::loadu<N>(t.ny + i) * simd::loadu<N>(t.ny + j) +
+                            simd::loadu<N>(t.nz + i) * simd::loadu<N>(t.nz + j);
+                const V wn = t.normalPower->apply<N>(d);
+                const V z = simd::loadu<N>(t.depth + i);
+                const V dz = simd::abs<N>(z - simd::loadu<N>(t.depth + j));
+                const V zDen =
+                    simd::abs<N>(simd::loadu<N>(t.gradX + i) * offX + simd::loadu<N>(t.gradY + i) * offY) * t.sigmaZ +
+                    simd::abs<N>(z) * t.depthEps;
+                const V termZ = simd::select<N>(dz == 0.f, simd::splat<N>(0.f),
+                                                simd::select<N>(zDen > 0.f, dz / zDen, simd::splat<N>(kInfinity)));
+                const V dl = simd::abs<N>(simd::loadu<N>(t.lum + i) - simd::loadu<N>(t.lum + j));
+                const V termL = simd::select<N>(dl == 0.f, simd::splat<N>(0.f), dl * simd::loadu<N>(t.invLum + i));
+                const V wgt = simd::expNeg<N>(termZ + termL) * wn * simd::loadu<N>(t.geometry + j);
+                const V hw = wgt * (laneMask * hk);
+                simd::storeu<N>(t.sW + x, simd::loadu<N>(t.sW + x) + hw);
+                simd::storeu<N>(t.sVar + x, simd::loadu<N>(t.sVar + x) + hw * hw * simd::loadu<N>(t.var + j));
+                simd::storeu<N>(t.sR + x, simd::loadu<N>(t.sR + x) + hw * simd::loadu<N>(t.red + j));
+                simd::storeu<N>(t.sG + x, simd::loadu<N>(t.sG + x) + hw * simd::loadu<N>(t.green + j));
+                simd::storeu<N>(t.sB + x, simd::loadu<N>(t.sB + x) + hw * simd::loadu<N>(t.blue + j));
+            }
+        }
+    }
+}
+
+// The same, compiled for AVX2 (picked at run time by simd::preferredWidth).
+__attribute__((target("avx2"))) void accumulateTapsAvx2(const TapRow& t) { accumulateTaps<8>(t); }
+
 // One iteration with step `step` from `in` to `out`.
 void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParams& p, std::vector<float>& invLumScale,
              SignalPlanes& out) {
@@ -104,7 +162,6 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
     });
 
     const simd::NormalPower normalPower(p.sigmaN);
-    const float sigmaZ = p.sigmaZ, depthEps = p.depthEpsilon;
     const float hCentre = kKernel[0] * kKernel[0];
     const auto isFiltered = [&](std::size_t i) {
         return g.geometry[i] != 0.f && (g.footprint.empty() || 2.f * static_cast<float>(step) <= g.footprint[i]);
@@ -139,49 +196,12 @@ void iterate(const GuidePlanes& g, SignalPlanes& in, int step, const AtrousParam
             sumB[x] = hCentre * in.b[i];
         }
         // Plain pointers: stores to the sums cannot alias them (the vectors' own pointers could be reloaded).
-        const float *nx = g.nx.data(), *ny = g.ny.data(), *nz = g.nz.data(), *depth = g.depth.data();
-        const float *gradX = g.gradX.data(), *gradY = g.gradY.data(), *geometry = g.geometry.data();
-        const float *lum = in.luminance.data(), *invLum = invLumScale.data(), *var = in.variance.data();
-        const float *red = in.r.data(), *green = in.g.data(), *blue = in.b.data();
-        float *sW = sumW.data(), *sVar = sumVar.data(), *sR = sumR.data(), *sG = sumG.data(), *sB = sumB.data();
-        for (int ky = -2; ky <= 2; ++ky) {
-            const int py = y + ky * step;
-            if (py < 0 || py >= h) continue;
-            const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
-            for (int kx = -2; kx <= 2; ++kx) {
-                if (kx == 0 && ky == 0) continue;
-                const int dx = kx * step;
-                const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
-                if (x0 >= x1) continue;
-                const float hk = kKernel[std::abs(kx)] * kKernel[std::abs(ky)];
-                const vf offX = simd::splat(static_cast<float>(dx)), offY = simd::splat(static_cast<float>(ky * step));
-                for (int x = x0; x < x1; x += kLanes) {
-                    if (activeBefore[std::min(x + kLanes, w)] == activeBefore[x]) continue;
-                    // Lanes past x1 read padding or the next row and get weight 0.
-                    const vf laneMask = x + kLanes <= x1 ? simd::splat(1.f) : simd::tailMask(x1 - x);
-                    const std::size_t i = row + x, j = rowQ + x + dx;
-                    // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps.
-                    const vf d = simd::loadu(nx + i) * simd::loadu(nx + j) + simd::loadu(ny + i) * simd::loadu(ny + j) +
-                                 simd::loadu(nz + i) * simd::loadu(nz + j);
-                    const vf wn = normalPower(d);
-                    const vf z = simd::loadu(depth + i);
-                    const vf dz = simd::abs(z - simd::loadu(depth + j));
-                    const vf zDen = simd::abs(simd::loadu(gradX + i) * offX + simd::loadu(gradY + i) * offY) * sigmaZ +
-                                    simd::abs(z) * depthEps;
-                    const vf termZ = simd::select(dz == 0.f, simd::splat(0.f),
-                                                  simd::select(zDen > 0.f, dz / zDen, simd::splat(kInfinity)));
-                    const vf dl = simd::abs(simd::loadu(lum + i) - simd::loadu(lum + j));
-                    const vf termL = simd::select(dl == 0.f, simd::splat(0.f), dl * simd::loadu(invLum + i));
-                    const vf wgt = simd::expNeg(termZ + termL) * wn * simd::loadu(geometry + j);
-                    const vf hw = wgt * (laneMask * hk);
-                    simd::storeu(sW + x, simd::loadu(sW + x) + hw);
-                    simd::storeu(sVar + x, simd::loadu(sVar + x) + hw * hw * simd::loadu(var + j));
-                    simd::storeu(sR + x, simd::loadu(sR + x) + hw * simd::loadu(red + j));
-                    simd::storeu(sG + x, simd::loadu(sG + x) + hw * simd::loadu(green + j));
-                    simd::storeu(sB + x, simd::loadu(sB + x) + hw * simd::loadu(blue + j));
-                }
-            }
-        }
+        const TapRow t{g.nx.data(), g.ny.data(), g.nz.data(), g.depth.data(), g.gradX.data(), g.gradY.data(),
+                       g.geometry.data(), in.luminance.data(), invLumScale.data(), in.variance.data(), in.r.data(),
+                       in.g.data(), in.b.data(), sumW.data(), sumVar.data(), sumR.data(), sumG.data(), sumB.data(),
+                       activeBefore.data(), w, h, y, step, row, p.sigmaZ, p.depthEpsilon, &normalPower};
+        if (simd::preferredWidth() == 8) accumulateTapsAvx2(t);
+        else accumulateTaps<4>(t);
         // Step: normalise; sky centres pass through unchanged.
         for (int x = 0; x < w; ++x) {
             const std::size_t i = row + x;

@@ -5,6 +5,63 @@
 
 namespace rtlab::denoise {
 
+namespace {
+
+// One row's off-centre taps of the spatial estimate, accumulated into its
+// weight sum, weighted mean deviation and weighted second moment.
+struct MomentRow {
+    const float *pixelVariance, *mean, *depth, *geometry, *nx, *ny, *nz, *gradX, *gradY;
+    float *s0, *s1, *s2;
+    const int* activeBefore;  // prefix count of the pixels that need the spatial estimate
+    int w, h, y, radius;
+    std::size_t row;
+    float sigmaZ, depthEps;
+    const simd::NormalPower* normalPower;
+};
+
+template <int N>
+RTLAB_SIMD_INLINE void accumulateMoments(const MomentRow& t) {
+    using V = simd::vfloat<N>;
+    const int w = t.w;
+    for (int dy = -t.radius; dy <= t.radius; ++dy) {
+        const int py = t.y + dy;
+        if (py < 0 || py >= t.h) continue;
+        const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
+        for (int dx = -t.radius; dx <= t.radius; ++dx) {
+            if (dx == 0 && dy == 0) continue;
+            const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
+            const V offX = simd::splat<N>(static_cast<float>(dx)), offY = simd::splat<N>(static_cast<float>(dy));
+            for (int x = x0; x < x1; x += N) {
+                if (t.activeBefore[std::min(x + N, w)] == t.activeBefore[x]) continue;
+                const V laneMask = x + N <= x1 ? simd::splat<N>(1.f) : simd::tailMask<N>(x1 - x);
+                const std::size_t i = t.row + x, j = rowQ + x + dx;
+                const V zc = simd::loadu<N>(t.depth + i);
+                const V dz = simd::abs<N>(zc - simd::loadu<N>(t.depth + j));
+                const V zDen =
+                    simd::abs<N>(simd::loadu<N>(t.gradX + i) * offX + simd::loadu<N>(t.gradY + i) * offY) * t.sigmaZ +
+                    simd::abs<N>(zc) * t.depthEps;
+                const V termZ = simd::select<N>(dz == 0.f, simd::splat<N>(0.f),
+                                                simd::select<N>(zDen > 0.f, dz / zDen, simd::splat<N>(kInfinity)));
+                const V d = simd::loadu<N>(t.nx + i) * simd::loadu<N>(t.nx + j) +
+                            simd::loadu<N>(t.ny + i) * simd::loadu<N>(t.ny + j) +
+                            simd::loadu<N>(t.nz + i) * simd::loadu<N>(t.nz + j);
+                const V wgt =
+                    simd::expNeg<N>(termZ) * t.normalPower->apply<N>(d) * simd::loadu<N>(t.geometry + j) * laneMask;
+                const V dev = simd::loadu<N>(t.mean + j) - simd::loadu<N>(t.mean + i);
+                simd::storeu<N>(t.s0 + x, simd::loadu<N>(t.s0 + x) + wgt);
+                simd::storeu<N>(t.s1 + x, simd::loadu<N>(t.s1 + x) + wgt * dev);
+                simd::storeu<N>(t.s2 + x,
+                                simd::loadu<N>(t.s2 + x) + wgt * (simd::loadu<N>(t.pixelVariance + j) + dev * dev));
+            }
+        }
+    }
+}
+
+// The same, compiled for AVX2 (picked at run time by simd::preferredWidth).
+__attribute__((target("avx2"))) void accumulateMomentsAvx2(const MomentRow& t) { accumulateMoments<8>(t); }
+
+}  // namespace
+
 void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const VarianceParams& params,
                       std::span<float> variance) {
     std::vector<vec2> scratch;
@@ -18,14 +75,14 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
     const int w = g.width, h = g.height;
     const int radius = params.radius > 0 ? params.radius : 0;
     // SoA copies of the depth gradient.
-    std::vector<float> gx(n + simd::kWidth, 0.f), gy(n + simd::kWidth, 0.f);
+    std::vector<float> gx(n + simd::kMaxWidth, 0.f), gy(n + simd::kMaxWidth, 0.f);
     detail::forEachIndex(n, [&](std::size_t i) { gx[i] = sanitize(grad[i].x), gy[i] = sanitize(grad[i].y); });
 
     // Step: the temporal estimate, and which pixels need the spatial one.
     const auto needsSpatial = [&](std::size_t i) {
         return !g.isSky(i) && acc.length[i] < params.historyThreshold && radius > 0;
     };
-    constexpr int kLanes = simd::kWidth;
+    constexpr int kLanes = simd::kMaxWidth;  // padding
     std::vector<float> pixelVariance(n + kLanes, 0.f), mean(n + kLanes, 0.f);
     std::vector<float> depth(n + kLanes, 0.f), nx(n + kLanes, 0.f), ny(n + kLanes, 0.f), nz(n + kLanes, 0.f);
     std::vector<float> geometry(n + kLanes, 0.f);
@@ -43,7 +100,7 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
     });
     if (radius == 0) return;
 
-    // Step: the spatial estimate, row by row, 4 pixels per vector. The
+    // Step: the spatial estimate, row by row, 4 or 8 pixels per vector. The
     // weighted moments are accumulated shifted by the centre's mean:
     //   E[m2] - E[m1]^2 = E[v + (m1 - c)^2] - E[m1 - c]^2   (v = m2 - m1^2 per pixel)
     // which is the same in exact arithmetic and has no cancellation between
@@ -58,39 +115,11 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
         const std::size_t padded = static_cast<std::size_t>(w) + kLanes;
         std::vector<float> s0(padded, 1.f), s1(padded, 0.f), s2(padded, 0.f);  // centre: weight 1, deviation 0
         for (int x = 0; x < w; ++x) s2[x] = pixelVariance[row + x];
-        const float *pv = pixelVariance.data(), *mu = mean.data(), *z = depth.data(), *geo = geometry.data();
-        const float *nxp = nx.data(), *nyp = ny.data(), *nzp = nz.data();
-        float *a0 = s0.data(), *a1 = s1.data(), *a2 = s2.data();
-        for (int dy = -radius; dy <= radius; ++dy) {
-            const int py = y + dy;
-            if (py < 0 || py >= h) continue;
-            const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
-            for (int dx = -radius; dx <= radius; ++dx) {
-                if (dx == 0 && dy == 0) continue;
-                const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
-                const simd::vf offX = simd::splat(static_cast<float>(dx)), offY = simd::splat(static_cast<float>(dy));
-                for (int x = x0; x < x1; x += kLanes) {
-                    if (activeBefore[std::min(x + kLanes, w)] == activeBefore[x]) continue;
-                    const simd::vf laneMask = x + kLanes <= x1 ? simd::splat(1.f) : simd::tailMask(x1 - x);
-                    const std::size_t i = row + x, j = rowQ + x + dx;
-                    const simd::vf zc = simd::loadu(z + i);
-                    const simd::vf dz = simd::abs(zc - simd::loadu(z + j));
-                    const simd::vf zDen =
-                        simd::abs(simd::loadu(gx.data() + i) * offX + simd::loadu(gy.data() + i) * offY) * params.sigmaZ +
-                        simd::abs(zc) * params.depthEpsilon;
-                    const simd::vf termZ = simd::select(dz == 0.f, simd::splat(0.f),
-                                                        simd::select(zDen > 0.f, dz / zDen, simd::splat(kInfinity)));
-                    const simd::vf d = simd::loadu(nxp + i) * simd::loadu(nxp + j) +
-                                       simd::loadu(nyp + i) * simd::loadu(nyp + j) +
-                                       simd::loadu(nzp + i) * simd::loadu(nzp + j);
-                    const simd::vf wgt = simd::expNeg(termZ) * normalPower(d) * simd::loadu(geo + j) * laneMask;
-                    const simd::vf dev = simd::loadu(mu + j) - simd::loadu(mu + i);
-                    simd::storeu(a0 + x, simd::loadu(a0 + x) + wgt);
-                    simd::storeu(a1 + x, simd::loadu(a1 + x) + wgt * dev);
-                    simd::storeu(a2 + x, simd::loadu(a2 + x) + wgt * (simd::loadu(pv + j) + dev * dev));
-                }
-            }
-        }
+        const MomentRow t{pixelVariance.data(), mean.data(), depth.data(), geometry.data(), nx.data(), ny.data(),
+                          nz.data(), gx.data(), gy.data(), s0.data(), s1.data(), s2.data(), activeBefore.data(),
+                          w, h, y, radius, row, params.sigmaZ, params.depthEpsilon, &normalPower};
+        if (simd::preferredWidth() == 8) accumulateMomentsAvx2(t);
+        else accumulateMoments<4>(t);
         for (int x = 0; x < w; ++x) {
             const std::size_t i = row + x;
             if (!needsSpatial(i)) continue;

@@ -4,6 +4,9 @@
 #include "denoise/denoise_test_util.hpp"
 
 #include <rtlab/denoise/atrous.hpp>
+#include <rtlab/denoise/variance.hpp>
+
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -16,7 +19,7 @@ using namespace rtlab::denoise::testing;
 
 TEST(DenoiseSimdMath, ExpNegMatchesStdExp) {
     for (float e = 0.f; e < 90.f; e += 0.01f) {
-        const simd::vf v = simd::expNeg(simd::splat(e));
+        const simd::vfloat<4> v = simd::expNeg<4>(simd::splat<4>(e));
         const float want = std::exp(-e);
         if (e >= 87.f) { EXPECT_EQ(v[0], 0.f) << e; continue; }
         if (want < 1e-37f) continue;  // denormal range: only finiteness matters
@@ -27,7 +30,7 @@ TEST(DenoiseSimdMath, ExpNegMatchesStdExp) {
 
 TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {
     const float inf = std::numeric_limits<float>::infinity();
-    const simd::vf v = simd::expNeg(simd::vf{-3.f, std::nanf(""), inf, 0.f});
+    const simd::vfloat<4> v = simd::expNeg<4>(simd::vfloat<4>{-3.f, std::nanf(""), inf, 0.f});
     EXPECT_EQ(v[0], 1.f);  // negative counts as 0
     EXPECT_EQ(v[1], 0.f);
     EXPECT_EQ(v[2], 0.f);
@@ -36,15 +39,15 @@ TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {
 
 TEST(DenoiseSimdMath, Log2MatchesStdLog2) {
     for (float x = 1e-30f; x < 1e30f; x *= 1.37f) {
-        const simd::vf v = simd::log2Positive(simd::splat(x));
+        const simd::vfloat<4> v = simd::log2Positive<4>(simd::splat<4>(x));
         EXPECT_NEAR(v[0], std::log2(x), 2e-6f * std::fmax(1.f, std::fabs(std::log2(x)))) << x;
     }
 }
 
 TEST(DenoiseSimdMath, LanesAreIndependent) {
     // The same value gives the same result in every lane position.
-    const simd::vf a = simd::expNeg(simd::vf{0.3f, 1.7f, 5.5f, 12.f});
-    const simd::vf b = simd::expNeg(simd::vf{12.f, 0.3f, 1.7f, 5.5f});
+    const simd::vfloat<4> a = simd::expNeg<4>(simd::vfloat<4>{0.3f, 1.7f, 5.5f, 12.f});
+    const simd::vfloat<4> b = simd::expNeg<4>(simd::vfloat<4>{12.f, 0.3f, 1.7f, 5.5f});
     EXPECT_EQ(a[0], b[1]);
     EXPECT_EQ(a[1], b[2]);
     EXPECT_EQ(a[2], b[3]);
@@ -84,4 +87,41 @@ TEST(DenoiseAtrousFootprint, FootprintSelectsTheNumberOfIterations) {
         spreadFull += (full[i].r - 1.0) * (full[i].r - 1.0);
     }
     EXPECT_LT(spreadFull, 0.5 * spreadTwo);
+}
+
+TEST(DenoiseSimdMath, FourAndEightWideFiltersAreBitIdentical) {
+    // The SSE2 and the AVX2 paths (when this CPU has AVX2) of the a-trous
+    // filter and the spatial variance give the same bits.
+    const int w = 37, h = 23;  // rows that are not a multiple of either width
+    GuideBuffers g = flatGuides(w, h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            g.depth[y * w + x] = 1.f + 0.03f * x + (x > 20 ? 0.5f : 0.f);
+            g.normal[y * w + x] = glm::normalize(vec3(0.1f * (y % 3), 0.f, 1.f));
+            if (x + y < 4) g.meshId[y * w + x] = -1;
+        }
+    const std::vector<vec3> noisy = noisyGrey(g.pixelCount(), 1.f, 1.f, 11);
+    const std::vector<float> var(g.pixelCount(), 0.2f);
+    std::vector<float> footprint(g.pixelCount());
+    for (std::size_t i = 0; i < footprint.size(); ++i) footprint[i] = float(i % 40);
+    const auto run = [&](int width) {
+        simd::overrideWidth(width);
+        std::vector<vec3> out(g.pixelCount());
+        std::vector<float> varOut(g.pixelCount());
+        atrousFilter(g, noisy, var, {}, out, varOut, 0, {}, footprint);
+        HistoryBuffers acc;
+        acc.resize(w, h);
+        for (std::size_t i = 0; i < acc.moments.size(); ++i) {
+            acc.moments[i] = luminanceMoments(noisy[i]);
+            acc.length[i] = 1.f;
+        }
+        std::vector<float> spatial(g.pixelCount());
+        estimateVariance(g, acc, {}, spatial);
+        simd::overrideWidth(0);
+        return std::make_tuple(out, varOut, spatial);
+    };
+    const auto four = run(4), eight = run(8);
+    EXPECT_EQ(std::get<0>(four), std::get<0>(eight));
+    EXPECT_EQ(std::get<1>(four), std::get<1>(eight));
+    EXPECT_EQ(std::get<2>(four), std::get<2>(eight));
 }
