@@ -268,6 +268,15 @@ int runConverge(const ConvergeOptions& o) {
         progress("measured " + m.method + " " + std::to_string(m.kind == "spp" ? m.spp : m.frames) + " " + m.kind);
     };
 
+    // Step: a warm-up render and denoise, not measured (first-touch page
+    // faults and lazy initialisation would otherwise land on the first row).
+    {
+        shaders::FrameHistory none;
+        double ms = 0;
+        Image warm = render(settingsFor(1, 0, o.seed), none, ms);
+        denoise::EffectLayerDenoiser({o.effect}).apply(warm);
+    }
+
     // Step: raw accumulation at 1, 2, 4 ... max spp (frame 0). The fastest
     // of two runs counts, so that one scheduling hiccup does not bend the curve.
     std::map<int, Image> rawImages;  // the denoisers' inputs

@@ -21,25 +21,33 @@ float toPixels(float worldSize, float pixelWorld, float maxPx) {
 }
 
 // Mean over the (2r+1)^2 window of geometry pixels (same-state only), then
-// [minPx, maxPx] where > 0.
+// [minPx, maxPx] where > 0. Separable: row sums of values and of geometry
+// counts, then column sums of those (the same window, in O(r) per pixel).
 std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, std::span<const int> meshId,
                                   const FootprintParams& p) {
-    std::vector<float> out(px.size(), 0.f);
+    const std::size_t n = px.size();
+    std::vector<float> out(n, 0.f), rowSum(n), rowCount(n);
     const int r = std::max(p.smoothRadius, 0);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
+        const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
+        float sum = 0.f, count = 0.f;
+        for (int qx = std::max(0, x - r); qx <= std::min(w - 1, x + r); ++qx) {
+            if (meshId[row + qx] < 0) continue;
+            sum += px[row + qx];
+            count += 1.f;
+        }
+        rowSum[i] = sum;
+        rowCount[i] = count;
+    });
+    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         if (meshId[i] < 0) return;
-        float sum = 0.f;
-        int count = 0;
-        for (int dy = -r; dy <= r; ++dy)
-            for (int dx = -r; dx <= r; ++dx) {
-                const int qx = x + dx, qy = y + dy;
-                if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
-                const std::size_t j = static_cast<std::size_t>(qy) * static_cast<std::size_t>(w) + qx;
-                if (meshId[j] < 0) continue;
-                sum += px[j];
-                ++count;
-            }
-        const float mean = count > 0 ? sum / static_cast<float>(count) : 0.f;
+        float sum = 0.f, count = 0.f;
+        for (int qy = std::max(0, y - r); qy <= std::min(h - 1, y + r); ++qy) {
+            const std::size_t j = static_cast<std::size_t>(qy) * static_cast<std::size_t>(w) + x;
+            sum += rowSum[j];
+            count += rowCount[j];
+        }
+        const float mean = count > 0.f ? sum / count : 0.f;
         out[i] = mean > 0.f ? std::clamp(mean, p.minPx, p.maxPx) : 0.f;
     });
     return out;
