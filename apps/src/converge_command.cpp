@@ -278,13 +278,14 @@ int runConverge(const ConvergeOptions& o) {
     }
 
     // Step: raw accumulation at 1, 2, 4 ... max spp (frame 0). The fastest
-    // of two runs counts, so that one scheduling hiccup does not bend the curve.
+    // of three runs counts (up to 16 spp), so that one scheduling hiccup does
+    // not bend the curve.
     std::map<int, Image> rawImages;  // the denoisers' inputs
     const std::vector<int> denoiseSpps = powersOfTwoUpTo(std::min(o.denoiseMaxSpp, o.maxSpp));
     for (const int spp : powersOfTwoUpTo(o.maxSpp)) {
         double best = 0;
         Image image;
-        for (int run = 0; run < (spp <= 16 ? 2 : 1); ++run) {
+        for (int run = 0; run < (spp <= 16 ? 3 : 1); ++run) {
             shaders::FrameHistory none;
             double ms = 0;
             image = render(settingsFor(spp, 0, o.seed), none, ms);

@@ -97,9 +97,15 @@ StackParams StackParams::shadow() {
 StackParams StackParams::reflection() {
     StackParams p = svgfPaper();
     p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
+    p.footprint.floorPx = 8.f;
+    p.svgf.atrous.sigmaL = 10.f;
     return p;
 }
-StackParams StackParams::ambientOcclusion() { return svgfPaper(); }
+StackParams StackParams::ambientOcclusion() {
+    StackParams p = svgfPaper();
+    p.svgf.atrous.sigmaL = 10.f;
+    return p;
+}
 StackParams StackParams::of(DenoiseStack stack) {
     switch (stack) {
         case DenoiseStack::Shadow: return shadow();

@@ -48,7 +48,7 @@ std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, st
             count += rowCount[j];
         }
         const float mean = count > 0.f ? sum / count : 0.f;
-        out[i] = mean > 0.f ? std::clamp(mean, p.minPx, p.maxPx) : 0.f;
+        out[i] = std::max(mean > 0.f ? std::clamp(mean, p.minPx, p.maxPx) : 0.f, std::min(p.floorPx, p.maxPx));
     });
     return out;
 }

@@ -21,6 +21,11 @@ struct FootprintParams {
     // pixels, so that a 1-spp distance estimate does not flip the number of
     // iterations from pixel to pixel. Source: rtlab.
     int smoothRadius = 2;
+    // Every geometry pixel's footprint is at least this (0: a footprint may
+    // be 0, no spatial filter). For signals whose noise does not come from
+    // the quantity the footprint follows: a mirror's reflection is sharp,
+    // but the light sampled at the reflected surface is noisy. Source: rtlab.
+    float floorPx = 0.f;
 };
 
 // Shadows: the PCSS penumbra width (world units, the shadow pass's
