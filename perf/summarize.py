@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Turns the Google Benchmark JSON files of one `make bench` run into the
 ratios the issues ask for, written to OUT_DIR/summary.json and printed."""
-import json, pathlib, sys
+import json, pathlib, re, sys
 
 out = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench")
 times, rates, model = {}, {}, {}
+denoise_times = {}  # (benchmark, args...) -> ms, from perf/denoise_speed.cpp
 for f in sorted(out.glob("*.json")):
     if f.name == "summary.json":
         continue
@@ -14,6 +15,10 @@ for f in sorted(out.glob("*.json")):
         times[b["name"]] = b["real_time"]
         if "rays_per_s" in b:
             rates[b["name"]] = b["rays_per_s"]
+        if b["name"].startswith("BM_Denoise"):
+            m = re.match(r"(BM_Denoise\w+)((?:/\d+)*)", b["name"])
+            scale = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b.get("time_unit", "ns")]
+            denoise_times[(m.group(1),) + tuple(int(a) for a in m.group(2).split("/")[1:])] = b["real_time"] * scale
         if b["name"].startswith("BM_RtCoreTimingModel/"):
             model[b.get("label", b["name"])] = {k: b[k] for k in ("cyclesPerRay", "meanLatency", "nodeVisitsPerRay",
                                                                   "triangleTestsPerRay", "cacheHitRate", "simdEfficiency") if k in b}
@@ -43,8 +48,86 @@ summary = {
     "rtcore_functional_vs_embree_primary": ratio("BM_RtCoreFunctional/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
     "rtcore_functional_vs_embree_bounce": ratio("BM_RtCoreFunctional/1/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
 }
-(out / "summary.json").write_text(json.dumps({**summary, "rtcore_model_showcase": model}, indent=2) + "\n")
+
+# Denoiser at 1920x1080 (perf/denoise_speed.cpp): ms per stage and per stack
+# at 1 and 2 threads (first benchmark argument), and one a-trous iteration
+# against a read-modify-write pass over the same 60 bytes per pixel.
+DENOISE_STAGES = [  # (summary key, benchmark, further arguments)
+    ("depth_gradient", "BM_DenoiseDepthGradient", ()),
+    ("reproject", "BM_DenoiseReproject", ()),
+    ("reproject_history", "BM_DenoiseReprojectHistory", ()),
+    ("temporal_accumulation", "BM_DenoiseTemporal", ()),
+    ("variance_warm_history", "BM_DenoiseVariance", (1,)),
+    ("variance_history_1", "BM_DenoiseVariance", (0,)),
+    ("atrous_iteration_step1", "BM_DenoiseAtrousIteration", (1,)),
+    ("atrous_iteration_step16", "BM_DenoiseAtrousIteration", (16,)),
+    ("atrous_filter_1_iteration", "BM_DenoiseAtrousFilter", (1,)),
+    ("atrous_filter_5_iterations", "BM_DenoiseAtrousFilter", (5,)),
+    ("firefly_clamp", "BM_DenoiseFireflyClamp", ()),
+    ("history_clamp", "BM_DenoiseHistoryClamp", ()),
+    ("demodulate_remodulate", "BM_DenoiseModulation", ()),
+    ("footprint_shadow", "BM_DenoiseFootprint", (0,)),
+    ("footprint_reflection", "BM_DenoiseFootprint", (1,)),
+    ("footprint_ao", "BM_DenoiseFootprint", (2,)),
+]
+DENOISE_RMW = [  # the memory-bound reference of one a-trous iteration, two layouts of the same bytes
+    ("api_buffers", "BM_DenoiseAtrousRmw", (0,)),
+    ("soa_planes", "BM_DenoiseAtrousRmw", (1,)),
+]
+DENOISE_STACKS = [
+    ("svgf", "BM_DenoiseStack", (0,)),
+    ("shadow", "BM_DenoiseStack", (1,)),
+    ("reflection", "BM_DenoiseStack", (2,)),
+    ("ao", "BM_DenoiseStack", (3,)),
+    ("effect_layers_shadow_ao_gi", "BM_DenoiseEffectLayers", ()),
+]
+THREADS = (1, 2)
+
+def denoise_ms(bench, threads, args):
+    return denoise_times.get((bench, threads) + args)
+
+def per_thread(table):
+    return {key: {f"{t}t": denoise_ms(bench, t, args) for t in THREADS} for key, bench, args in table}
+
+def div(a, b):
+    return a / b if a is not None and b else None
+
+denoise = None
+if denoise_times:
+    stages, stacks, rmw = per_thread(DENOISE_STAGES), per_thread(DENOISE_STACKS), per_thread(DENOISE_RMW)
+    ratios = {}
+    for t in THREADS:
+        f1, f5 = denoise_ms("BM_DenoiseAtrousFilter", t, (1,)), denoise_ms("BM_DenoiseAtrousFilter", t, (5,))
+        in_filter = (f5 - f1) / 4 if f1 is not None and f5 is not None else None
+        stages.setdefault("atrous_iteration_in_filter", {})[f"{t}t"] = in_filter
+        rmw_api, rmw_soa = denoise_ms("BM_DenoiseAtrousRmw", t, (0,)), denoise_ms("BM_DenoiseAtrousRmw", t, (1,))
+        ratios[f"{t}t"] = {
+            # atrousIteration() (the public call: converts vec3 colour and the guides to planes every call)
+            # over the RMW pass on the buffers it receives.
+            "atrous_iteration_step1_vs_rmw": div(denoise_ms("BM_DenoiseAtrousIteration", t, (1,)), rmw_api),
+            "atrous_iteration_step16_vs_rmw": div(denoise_ms("BM_DenoiseAtrousIteration", t, (16,)), rmw_api),
+            # One iteration inside atrousFilter ((5 - 1 iterations) / 4: steps 2..16) over the RMW pass on
+            # the structure-of-arrays planes it works on.
+            "atrous_in_filter_iteration_vs_rmw": div(in_filter, rmw_soa),
+        }
+    denoise = {"resolution": "1920x1080", "stages_ms": stages, "stacks_ms": stacks, "rmw_reference_ms": rmw,
+               "atrous_vs_rmw": ratios}
+
+(out / "summary.json").write_text(json.dumps({**summary, "rtcore_model_showcase": model, "denoise": denoise}, indent=2) + "\n")
 for k, v in summary.items():
     print(f"{k}: {v:.4f}" if v is not None else f"{k}: (missing)")
 for label, figures in model.items():
     print(f"rtcore model, showcase {label}: " + ", ".join(f"{k} {v:.3f}" for k, v in figures.items()))
+
+def fmt(v, spec):
+    return format(v, spec) if v is not None else "(missing)"
+
+if denoise is None:
+    print("denoise: (missing)")
+else:
+    print("denoise 1920x1080, ms at 1 / 2 threads:")
+    for section, name in (("stages_ms", "stage"), ("stacks_ms", "stack"), ("rmw_reference_ms", "rmw reference")):
+        for key, by_threads in denoise[section].items():
+            print(f"  {name} {key}: " + " / ".join(fmt(by_threads[f'{t}t'], '.2f') for t in THREADS))
+    for key in denoise["atrous_vs_rmw"]["1t"]:
+        print(f"denoise {key}: " + ", ".join(f"{t}t " + fmt(denoise['atrous_vs_rmw'][f'{t}t'][key], '.2f') for t in THREADS))
