@@ -25,12 +25,18 @@ std::vector<SignalLayer> signalsOf(const Image& frame, const std::string& effect
         if (frame.hasChannel(channel)) out.push_back({channel, true, stack, std::move(source)});
     };
     if (effect == "shadows") {
+        const auto demodulated = [&](const std::string& layer) {
+            rgb(layer, DenoiseStack::Svgf);
+            if (!out.empty() && out.back().layer == layer) out.back().demodulateAlbedo = true;
+        };
         for (int i = 0; frame.hasChannel("shadow.light" + std::to_string(i) + ".V"); ++i) {
             const std::string layer = "shadow.light" + std::to_string(i);
             one(layer + ".V", DenoiseStack::Shadow, layer + ".penumbra");
+            // The unshadowed light of the area light: a few stratified samples per
+            // frame, no visibility edges; without it the product stays noisy.
+            demodulated("direct.light" + std::to_string(i));
         }
-        rgb("direct.point", DenoiseStack::Svgf);
-        if (!out.empty() && out.back().layer == "direct.point") out.back().demodulateAlbedo = true;
+        demodulated("direct.point");
     } else if (effect == "reflections") {
         rgb("reflection", DenoiseStack::Reflection);
     } else if (effect == "ao") {
@@ -91,11 +97,13 @@ const char* stackName(DenoiseStack stack) {
 StackParams StackParams::svgfPaper() { return {SvgfParams::paper(), {}}; }
 StackParams StackParams::shadow() {
     StackParams p = svgfPaper();
+    p.svgf.varianceOfMean = true;
     p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
     return p;
 }
 StackParams StackParams::reflection() {
     StackParams p = svgfPaper();
+    p.svgf.varianceOfMean = true;
     p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
     p.footprint.floorPx = 8.f;
     p.svgf.atrous.sigmaL = 10.f;
@@ -103,6 +111,7 @@ StackParams StackParams::reflection() {
 }
 StackParams StackParams::ambientOcclusion() {
     StackParams p = svgfPaper();
+    p.svgf.varianceOfMean = true;
     p.svgf.atrous.sigmaL = 10.f;
     return p;
 }

@@ -52,6 +52,18 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     accumulateTemporal(input_, reprojected_, params_.temporal, reprojected_);
     variance_.resize(n);
     estimateVariance(curGuides_, reprojected_, params_.variance, variance_);
+    if (params_.varianceOfMean) {
+        // The accumulated colour is a mean of about n_eff samples: its variance is
+        // the samples' variance / n_eff, n_eff = min(history, (2 - alpha) / alpha)
+        // (an exponential moving average with weight alpha averages (2 - alpha) / alpha
+        // samples in steady state).
+        const float alpha = std::clamp(params_.temporal.alpha, 1e-3f, 1.f);
+        const float steady = (2.f - alpha) / alpha;
+        detail::forEachIndex(n, [&](std::size_t i) {
+            const float nEff = std::clamp(reprojected_.length[i], 1.f, steady);
+            variance_[i] /= nEff;
+        });
+    }
     filteredVariance_.resize(n);
     tapColor_.resize(n);
     atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,

@@ -3,6 +3,7 @@
 #include "denoise/denoise_test_util.hpp"
 
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/denoise/effect_layers.hpp>
 #include <rtlab/denoise/footprint.hpp>
 
@@ -10,6 +11,7 @@
 
 #include <cmath>
 #include <limits>
+#include <utility>
 
 using namespace rtlab;
 using namespace rtlab::denoise;
@@ -172,4 +174,86 @@ TEST(DenoiseStacks, NoisyPenumbraIsSmoothedAndStaysInRange) {
         spreadAfter += (f.channel("shadow.light0.V")[i] - 0.5) * (f.channel("shadow.light0.V")[i] - 0.5);
     }
     EXPECT_LT(spreadAfter, 0.2 * spreadBefore);
+}
+
+namespace {
+
+// A frame with every stack's layers, filled with `value` (and the guides).
+Image allStacksFrame(int w, int h, float value) {
+    Image f = shadowFrame(w, h, 0.5f);
+    for (const char* c : {"shadow.light0.V", "ao.V"}) {
+        float* v = f.hasChannel(c) ? f.channel(c) : f.addChannel(c);
+        for (std::size_t i = 0; i < f.pixelCount(); ++i) v[i] = value;
+    }
+    f.addChannel("ao.hitT", 0.5f);
+    f.addChannel("roughness.Y", 0.2f);
+    f.addChannel("reflection.hitT", 2.f);
+    f.addRgbLayer("reflection", std::vector<vec3>(f.pixelCount(), vec3(value)));
+    f.addRgbLayer("gi", std::vector<vec3>(f.pixelCount(), vec3(value)));
+    f.addRgbLayer("direct.point", std::vector<vec3>(f.pixelCount(), vec3(value)));
+    f.addRgbLayer("albedo", std::vector<vec3>(f.pixelCount(), vec3(0.5f)));
+    return f;
+}
+
+// Every denoised layer is finite (the noisy.* copies keep the input as it was).
+bool layersFinite(const Image& f) {
+    for (const std::string& c : f.channelNames()) {
+        if (c.rfind("noisy.", 0) == 0) continue;
+        for (std::size_t i = 0; i < f.pixelCount(); ++i)
+            if (!std::isfinite(f.channel(c)[i])) {
+                ADD_FAILURE() << c << "[" << i << "] = " << f.channel(c)[i];
+                return false;
+            }
+    }
+    return true;
+}
+
+}  // namespace
+
+TEST(DenoiseStacks, ExtremeInputsStayFiniteOnEveryStack) {
+    // All black, all white, HDR white, tiny images, a single 1e20 firefly,
+    // NaN and Inf in the signal: every stack's output is finite, two frames.
+    for (const auto& [w, h] : {std::pair{1, 1}, std::pair{3, 2}, std::pair{17, 9}})
+        for (const float value : {0.f, 1.f, 1e4f}) {
+            EffectLayerDenoiser d;
+            for (int frame = 0; frame < 2; ++frame) {
+                Image f = allStacksFrame(w, h, value);
+                if (frame == 1 && f.pixelCount() > 1) {
+                    f.channel("reflection.R")[0] = 1e20f;
+                    f.channel("ao.V")[f.pixelCount() - 1] = std::numeric_limits<float>::quiet_NaN();
+                    f.channel("gi.G")[0] = std::numeric_limits<float>::infinity();
+                }
+                const std::vector<DenoisedLayer> done = d.apply(f);
+                EXPECT_EQ(done.size(), 5u);  // shadow V, direct.point, reflection, ao, gi
+                EXPECT_TRUE(layersFinite(f)) << w << "x" << h << " value " << value << " frame " << frame;
+            }
+        }
+}
+
+TEST(DenoiseStacks, ConstantSignalStaysConstant) {
+    // Zero variance: every stack returns the constant (remodulation included).
+    for (const float value : {0.f, 0.25f, 1.f}) {
+        Image f = allStacksFrame(20, 12, value);
+        EffectLayerDenoiser().apply(f);
+        for (const char* c : {"shadow.light0.V", "ao.V", "reflection.R", "gi.B", "direct.point.G"})
+            for (std::size_t i = 0; i < f.pixelCount(); ++i) EXPECT_NEAR(f.channel(c)[i], value, 1e-6f) << c;
+    }
+}
+
+TEST(DenoiseStacks, ResultsDoNotDependOnTheThreadCount) {
+    const auto run = [](int threads) {
+        const ThreadLimit limit(threads);
+        Image f = allStacksFrame(45, 31, 0.5f);
+        const std::vector<vec3> noise = rtlab::denoise::testing::noisyGrey(f.pixelCount(), 0.5f, 1.f, 5);
+        for (std::size_t i = 0; i < f.pixelCount(); ++i) {
+            f.channel("shadow.light0.V")[i] = noise[i].r > 0.5f ? 1.f : 0.f;
+            f.channel("ao.V")[i] = noise[i].r;
+            f.channel("reflection.G")[i] = 4.f * noise[i].r * noise[i].r;
+        }
+        EffectLayerDenoiser().apply(f);
+        return f;
+    };
+    const Image one = run(1), two = run(2);
+    for (const std::string& c : one.channelNames())
+        for (std::size_t i = 0; i < one.pixelCount(); ++i) ASSERT_EQ(one.channel(c)[i], two.channel(c)[i]) << c << " " << i;
 }

@@ -9,6 +9,8 @@
 //   effect        signal layers                          stack
 //   shadows       shadow.light<i>.V (one per area light)  Shadow: visibility only; footprint from the
 //                                                          penumbra (shadow.light<i>.penumbra); history clamp
+//                 direct.light<i>.RGB (unshadowed)        Svgf on direct.light<i> / albedo.RGB (16 stratified
+//                                                          samples a frame: noisy, but no visibility edges)
 //                 direct.point.RGB                        Svgf on direct.point / albedo.RGB (point lights: hard
 //                                                          shadows, one light pick; remodulated after)
 //   reflections   reflection.RGB (incoming radiance)      Reflection: footprint from roughness.Y and
@@ -33,7 +35,10 @@ namespace rtlab::denoise {
 enum class DenoiseStack { Svgf, Shadow, Reflection, AmbientOcclusion };
 const char* stackName(DenoiseStack stack);
 
-// The parameters of one stack: SVGF's stages plus the footprint rule.
+// The parameters of one stack: SVGF's stages plus the footprint rule. The
+// shadow, reflection and AO stacks also guide their a-trous passes by the
+// variance of the accumulated mean (SvgfParams::varianceOfMean): on
+// builtin:showcase AO after 8 static frames relMSE 0.0034 -> 0.0020.
 struct StackParams {
     SvgfParams svgf;
     FootprintParams footprint;

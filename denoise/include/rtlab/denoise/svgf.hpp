@@ -32,6 +32,13 @@ struct SvgfParams {
     // "the first wavelet iteration"); Falcor's FeedbackTap = 1 counts from 0,
     // i.e. 2 here.
     int historyTap = 1;
+    // Guide the a-trous passes by the variance of the accumulated colour (the
+    // samples' luminance variance / n_eff, n_eff = min(history, (2 - alpha) /
+    // alpha)) instead of the samples' variance: the luminance edge-stopping
+    // tightens and the filter's reach shrinks as history builds up, so a static
+    // view keeps converging instead of settling at the spatial filter's bias.
+    // Source: rtlab (off: the paper and Falcor use the samples' variance).
+    bool varianceOfMean = false;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
     FireflyClampParams firefly;
