@@ -17,6 +17,7 @@
 #include <rtlab/tracer/accel_manager.hpp>
 
 #include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -153,11 +154,6 @@ int runConverge(const ConvergeOptions& o) {
         throw InputError("--effect", "unknown effect '" + o.effect +
                                          "' (known: shadows, reflections, ao, gi, translucency, volumes)");
     const std::string out = o.out.empty() ? "out/converge/" + slug(o.scene) + "-" + o.effect : o.out;
-    std::error_code ec;
-    std::filesystem::create_directories(out, ec);
-    if (ec || !std::filesystem::is_directory(out)) throw InputError(out, "cannot create output directory");
-    std::filesystem::create_directories(o.cache, ec);
-    if (ec || !std::filesystem::is_directory(o.cache)) throw InputError(o.cache, "cannot create cache directory");
 
     // Step: the scene, static (frame time 0), with only the G-buffer and this effect planned.
     const ThreadLimit threadLimit(o.threads);
@@ -181,6 +177,17 @@ int runConverge(const ConvergeOptions& o) {
     if (!planned)
         throw InputError(o.scene, "has no " + o.effect + " to measure (rtlab plan --scene " + o.scene + " says why)");
 
+    // Step: the output and cache directories, once the input is known to be good.
+    // A previous run's results are removed first, so that a failed run never
+    // leaves an old converge.json beside new images.
+    std::error_code ec;
+    std::filesystem::create_directories(out, ec);
+    if (ec || !std::filesystem::is_directory(out)) throw InputError(out, "cannot create output directory");
+    for (const char* name : {"converge.json", "converge.csv", "converge.png"})
+        std::filesystem::remove(std::filesystem::path(out) / name, ec);
+    std::filesystem::create_directories(o.cache, ec);
+    if (ec || !std::filesystem::is_directory(o.cache)) throw InputError(o.cache, "cannot create cache directory");
+
     const int w = o.width, h = o.height;
     const auto settingsFor = [&](int spp, std::uint32_t frame, std::uint32_t seed) {
         shaders::RenderSettings s;
@@ -202,7 +209,7 @@ int runConverge(const ConvergeOptions& o) {
     // Step: the reference, from the cache or accumulated now.
     std::ostringstream key;
     key << sceneIdentity(o.scene) << "|" << o.effect << "|" << w << "x" << h << "|" << o.referenceSpp << "|" << o.seed
-        << "|" << o.reflectionRoughness << "|" << o.aoRadius;
+        << "|" << formatDouble(o.reflectionRoughness, "%.9g") << "|" << formatDouble(o.aoRadius, "%.9g");
     char hash[17];
     std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fingerprint(key.str())));
     const std::filesystem::path cacheFile = std::filesystem::path(o.cache) /
@@ -213,11 +220,17 @@ int runConverge(const ConvergeOptions& o) {
     double referenceMs = 0;
     bool referenceCached = false;
     if (std::filesystem::exists(cacheFile)) {
-        const Image cached = readExr(cacheFile);
-        if (cached.width() == w && cached.height() == h && cached.hasChannel("R")) {
-            reference = cached.rgbLayer("");
-            referenceCached = true;
+        try {
+            const Image cached = readExr(cacheFile);
+            if (cached.width() == w && cached.height() == h && cached.hasChannel("R")) {
+                reference = cached.rgbLayer("");
+                referenceCached = true;
+            }
+        } catch (const InputError& e) {
+            std::cerr << "rtlab: note: ignoring the unreadable cached reference (" << e.what() << "); rendering it again\n";
         }
+        if (!referenceCached) std::cerr << "rtlab: note: the cached reference " << cacheFile.string()
+                                         << " does not fit; rendering it again\n";
     }
     if (!referenceCached) {
         std::vector<glm::dvec3> sum(static_cast<std::size_t>(w) * h, glm::dvec3(0.0));
@@ -281,7 +294,10 @@ int runConverge(const ConvergeOptions& o) {
     // of three runs counts (up to 16 spp), so that one scheduling hiccup does
     // not bend the curve.
     std::map<int, Image> rawImages;  // the denoisers' inputs
-    const std::vector<int> denoiseSpps = powersOfTwoUpTo(std::min(o.denoiseMaxSpp, o.maxSpp));
+    // The denoisers' inputs are raw images: the raw sample counts up to --denoise-max-spp.
+    std::vector<int> denoiseSpps;
+    for (const int spp : powersOfTwoUpTo(o.maxSpp))
+        if (spp <= o.denoiseMaxSpp) denoiseSpps.push_back(spp);
     for (const int spp : powersOfTwoUpTo(o.maxSpp)) {
         double best = 0;
         Image image;
@@ -389,6 +405,7 @@ int runConverge(const ConvergeOptions& o) {
     j["effect"] = o.effect;
     j["settings"] = {{"width", w}, {"height", h}, {"referenceSpp", o.referenceSpp}, {"maxSpp", o.maxSpp},
                      {"denoiseMaxSpp", o.denoiseMaxSpp}, {"frames", o.frames}, {"threads", o.threads},
+                     {"threadsUsed", static_cast<int>(tbb::this_task_arena::max_concurrency())},
                      {"seed", o.seed}, {"reflectionRoughness", o.reflectionRoughness}, {"aoRadius", o.aoRadius}};
     j["reference"] = {{"file", cacheFile.string()}, {"cached", referenceCached}, {"ms", referenceMs},
                       {"seed", o.seed ^ kReferenceSeedSalt}};
@@ -460,7 +477,7 @@ int runConverge(const ConvergeOptions& o) {
     const PlotReport plotted = writeLogLogPlot(std::filesystem::path(out) / "converge.png", series, plotOptions);
     if (plotted.pointsSkipped)
         std::cerr << "rtlab: note: converge.png leaves out " << plotted.pointsSkipped
-                  << " points with relMSE 0 (identical to the reference)\n";
+                  << " points that a log axis cannot show (relMSE or ms <= 0)\n";
 
     // Step: the table.
     std::printf("%s on %s, %dx%d, reference %d spp%s\n", o.effect.c_str(), o.scene.c_str(), w, h, o.referenceSpp,

@@ -28,6 +28,7 @@ std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, st
     const std::size_t n = px.size();
     std::vector<float> out(n, 0.f), rowSum(n), rowCount(n);
     const int r = std::max(p.smoothRadius, 0);
+    const float lo = std::min(p.minPx, p.maxPx), hi = std::max(p.minPx, p.maxPx);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
         float sum = 0.f, count = 0.f;
@@ -48,7 +49,7 @@ std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, st
             count += rowCount[j];
         }
         const float mean = count > 0.f ? sum / count : 0.f;
-        out[i] = std::max(mean > 0.f ? std::clamp(mean, p.minPx, p.maxPx) : 0.f, std::min(p.floorPx, p.maxPx));
+        out[i] = std::max(mean > 0.f ? std::clamp(mean, lo, hi) : 0.f, std::min(p.floorPx, hi));
     });
     return out;
 }

@@ -7,13 +7,21 @@ namespace {
 std::atomic<int> forcedWidth{0};
 }
 
+bool hasAvx2() {
+    static const bool avx2 = __builtin_cpu_supports("avx2");
+    return avx2;
+}
+
 int preferredWidth() {
     const int forced = forcedWidth.load(std::memory_order_relaxed);
     if (forced == 4 || forced == 8) return forced;
-    static const bool avx2 = __builtin_cpu_supports("avx2");
-    return avx2 ? 8 : 4;
+    return hasAvx2() ? 8 : 4;
 }
 
-void overrideWidth(int width) { forcedWidth.store(width == 4 || width == 8 ? width : 0, std::memory_order_relaxed); }
+void overrideWidth(int width) {
+    // 8 only where the CPU runs AVX2 (anything else would be an illegal instruction).
+    const bool valid = width == 4 || (width == 8 && hasAvx2());
+    forcedWidth.store(valid ? width : 0, std::memory_order_relaxed);
+}
 
 }  // namespace rtlab::denoise::simd

@@ -35,7 +35,8 @@ template <int N>
 using vint = typename Lanes<N>::vi;
 
 // The widest width this CPU runs (8 with AVX2, else 4), unless a test
-// forced one with overrideWidth (0 = no override).
+// forced one with overrideWidth (0 = no override; 8 is ignored without AVX2).
+bool hasAvx2();
 int preferredWidth();
 void overrideWidth(int width);
 // Padding (floats) the planes need after their last pixel: the widest vector.

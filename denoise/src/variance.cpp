@@ -92,7 +92,7 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
         const float v = m.y - m.x * m.x;
         pixelVariance[i] = v > 0.f ? (v < 1e36f ? v : 1e36f) : 0.f;
         mean[i] = detail::clampNaNLow(m.x, -kMaxMomentLuminance, kMaxMomentLuminance);
-        variance[i] = v > 0.f ? v : 0.f;
+        variance[i] = v > 0.f ? (v < 3.0e38f ? v : 3.0e38f) : 0.f;  // +Inf moments stay finite
         if (g.isSky(i)) return;
         geometry[i] = 1.f;
         depth[i] = detail::clampNaNLow(g.depth[i], -kMaxRadiance, kMaxRadiance);

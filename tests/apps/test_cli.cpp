@@ -357,3 +357,27 @@ TEST(Cli, ConvergeRejectsBadInputWithExitTwo) {
         EXPECT_FALSE(fs::exists(out / "converge.json")) << args;
     }
 }
+
+TEST(Cli, ConvergeAcceptsSampleCountsThatAreNotPowersOfTwo) {
+    // The denoisers run on the raw sample counts up to --denoise-max-spp
+    // (raw: 1, 2, 4, 6; denoised: 1, 2), and a bad scene leaves no directories.
+    const fs::path out = freshDir("converge_odd"), cache = freshDir("converge_odd_cache");
+    const CliRun r = runCli("converge --scene builtin:cornell --effect ao --width 24 --height 16 --reference-spp 8 "
+                            "--max-spp 6 --denoise-max-spp 3 --frames 3 --out " + out.string() + " --cache " +
+                            cache.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    std::ifstream in(out / "converge.json");
+    const nlohmann::json j = nlohmann::json::parse(in);
+    int raw = 0, denoised = 0;
+    for (const auto& row : j["rows"]) {
+        if (row["method"] == "raw") ++raw;
+        if (row["method"] == "ao" && row["kind"] == "spp") ++denoised;
+    }
+    EXPECT_EQ(raw, 4);
+    EXPECT_EQ(denoised, 2);
+    const fs::path badOut = freshDir("converge_bad_scene");
+    const CliRun bad = runCli("converge --scene builtin:nonesuch --effect ao --out " + badOut.string() + " --cache " +
+                              (badOut / "cache").string());
+    EXPECT_EQ(bad.exitCode, 2) << bad.out;
+    EXPECT_FALSE(fs::exists(badOut));
+}
