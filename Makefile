@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench test-asan clean
+.PHONY: deps configure build demo test bench converge test-asan clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -21,6 +21,14 @@ test: build
 bench: build
 	@mkdir -p out/bench
 	@bash perf/run-benchmarks.sh build/release out/bench
+
+# Error against run time of the showcase's shadow, reflection, AO and GI
+# denoisers (docs/denoise.md). References are cached in out/converge-cache:
+# the first run renders them (tens of minutes), later runs take minutes.
+converge: build
+	@for e in shadows reflections ao gi; do \
+	  ./build/release/apps/rtlab converge --scene builtin:showcase --effect $$e --out out/converge/showcase-$$e || exit $$?; \
+	done
 
 # The sanitizer configuration (ASan + UBSan) over the whole suite.
 test-asan: deps
