@@ -23,10 +23,14 @@ struct LoadedScene {
         accel = std::make_unique<tracer::AccelManager>(options);
         accel->update(snapshot);
     }
-    tracer::RayDesc primaryRay(int x, int y, int width, int height) const {
-        const shaders::CameraRay r = shaders::cameraRay(snapshot.camera, width, height, x + 0.5f, y + 0.5f);
-        return {r.origin, 0.f, r.direction, kInfinity};
-    }
+    // The scene's camera for one image size (build it outside per-pixel loops).
+    shaders::PinholeCamera camera(int width, int height) const { return {snapshot.camera, width, height}; }
 };
+
+// The primary ray through the centre of pixel (x, y).
+inline tracer::RayDesc primaryRay(const shaders::PinholeCamera& camera, int x, int y) {
+    const shaders::CameraRay r = camera.ray(x + 0.5f, y + 0.5f);
+    return {r.origin, 0.f, r.direction, kInfinity};
+}
 
 }  // namespace rtlab::bench

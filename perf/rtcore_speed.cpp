@@ -46,9 +46,10 @@ struct Workload {
     Workload() {
         model = std::make_unique<ModelScene>(config.bvh);
         model->update(scene.snapshot);
+        const shaders::PinholeCamera camera = scene.camera(kWidth, kHeight);
         for (int y = 0; y < kHeight; ++y)
             for (int x = 0; x < kWidth; ++x) {
-                const tracer::RayDesc r = scene.primaryRay(x, y, kWidth, kHeight);
+                const tracer::RayDesc r = bench::primaryRay(camera, x, y);
                 SimRay s;
                 s.ray.origin = r.origin;
                 s.ray.direction = r.direction;

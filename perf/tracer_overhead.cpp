@@ -47,6 +47,7 @@ tracer::Pipeline<HitPayload>::Desc trivialShaders(const tracer::AccelManager& ac
 void BM_RawIntersect8(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
     const auto& scene = showcase(state.range(1) != 0);
+    const shaders::PinholeCamera camera = scene.camera(kSize, kSize);
     const std::vector<Tile> tiles = makeTiles(kSize, kSize, 16);
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
@@ -61,7 +62,7 @@ void BM_RawIntersect8(benchmark::State& state) {
                     alignas(32) RTCRayHit8 rh{};
                     for (int i = 0; i < 8; ++i) {
                         valid[i] = x0 + i < tile.x1 ? -1 : 0;
-                        const tracer::RayDesc r = scene.primaryRay(x0 + i, y, kSize, kSize);
+                        const tracer::RayDesc r = bench::primaryRay(camera, x0 + i, y);
                         rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
                         rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
                         rh.ray.tnear[i] = 0.f;
@@ -83,11 +84,12 @@ void BM_RawIntersect8(benchmark::State& state) {
 void BM_PipelinePacket(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
     const auto& scene = showcase(state.range(1) != 0);
+    const shaders::PinholeCamera camera = scene.camera(kSize, kSize);
     const tracer::Pipeline<HitPayload> pipeline(*scene.accel, trivialShaders(*scene.accel));
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
         pipeline.dispatchCoherent(
-            kSize, kSize, tracer::TraceArgs{}, [&](int x, int y, HitPayload&) { return scene.primaryRay(x, y, kSize, kSize); },
+            kSize, kSize, tracer::TraceArgs{}, [&](int x, int y, HitPayload&) { return bench::primaryRay(camera, x, y); },
             [&](int x, int y, const HitPayload& p) { out[static_cast<std::size_t>(y) * kSize + x] = p.t; });
         benchmark::DoNotOptimize(out.data());
     }
@@ -97,12 +99,13 @@ void BM_PipelinePacket(benchmark::State& state) {
 void BM_PipelineSingleRay(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
     const auto& scene = showcase(state.range(1) != 0);
+    const shaders::PinholeCamera camera = scene.camera(kSize, kSize);
     const tracer::Pipeline<HitPayload> pipeline(*scene.accel, trivialShaders(*scene.accel));
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
         pipeline.dispatchRays(kSize, kSize, [&](int x, int y) {
             HitPayload p;
-            pipeline.traceRay(tracer::TraceArgs{}, scene.primaryRay(x, y, kSize, kSize), p);
+            pipeline.traceRay(tracer::TraceArgs{}, bench::primaryRay(camera, x, y), p);
             out[static_cast<std::size_t>(y) * kSize + x] = p.t;
         });
         benchmark::DoNotOptimize(out.data());

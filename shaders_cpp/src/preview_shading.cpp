@@ -22,24 +22,36 @@ float srgb8ToLinear(std::uint8_t v) { return srgbToLinear(v / 255.f); }
 
 }  // namespace
 
-CameraRay cameraRay(const ecs::CameraSnapshot& camera, int width, int height, float px, float py) {
-    const float aspect = camera.camera.aspectRatio > 0.f ? camera.camera.aspectRatio
-                                                         : static_cast<float>(width) / static_cast<float>(height);
-    const float tanHalf = std::tan(0.5f * camera.camera.yfov);
-    const float sx = (2.f * px / width - 1.f) * tanHalf * aspect;
-    const float sy = (1.f - 2.f * py / height) * tanHalf;
+PinholeCamera::PinholeCamera(const ecs::CameraSnapshot& camera, int width, int height)
+    : origin_(vec3(camera.worldFromCamera[3])),
+      rotation_(mat3(camera.worldFromCamera)),
+      cameraFromWorld_(glm::inverse(camera.worldFromCamera)),
+      tanHalf_(std::tan(0.5f * camera.camera.yfov)),
+      aspect_(camera.camera.aspectRatio > 0.f ? camera.camera.aspectRatio
+                                              : static_cast<float>(width) / static_cast<float>(height)),
+      width_(static_cast<float>(width)),
+      height_(static_cast<float>(height)) {}
+
+CameraRay PinholeCamera::ray(float px, float py) const {
+    const float sx = (2.f * px / width_ - 1.f) * tanHalf_ * aspect_;
+    const float sy = (1.f - 2.f * py / height_) * tanHalf_;
     const vec3 dirCamera = glm::normalize(vec3(sx, sy, -1.f));
-    return {vec3(camera.worldFromCamera[3]), glm::normalize(mat3(camera.worldFromCamera) * dirCamera)};
+    return {origin_, glm::normalize(rotation_ * dirCamera)};
+}
+
+std::optional<vec2> PinholeCamera::project(const vec3& worldPoint) const {
+    const vec3 p = vec3(cameraFromWorld_ * vec4(worldPoint, 1.f));
+    if (!(p.z < 0.f)) return std::nullopt;
+    const float sx = p.x / -p.z, sy = p.y / -p.z;
+    return vec2((sx / (tanHalf_ * aspect_) + 1.f) * 0.5f * width_, (1.f - sy / tanHalf_) * 0.5f * height_);
+}
+
+CameraRay cameraRay(const ecs::CameraSnapshot& camera, int width, int height, float px, float py) {
+    return PinholeCamera(camera, width, height).ray(px, py);
 }
 
 std::optional<vec2> projectToPixel(const ecs::CameraSnapshot& camera, int width, int height, const vec3& worldPoint) {
-    const float aspect = camera.camera.aspectRatio > 0.f ? camera.camera.aspectRatio
-                                                         : static_cast<float>(width) / static_cast<float>(height);
-    const float tanHalf = std::tan(0.5f * camera.camera.yfov);
-    const vec3 p = vec3(glm::inverse(camera.worldFromCamera) * vec4(worldPoint, 1.f));
-    if (!(p.z < 0.f)) return std::nullopt;
-    const float sx = p.x / -p.z, sy = p.y / -p.z;
-    return vec2((sx / (tanHalf * aspect) + 1.f) * 0.5f * width, (1.f - sy / tanHalf) * 0.5f * height);
+    return PinholeCamera(camera, width, height).project(worldPoint);
 }
 
 vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>& textures, const vec2& uv) {
@@ -110,12 +122,13 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
             throw std::invalid_argument("renderPreview: recordRayOrder needs an order-dependent back end");
         rayOrder.reserve(beauty.size());
     }
+    const PinholeCamera camera(scene.camera, w, h);
     const tracer::TraceCounters counters = pipeline.dispatchCoherent(
         w, h, tracer::TraceArgs{},
         [&](int x, int y, PreviewPayload&) {
             // The dispatch runs on one thread, tiles in order (order-dependent back end).
             if (settings.recordRayOrder) rayOrder.push_back(static_cast<std::uint32_t>(y) * w + x);
-            const CameraRay ray = cameraRay(scene.camera, w, h, x + 0.5f, y + 0.5f);
+            const CameraRay ray = camera.ray(x + 0.5f, y + 0.5f);
             return tracer::RayDesc{ray.origin, 0.f, ray.direction, kInfinity};
         },
         [&](int x, int y, const PreviewPayload& p) {

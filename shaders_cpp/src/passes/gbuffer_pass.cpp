@@ -11,24 +11,27 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
                              std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters) {
     const int w = ctx.width, h = ctx.height;
     const vec3 forward = -glm::normalize(vec3(ctx.scene.camera.worldFromCamera[2]));
+    const PinholeCamera camera(ctx.scene.camera, w, h);
+    const std::optional<PinholeCamera> previousCamera =
+        previous.valid ? std::optional<PinholeCamera>(PinholeCamera(previous.camera, w, h)) : std::nullopt;
     // Step: primary rays through pixel centres.
     counters.add(ctx.pipeline().dispatchCoherent(
         w, h, ctx.args(kRayPrimary),
         [&](int x, int y, HitPayload&) {
             if (rayOrder) rayOrder->push_back(static_cast<std::uint32_t>(ctx.pixelIndex(x, y)));
-            const CameraRay r = cameraRay(ctx.scene.camera, w, h, x + 0.5f, y + 0.5f);
+            const CameraRay r = camera.ray(x + 0.5f, y + 0.5f);
             return tracer::RayDesc{r.origin, 0.f, r.direction, kInfinity};
         },
         [&](int x, int y, const HitPayload& p) {
             GPixel& g = ctx.gbuffer[ctx.pixelIndex(x, y)];
             if (!p.hit) return;
             const ecs::Material& m = ctx.material(p.material);
-            const CameraRay r = cameraRay(ctx.scene.camera, w, h, x + 0.5f, y + 0.5f);
+            const CameraRay r = camera.ray(x + 0.5f, y + 0.5f);
             g.hit = true;
             g.t = p.t;
             g.depth = p.t * glm::dot(r.direction, forward);
             // The pixel's footprint: the primary ray's distance x the angle to the next pixel's ray.
-            const CameraRay next = cameraRay(ctx.scene.camera, w, h, x + 1.5f, y + 0.5f);
+            const CameraRay next = camera.ray(x + 1.5f, y + 0.5f);
             g.pixelWorld = p.t * glm::length(next.direction - r.direction);
             g.position = p.position;
             g.viewDir = -r.direction;
@@ -45,7 +48,7 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             g.mesh = p.mesh;
             g.instance = p.instance;
             // Step: motion — where this surface point was in the previous frame.
-            if (previous.valid) {
+            if (previousCamera) {
                 vec3 prevWorld = p.position;
                 if (p.entity < previous.present.size() && previous.present[p.entity]) {
                     // The instance transform the tracer caches (instance_transform.hpp).
@@ -53,7 +56,7 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
                         tracer::objectSpacePoint(ctx.accel.instanceFacts(p.instance).objectFromWorld, p.position);
                     prevWorld = vec3(previous.worldFromObject[p.entity] * vec4(object, 1.f));
                 }
-                const std::optional<vec2> prev = projectToPixel(previous.camera, w, h, prevWorld);
+                const std::optional<vec2> prev = previousCamera->project(prevWorld);
                 if (prev && std::isfinite(prev->x) && std::isfinite(prev->y)) g.motion = *prev - vec2(x + 0.5f, y + 0.5f);
             }
         }));

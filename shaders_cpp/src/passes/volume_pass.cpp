@@ -14,13 +14,14 @@ std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& 
     const int w = ctx.width, h = ctx.height;
     std::vector<vec3> contribution(n, vec3(0.f)), sum(n, vec3(0.f));
     std::vector<float> tSum(n, 0.f);
+    const PinholeCamera camera(ctx.scene.camera, w, h);
     for (int s = 0; s < spp; ++s) {
         counters.add(ctx.pipeline().dispatchCoherent(
             w, h, ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
             [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
                 const std::size_t i = ctx.pixelIndex(x, y);
                 const GPixel& g = ctx.gbuffer[i];
-                const CameraRay cam = cameraRay(ctx.scene.camera, w, h, x + 0.5f, y + 0.5f);
+                const CameraRay cam = camera.ray(x + 0.5f, y + 0.5f);
                 const float tEnd = g.hit ? g.t : kInfinity;
                 const std::uint32_t sample = static_cast<std::uint32_t>(s);
                 // Step: the camera -> surface transmittance.

@@ -45,9 +45,27 @@ struct CameraRay {
     vec3 origin;
     vec3 direction;  // unit length
 };
+// A pinhole camera for one image size, with what every pixel needs (tan of
+// half the field of view, the rotation, the inverse transform) computed once:
+// per-pixel callers construct it outside their loop.
+class PinholeCamera {
+public:
+    PinholeCamera(const ecs::CameraSnapshot& camera, int width, int height);
+    // The ray through continuous pixel position (px, py).
+    CameraRay ray(float px, float py) const;
+    // The inverse of ray(): the continuous pixel position of a world point, or
+    // nothing when it lies behind the camera.
+    std::optional<vec2> project(const vec3& worldPoint) const;
+
+private:
+    vec3 origin_;
+    mat3 rotation_;         // camera -> world
+    mat4 cameraFromWorld_;
+    float tanHalf_, aspect_;
+    float width_, height_;
+};
+// One-off forms of the above.
 CameraRay cameraRay(const ecs::CameraSnapshot& camera, int width, int height, float px, float py);
-// The inverse of cameraRay: the continuous pixel position (px, py) of a world
-// point, or nothing when it lies behind the camera.
 std::optional<vec2> projectToPixel(const ecs::CameraSnapshot& camera, int width, int height, const vec3& worldPoint);
 
 // Surface attributes at a committed triangle hit, in world space.
