@@ -50,6 +50,7 @@
 // reports bytes_per_second. perf/summarize.py turns the times into the
 // "denoise" section of out/bench/summary.json.
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/memory.hpp>
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/core/rng.hpp>
 #include <rtlab/denoise/atrous.hpp>
@@ -63,7 +64,6 @@
 #include <rtlab/denoise/variance.hpp>
 
 #include <benchmark/benchmark.h>
-#include <malloc.h>
 
 #include <algorithm>
 #include <array>
@@ -608,7 +608,7 @@ struct StackRun {
         filter.setParams(warm);
         for (int k = 0; k < kWarmFrames; ++k) {
             synthesiseNext();
-            filterFrame();
+            process();
         }
         filter.setParams(params.svgf);
     }
@@ -623,7 +623,7 @@ struct StackRun {
         }
     }
     // Timed: the stack's footprint (as EffectLayerDenoiser computes it) and the filter.
-    void filterFrame() {
+    void process() {
         std::vector<float> footprint;
         if (stack == DenoiseStack::Shadow)
             footprint = shadowFootprint(kWidth, kHeight, frame.penumbraWorld, frame.pixelWorld, frame.guides.meshId,
@@ -653,11 +653,10 @@ private:
     std::unique_ptr<ThreadLimit> limit_;
 };
 
-void BM_DenoiseStack(benchmark::State& state) {
-    const int k = static_cast<int>(state.range(1));
-    if (!stackRuns[k]) stackRuns[k] = std::make_unique<StackRun>(kStacks[k]);
-    StackRun& run = *stackRuns[k];
-    state.SetLabel(stackName(run.stack));
+// Times run.process() per frame; synthesising the next frame (untimed) runs
+// without the benchmark's thread limit.
+template <class Run>
+void timeFrames(benchmark::State& state, Run& run) {
     TimedThreads threads(threadsOf(state));
     for (auto _ : state) {
         state.PauseTiming();
@@ -665,8 +664,16 @@ void BM_DenoiseStack(benchmark::State& state) {
         run.synthesiseNext();
         threads.restore();
         state.ResumeTiming();
-        run.filterFrame();
+        run.process();
     }
+}
+
+void BM_DenoiseStack(benchmark::State& state) {
+    const int k = static_cast<int>(state.range(1));
+    if (!stackRuns[k]) stackRuns[k] = std::make_unique<StackRun>(kStacks[k]);
+    StackRun& run = *stackRuns[k];
+    state.SetLabel(stackName(run.stack));
+    timeFrames(state, run);
     std::size_t valid = 0;
     for (std::uint8_t v : run.filter.reprojectionValid()) valid += v;
     state.counters["valid_fraction"] = static_cast<double>(valid) / static_cast<double>(kPixels);
@@ -711,14 +718,14 @@ struct LayerRun {
     LayerRun() {
         for (int k = 0; k < kWarmFrames; ++k) {
             synthesiseNext();
-            apply();
+            process();
         }
     }
     void synthesiseNext() {
         synthesise(nextFrame++, frame, false);
         image = layerImage(frame);
     }
-    void apply() {
+    void process() {
         layers = denoiser.apply(image).size();
         benchmark::DoNotOptimize(image.channel("gi.R"));
     }
@@ -730,15 +737,7 @@ void BM_DenoiseEffectLayers(benchmark::State& state) {
     if (!layerRun) layerRun = std::make_unique<LayerRun>();
     LayerRun& run = *layerRun;
     state.SetLabel("shadow.light0.V, ao.V, gi");
-    TimedThreads threads(threadsOf(state));
-    for (auto _ : state) {
-        state.PauseTiming();
-        threads.release();
-        run.synthesiseNext();
-        threads.restore();
-        state.ResumeTiming();
-        run.apply();
-    }
+    timeFrames(state, run);
     state.counters["layers"] = static_cast<double>(run.layers);
     setRate(state);
     if (threadsOf(state) == 2) layerRun.reset();
@@ -770,12 +769,9 @@ BENCHMARK(BM_DenoiseStack)
 BENCHMARK(BM_DenoiseEffectLayers)->Arg(1)->Arg(2)->Iterations(kLayerFrames)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 int main(int argc, char** argv) {
-    // The same malloc policy as the rtlab binary (apps/src/main.cpp), so that
-    // the figures are what `rtlab render --denoise` pays per frame: without
-    // it every image-sized buffer a stage allocates is a fresh mmap whose
-    // first touch page-faults (2.6 ms per MB on the 2-core development VM).
-    mallopt(M_MMAP_THRESHOLD, 1 << 30);
-    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    // The same malloc policy as the rtlab binary, so that the figures are
+    // what `rtlab render --denoise` pays per frame.
+    retainFreedMemory();
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     benchmark::RunSpecifiedBenchmarks();

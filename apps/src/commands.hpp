@@ -31,6 +31,8 @@ struct RenderOptions {
     int maxTranslucencyDepth = 8;           // --max-translucency-depth
 };
 void addRenderCommand(CLI::App& app, RenderOptions& options);
+// --reflection-roughness and --ao-radius, shared by render and converge.
+void addEffectSettingOptions(CLI::App& command, float& reflectionRoughness, float& aoRadius);
 int runRender(const RenderOptions& options);
 
 struct PlanOptions {

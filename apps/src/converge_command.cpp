@@ -53,12 +53,7 @@ void addConvergeCommand(CLI::App& app, ConvergeOptions& o) {
         ->capture_default_str();
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--seed", o.seed, "Random seed (the reference uses a different, derived seed)")->capture_default_str();
-    cmd->add_option("--reflection-roughness", o.reflectionRoughness, "Reflections trace where roughness <= this")
-        ->check(CLI::Range(0.f, 1.f))
-        ->capture_default_str();
-    cmd->add_option("--ao-radius", o.aoRadius, "Ambient-occlusion ray length (world units)")
-        ->check(CLI::Range(0.f, 1e30f))
-        ->capture_default_str();
+    addEffectSettingOptions(*cmd, o.reflectionRoughness, o.aoRadius);
 }
 
 namespace {

@@ -3,9 +3,9 @@
 #include "commands.hpp"
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/core/memory.hpp>
 
 #include <iostream>
-#include <malloc.h>
 #include <unistd.h>
 
 namespace rtlab::app {
@@ -19,12 +19,7 @@ void progress(const std::string& line) {
 
 int main(int argc, char** argv) {
     using namespace rtlab;
-    // Keep freed memory in the heap instead of returning it to the kernel:
-    // every frame allocates and frees image-sized buffers (tens of MB), and
-    // with glibc's defaults each of them is a fresh mmap whose first touch
-    // page-faults (measured: a third of the denoiser's time at 480x270).
-    mallopt(M_MMAP_THRESHOLD, 1 << 30);
-    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    retainFreedMemory();
     CLI::App app{"rtlab: a deterministic ray-tracing laboratory"};
     app.require_subcommand(1);
     app::RenderOptions render;

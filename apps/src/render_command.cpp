@@ -25,6 +25,15 @@
 
 namespace rtlab::app {
 
+void addEffectSettingOptions(CLI::App& cmd, float& reflectionRoughness, float& aoRadius) {
+    cmd.add_option("--reflection-roughness", reflectionRoughness, "Reflections trace where roughness <= this")
+        ->check(CLI::Range(0.f, 1.f))
+        ->capture_default_str();
+    cmd.add_option("--ao-radius", aoRadius, "Ambient-occlusion ray length (world units)")
+        ->check(CLI::Range(0.f, 1e30f))
+        ->capture_default_str();
+}
+
 void addRenderCommand(CLI::App& app, RenderOptions& o) {
     CLI::App* cmd = app.add_subcommand("render", "Render frames of a scene to EXR + PNG + stats.json");
     cmd->add_option("--scene", o.scene, "builtin:NAME, .gltf/.glb, or scene .json")->capture_default_str();
@@ -46,12 +55,7 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
                                             "(gbuffer alone: primary rays only)")
         ->capture_default_str();
     cmd->add_option("--gi", o.gi, "Diffuse GI technique")->check(CLI::IsMember({"path", "ddgi"}))->capture_default_str();
-    cmd->add_option("--reflection-roughness", o.reflectionRoughness, "Reflections trace where roughness <= this")
-        ->check(CLI::Range(0.f, 1.f))
-        ->capture_default_str();
-    cmd->add_option("--ao-radius", o.aoRadius, "Ambient-occlusion ray length (world units)")
-        ->check(CLI::Range(0.f, 1e30f))
-        ->capture_default_str();
+    addEffectSettingOptions(*cmd, o.reflectionRoughness, o.aoRadius);
     cmd->add_option("--max-translucency-depth", o.maxTranslucencyDepth,
                     "Refraction/reflection events along a translucent path")
         ->check(CLI::Range(1, 64))

@@ -108,17 +108,10 @@ RTLAB_SIMD_INLINE void accumulateTaps(const TapRow& t) {
                 const V laneMask = x + N <= x1 ? simd::splat<N>(1.f) : simd::tailMask<N>(x1 - x);
                 const std::size_t i = t.row + x, j = rowQ + x + dx;
                 // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps.
-                const V d = simd::loadu<N>(t.nx + i) * simd::loadu<N>(t.nx + j) +
-                            simd::loadu<N>(t.ny + i) * simd::loadu<N>(t.ny + j) +
-                            simd::loadu<N>(t.nz + i) * simd::loadu<N>(t.nz + j);
-                const V wn = t.normalPower->apply<N>(d);
-                const V z = simd::loadu<N>(t.depth + i);
-                const V dz = simd::abs<N>(z - simd::loadu<N>(t.depth + j));
-                const V zDen =
-                    simd::abs<N>(simd::loadu<N>(t.gradX + i) * offX + simd::loadu<N>(t.gradY + i) * offY) * t.sigmaZ +
-                    simd::abs<N>(z) * t.depthEps;
-                const V termZ = simd::select<N>(dz == 0.f, simd::splat<N>(0.f),
-                                                simd::select<N>(zDen > 0.f, dz / zDen, simd::splat<N>(kInfinity)));
+                const V wn = t.normalPower->apply<N>(simd::normalDot<N>(t.nx, t.ny, t.nz, i, j));
+                const V termZ = simd::depthTerm<N>(simd::loadu<N>(t.depth + i), simd::loadu<N>(t.depth + j),
+                                                   simd::loadu<N>(t.gradX + i), simd::loadu<N>(t.gradY + i), offX,
+                                                   offY, t.sigmaZ, t.depthEps);
                 const V dl = simd::abs<N>(simd::loadu<N>(t.lum + i) - simd::loadu<N>(t.lum + j));
                 const V termL = simd::select<N>(dl == 0.f, simd::splat<N>(0.f), dl * simd::loadu<N>(t.invLum + i));
                 const V wgt = simd::expNeg<N>(termZ + termL) * wn * simd::loadu<N>(t.geometry + j);

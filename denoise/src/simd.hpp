@@ -132,6 +132,26 @@ RTLAB_SIMD_INLINE vfloat<N> log2Positive(const vfloat<N>& x) {
     return __builtin_convertvector(e, vfloat<N>) + p * s * 2.88539008178f;
 }
 
+// The depth edge-stopping term |z - zq| / (sigmaZ |grad . offset| + relEps |z|)
+// of SVGF (offset in pixels; the vector form of detail::depthTerm): 0 where
+// the depths are equal, +inf where the denominator is not positive.
+template <int N>
+RTLAB_SIMD_INLINE vfloat<N> depthTerm(const vfloat<N>& z, const vfloat<N>& zq, const vfloat<N>& gradX,
+                                      const vfloat<N>& gradY, const vfloat<N>& offX, const vfloat<N>& offY,
+                                      float sigmaZ, float relEps) {
+    const vfloat<N> dz = abs<N>(z - zq);
+    const vfloat<N> den = abs<N>(gradX * offX + gradY * offY) * sigmaZ + abs<N>(z) * relEps;
+    return select<N>(dz == 0.f, splat<N>(0.f), select<N>(den > 0.f, dz / den, splat<N>(HUGE_VALF)));
+}
+
+// n . n' of two normals stored as x, y, z planes, at indices i and j.
+template <int N>
+RTLAB_SIMD_INLINE vfloat<N> normalDot(const float* nx, const float* ny, const float* nz, std::size_t i,
+                                      std::size_t j) {
+    return loadu<N>(nx + i) * loadu<N>(nx + j) + loadu<N>(ny + i) * loadu<N>(ny + j) +
+           loadu<N>(nz + i) * loadu<N>(nz + j);
+}
+
 // max(0, d)^sigmaN for d = n.n' (clamped to [0, 1], NaN -> 0): repeated
 // squaring for integer exponents up to 4096 (the paper's 128 = 2^7 takes 7
 // squarings), exp2/log2 otherwise.

@@ -35,18 +35,11 @@ RTLAB_SIMD_INLINE void accumulateMoments(const MomentRow& t) {
                 if (t.activeBefore[std::min(x + N, w)] == t.activeBefore[x]) continue;
                 const V laneMask = x + N <= x1 ? simd::splat<N>(1.f) : simd::tailMask<N>(x1 - x);
                 const std::size_t i = t.row + x, j = rowQ + x + dx;
-                const V zc = simd::loadu<N>(t.depth + i);
-                const V dz = simd::abs<N>(zc - simd::loadu<N>(t.depth + j));
-                const V zDen =
-                    simd::abs<N>(simd::loadu<N>(t.gradX + i) * offX + simd::loadu<N>(t.gradY + i) * offY) * t.sigmaZ +
-                    simd::abs<N>(zc) * t.depthEps;
-                const V termZ = simd::select<N>(dz == 0.f, simd::splat<N>(0.f),
-                                                simd::select<N>(zDen > 0.f, dz / zDen, simd::splat<N>(kInfinity)));
-                const V d = simd::loadu<N>(t.nx + i) * simd::loadu<N>(t.nx + j) +
-                            simd::loadu<N>(t.ny + i) * simd::loadu<N>(t.ny + j) +
-                            simd::loadu<N>(t.nz + i) * simd::loadu<N>(t.nz + j);
-                const V wgt =
-                    simd::expNeg<N>(termZ) * t.normalPower->apply<N>(d) * simd::loadu<N>(t.geometry + j) * laneMask;
+                const V termZ = simd::depthTerm<N>(simd::loadu<N>(t.depth + i), simd::loadu<N>(t.depth + j),
+                                                   simd::loadu<N>(t.gradX + i), simd::loadu<N>(t.gradY + i), offX,
+                                                   offY, t.sigmaZ, t.depthEps);
+                const V wgt = simd::expNeg<N>(termZ) * t.normalPower->apply<N>(simd::normalDot<N>(t.nx, t.ny, t.nz, i, j)) *
+                              simd::loadu<N>(t.geometry + j) * laneMask;
                 const V dev = simd::loadu<N>(t.mean + j) - simd::loadu<N>(t.mean + i);
                 simd::storeu<N>(t.s0 + x, simd::loadu<N>(t.s0 + x) + wgt);
                 simd::storeu<N>(t.s1 + x, simd::loadu<N>(t.s1 + x) + wgt * dev);

@@ -408,38 +408,36 @@ vec3 DdgiVolume::irradiance(vec3 position, vec3 normal, vec3 viewDir) const {
     return isFinite(result) ? result : vec3(0.f);
 }
 
-DdgiAtlasImage DdgiVolume::irradianceAtlasImage() const {
-    const int tile = irradianceTileSize(), columns = counts_.x * counts_.y;
+namespace {
+
+// Probe tiles laid out as the atlas: probe p at column p % columns, row
+// p / columns; texel(p, index within the tile) gives the texel's value.
+template <class Texel>
+DdgiAtlasImage atlasOfTiles(std::uint32_t probeCount, int columns, int rows, int tile, Texel&& texel) {
     DdgiAtlasImage img;
     img.width = columns * tile;
-    img.height = counts_.z * tile;
+    img.height = rows * tile;
     img.texels.resize(static_cast<std::size_t>(img.width) * static_cast<std::size_t>(img.height));
-    for (std::uint32_t p = 0; p < probeCount_; ++p) {
-        const vec3* t = irradianceTile(p);
+    for (std::uint32_t p = 0; p < probeCount; ++p) {
         const int x0 = static_cast<int>(p) % columns * tile, y0 = static_cast<int>(p) / columns * tile;
         for (int y = 0; y < tile; ++y)
             for (int x = 0; x < tile; ++x)
                 img.texels[static_cast<std::size_t>(y0 + y) * img.width + (x0 + x)] =
-                    decode(t[static_cast<std::size_t>(y) * tile + x]);
+                    texel(p, static_cast<std::size_t>(y) * tile + x);
     }
     return img;
 }
 
+}  // namespace
+
+DdgiAtlasImage DdgiVolume::irradianceAtlasImage() const {
+    return atlasOfTiles(probeCount_, counts_.x * counts_.y, counts_.z, irradianceTileSize(),
+                        [&](std::uint32_t p, std::size_t t) { return decode(irradianceTile(p)[t]); });
+}
+
 DdgiAtlasImage DdgiVolume::distanceAtlasImage() const {
-    const int tile = distanceTileSize(), columns = counts_.x * counts_.y;
-    DdgiAtlasImage img;
-    img.width = columns * tile;
-    img.height = counts_.z * tile;
-    img.texels.resize(static_cast<std::size_t>(img.width) * static_cast<std::size_t>(img.height));
-    for (std::uint32_t p = 0; p < probeCount_; ++p) {
-        const vec2* t = distanceTile(p);
-        const int x0 = static_cast<int>(p) % columns * tile, y0 = static_cast<int>(p) / columns * tile;
-        for (int y = 0; y < tile; ++y)
-            for (int x = 0; x < tile; ++x)
-                img.texels[static_cast<std::size_t>(y0 + y) * img.width + (x0 + x)] =
-                    vec3(t[static_cast<std::size_t>(y) * tile + x], 0.f);
-    }
-    return img;
+    return atlasOfTiles(probeCount_, counts_.x * counts_.y, counts_.z, distanceTileSize(),
+                        [&](std::uint32_t p, std::size_t t) { return vec3(distanceTile(p)[t], 0.f); });
 }
 
 std::size_t DdgiVolume::bytesAllocated() const {
