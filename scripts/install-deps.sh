@@ -10,6 +10,9 @@ packages=(
   libglm-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
   libopenexr-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  libdraco-dev libmeshoptimizer-dev
+  libopenmpi-dev openmpi-bin
+  python3 python3-matplotlib chromium
   assimp-testmodels
 )
 

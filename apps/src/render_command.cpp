@@ -264,6 +264,7 @@ int runRender(const RenderOptions& o) {
                         {"instanceSetChanged", update.instanceSetChanged}};
         fj["accel"] = {{"blasRebuilt", accelStats.blasRebuilt},
                        {"blasRebuiltForQuality", accelStats.blasRebuiltForQuality},
+                       {"blasRepadded", accelStats.blasRepadded},
                        {"blasRefit", accelStats.blasRefit},
                        {"blasReused", accelStats.blasReused},
                        {"worstRefitDegradation", accelStats.worstRefitDegradation},

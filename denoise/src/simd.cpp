@@ -7,11 +7,6 @@ namespace {
 std::atomic<int> forcedWidth{0};
 }
 
-bool hasAvx2() {
-    static const bool avx2 = __builtin_cpu_supports("avx2");
-    return avx2;
-}
-
 int preferredWidth() {
     const int forced = forcedWidth.load(std::memory_order_relaxed);
     if (forced == 4 || forced == 8) return forced;

@@ -1,63 +1,32 @@
 #pragma once
-// SIMD float vectors for the denoiser's inner loops, templated on the width
-// as Embree's vfloat<N>; two widths are used: 4 (SSE2, the x86-64
-// baseline) and 8 (AVX2, picked at run time when the CPU has it). Built on
-// GCC/Clang vector extensions, so every operation is lane-wise IEEE
-// arithmetic: a lane's result does not depend on the width or on which
-// lanes share a vector (the project compiles in ISO mode, where contraction
-// into FMA is off, and the AVX2 path does not enable FMA), so both widths
-// give bit-identical images (tests/denoise/test_simd_math.cpp checks it).
+// The denoiser's SIMD helpers (abs, exp, log2, edge-stopping terms) on
+// core's width-templated vfloat<N> (rtlab/core/simd.hpp): lane-wise IEEE
+// arithmetic, so the 4-wide (SSE2) and 8-wide (AVX2, picked at run time)
+// kernels give bit-identical images (tests/denoise/test_simd_math.cpp).
+#include <rtlab/core/simd.hpp>
+
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 
-#define RTLAB_SIMD_INLINE inline __attribute__((always_inline))
-
-// The 8-wide helpers are always inlined into AVX2-targeted kernels, so the
-// calling convention GCC warns about (AVX vectors returned without AVX) never
-// applies.
-#pragma GCC diagnostic ignored "-Wpsabi"
-
 namespace rtlab::denoise::simd {
 
-template <int N>
-struct Lanes {
-    typedef float vf __attribute__((vector_size(N * sizeof(float))));
-    typedef std::int32_t vi __attribute__((vector_size(N * sizeof(std::int32_t))));
-    // Unaligned vectors: loads and stores through this type are float
-    // accesses (type-based alias analysis applies), unlike memcpy, which the
-    // compiler must assume may overwrite any pointer it holds.
-    typedef float vfUnaligned __attribute__((vector_size(N * sizeof(float)), aligned(alignof(float))));
-};
-template <int N>
-using vfloat = typename Lanes<N>::vf;
-template <int N>
-using vint = typename Lanes<N>::vi;
+using rtlab::simd::hasAvx2;
+using rtlab::simd::Lanes;
+using rtlab::simd::loadu;
+using rtlab::simd::select;
+using rtlab::simd::splat;
+using rtlab::simd::storeu;
+using rtlab::simd::vfloat;
+using rtlab::simd::vint;
 
 // The widest width this CPU runs (8 with AVX2, else 4), unless a test
 // forced one with overrideWidth (0 = no override; 8 is ignored without AVX2).
-bool hasAvx2();
 int preferredWidth();
 void overrideWidth(int width);
 // Padding (floats) the planes need after their last pixel: the widest vector.
 inline constexpr int kMaxWidth = 8;
 
-template <int N>
-RTLAB_SIMD_INLINE vfloat<N> splat(float v) {
-    return vfloat<N>{} + v;
-}
-template <int N>
-RTLAB_SIMD_INLINE vfloat<N> loadu(const float* p) {
-    return *reinterpret_cast<const typename Lanes<N>::vfUnaligned*>(p);
-}
-template <int N>
-RTLAB_SIMD_INLINE void storeu(float* p, const vfloat<N>& v) {
-    *reinterpret_cast<typename Lanes<N>::vfUnaligned*>(p) = v;
-}
-template <int N>
-RTLAB_SIMD_INLINE vfloat<N> select(const vint<N>& mask, const vfloat<N>& a, const vfloat<N>& b) {
-    return mask ? a : b;
-}
 template <int N>
 RTLAB_SIMD_INLINE vfloat<N> abs(const vfloat<N>& v) {
     return (vfloat<N>)((vint<N>)v & 0x7fffffff);  // vector casts reinterpret the bits

@@ -16,10 +16,11 @@
 using namespace rtlab;
 using namespace rtlab::denoise;
 using namespace rtlab::denoise::testing;
+namespace dsimd = rtlab::denoise::simd;
 
 TEST(DenoiseSimdMath, ExpNegMatchesStdExp) {
     for (float e = 0.f; e < 90.f; e += 0.01f) {
-        const simd::vfloat<4> v = simd::expNeg<4>(simd::splat<4>(e));
+        const dsimd::vfloat<4> v = dsimd::expNeg<4>(dsimd::splat<4>(e));
         const float want = std::exp(-e);
         if (e >= 87.f) { EXPECT_EQ(v[0], 0.f) << e; continue; }
         if (want < 1e-37f) continue;  // denormal range: only finiteness matters
@@ -30,7 +31,7 @@ TEST(DenoiseSimdMath, ExpNegMatchesStdExp) {
 
 TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {
     const float inf = std::numeric_limits<float>::infinity();
-    const simd::vfloat<4> v = simd::expNeg<4>(simd::vfloat<4>{-3.f, std::nanf(""), inf, 0.f});
+    const dsimd::vfloat<4> v = dsimd::expNeg<4>(dsimd::vfloat<4>{-3.f, std::nanf(""), inf, 0.f});
     EXPECT_EQ(v[0], 1.f);  // negative counts as 0
     EXPECT_EQ(v[1], 0.f);
     EXPECT_EQ(v[2], 0.f);
@@ -39,15 +40,15 @@ TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {
 
 TEST(DenoiseSimdMath, Log2MatchesStdLog2) {
     for (float x = 1e-30f; x < 1e30f; x *= 1.37f) {
-        const simd::vfloat<4> v = simd::log2Positive<4>(simd::splat<4>(x));
+        const dsimd::vfloat<4> v = dsimd::log2Positive<4>(dsimd::splat<4>(x));
         EXPECT_NEAR(v[0], std::log2(x), 2e-6f * std::fmax(1.f, std::fabs(std::log2(x)))) << x;
     }
 }
 
 TEST(DenoiseSimdMath, LanesAreIndependent) {
     // The same value gives the same result in every lane position.
-    const simd::vfloat<4> a = simd::expNeg<4>(simd::vfloat<4>{0.3f, 1.7f, 5.5f, 12.f});
-    const simd::vfloat<4> b = simd::expNeg<4>(simd::vfloat<4>{12.f, 0.3f, 1.7f, 5.5f});
+    const dsimd::vfloat<4> a = dsimd::expNeg<4>(dsimd::vfloat<4>{0.3f, 1.7f, 5.5f, 12.f});
+    const dsimd::vfloat<4> b = dsimd::expNeg<4>(dsimd::vfloat<4>{12.f, 0.3f, 1.7f, 5.5f});
     EXPECT_EQ(a[0], b[1]);
     EXPECT_EQ(a[1], b[2]);
     EXPECT_EQ(a[2], b[3]);
@@ -92,7 +93,7 @@ TEST(DenoiseAtrousFootprint, FootprintSelectsTheNumberOfIterations) {
 TEST(DenoiseSimdMath, FourAndEightWideFiltersAreBitIdentical) {
     // The SSE2 and the AVX2 paths of the a-trous filter and the spatial
     // variance give the same bits.
-    if (!simd::hasAvx2()) GTEST_SKIP() << "this CPU has no AVX2: only the 4-wide path exists";
+    if (!dsimd::hasAvx2()) GTEST_SKIP() << "this CPU has no AVX2: only the 4-wide path exists";
     const int w = 37, h = 23;  // rows that are not a multiple of either width
     GuideBuffers g = flatGuides(w, h);
     for (int y = 0; y < h; ++y)
@@ -106,7 +107,7 @@ TEST(DenoiseSimdMath, FourAndEightWideFiltersAreBitIdentical) {
     std::vector<float> footprint(g.pixelCount());
     for (std::size_t i = 0; i < footprint.size(); ++i) footprint[i] = float(i % 40);
     const auto run = [&](int width) {
-        simd::overrideWidth(width);
+        dsimd::overrideWidth(width);
         std::vector<vec3> out(g.pixelCount());
         std::vector<float> varOut(g.pixelCount());
         atrousFilter(g, noisy, var, {}, out, varOut, 0, {}, footprint);
@@ -118,7 +119,7 @@ TEST(DenoiseSimdMath, FourAndEightWideFiltersAreBitIdentical) {
         }
         std::vector<float> spatial(g.pixelCount());
         estimateVariance(g, acc, {}, spatial);
-        simd::overrideWidth(0);
+        dsimd::overrideWidth(0);
         return std::make_tuple(out, varOut, spatial);
     };
     const auto four = run(4), eight = run(8);

@@ -1,9 +1,11 @@
 #include <rtlab/core/timer.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/conservative_bounds.hpp>
 #include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/dxr.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -76,25 +78,124 @@ double clusterCost(const ecs::Geometry& g, const std::vector<std::uint32_t>& ord
     return rootArea > 0.0 ? sum / rootArea : 0.0;
 }
 
-}  // namespace
-
-void AccelManager::setWatertightPositions(WatertightTriangles& data, const ecs::Geometry& g) const {
-    data.positions = g.positions;
-    Aabb bounds;
-    for (const vec3& p : g.positions) bounds.extend(p);
-    const vec3 extent = bounds.empty() ? vec3(0.f) : bounds.extent();
-    data.padding = options_.watertightBoundsPadding * std::max({extent.x, extent.y, extent.z});
+// Clusters of up to kClusterTriangles triangles, consecutive along the
+// Morton curve `order`; a cluster also ends where the next triangle would
+// make its box larger (in surface area) than the sum of its triangles'
+// boxes, so that large triangles (walls, floors) are not lumped into one
+// box that every ray enters. Triangles with a non-finite vertex are left out
+// (Embree and the RT-core model skip them too).
+void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std::vector<std::uint32_t>& order) {
+    data.clusters.clear();
+    data.clusters.reserve((order.size() + kClusterTriangles - 1) / kClusterTriangles);
+    Aabb clusterBox;
+    double memberArea = 0.0;
+    for (const std::uint32_t t : order) {
+        const vec3& p0 = g.positions[g.indices[3 * t]];
+        const vec3& p1 = g.positions[g.indices[3 * t + 1]];
+        const vec3& p2 = g.positions[g.indices[3 * t + 2]];
+        if (!isFinite(p0) || !isFinite(p1) || !isFinite(p2)) continue;
+        Aabb triBox;
+        triBox.extend(p0);
+        triBox.extend(p1);
+        triBox.extend(p2);
+        Aabb merged = clusterBox;
+        merged.extend(triBox);
+        const bool full = !data.clusters.empty() && data.clusters.back().count == kClusterTriangles;
+        const bool spreads = !data.clusters.empty() && merged.surfaceArea() > memberArea + triBox.surfaceArea();
+        if (data.clusters.empty() || full || spreads) {
+            data.clusters.emplace_back();
+            clusterBox = triBox;
+            memberArea = triBox.surfaceArea();
+        } else {
+            clusterBox = merged;
+            memberArea += triBox.surfaceArea();
+        }
+        TriangleCluster& c = data.clusters.back();
+        c.primitive[c.count] = t;
+        c.set(static_cast<int>(c.count), p0, p1, p2);
+        ++c.count;
+    }
 }
+
+// After a refit: the same triangles per cluster, their new vertices.
+void refreshClusterVertices(WatertightTriangles& data, const ecs::Geometry& g) {
+    for (TriangleCluster& c : data.clusters)
+        for (std::uint32_t s = 0; s < c.count; ++s) {
+            const std::uint32_t t = c.primitive[s];
+            c.set(static_cast<int>(s), g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]],
+                  g.positions[g.indices[3 * t + 2]]);
+        }
+}
+
+// The power of two at or above x (0 for x <= 0): paddings change in steps,
+// so that slowly growing ray origins do not re-pad a BLAS every frame.
+float quantizePaddingUp(float x) {
+    if (!(x > 0.f)) return 0.f;
+    int exponent = 0;
+    std::frexp(x, &exponent);
+    return std::ldexp(1.f, exponent);
+}
+
+float objectMagnitudeOf(const ecs::MeshAsset& mesh) {
+    float m = 0.f;
+    for (const ecs::Geometry& g : mesh.geometries) {
+        for (const vec3& p : g.positions)
+            if (isFinite(p)) m = std::max(m, maxAbsCoordinate(p));
+        for (const Aabb& b : g.proceduralBoxes)
+            if (isFinite(b.lo) && isFinite(b.hi)) m = std::max(m, maxAbsCoordinate(b));
+    }
+    return m;
+}
+
+}  // namespace
 
 void watertightBoundsCallback(const RTCBoundsFunctionArguments* args) {
     const auto& data = *static_cast<const WatertightTriangles*>(args->geometryUserPtr);
-    const std::uint32_t* tri = &data.indices[3 * args->primID];
+    const TriangleCluster& c = data.clusters[args->primID];
     Aabb box;
-    for (int k = 0; k < 3; ++k) box.extend(data.positions[tri[k]]);
-    // Padding: Embree's user-geometry BVH uses the non-robust box test.
+    for (std::uint32_t s = 0; s < c.count; ++s)
+        for (int k = 0; k < 3; ++k) {
+            const vec3 p = c.vertex(static_cast<int>(s), k);
+            if (isFinite(p)) box.extend(p);
+        }
+    // Padding: Embree's user-geometry and instance BVHs use the non-robust box test.
     box.lo -= vec3(data.padding);
     box.hi += vec3(data.padding);
     storeEmbreeBounds(args->bounds_o, box);
+}
+
+void AccelManager::updateConservativePadding(const ecs::SceneSnapshot& scene, const std::vector<std::uint8_t>& changed) {
+    const auto& meshes = *scene.meshes;
+    // Step: the largest |object coordinate| of every mesh (recomputed only for changed ones).
+    if (objectMagnitude_.size() < meshes.size()) objectMagnitude_.resize(meshes.size(), -1.f);
+    for (std::size_t id = 0; id < meshes.size(); ++id)
+        if (changed[id] || objectMagnitude_[id] < 0.f) objectMagnitude_[id] = objectMagnitudeOf(meshes[id]);
+    // Step: a bound on every ray origin's |world coordinate|: the instances'
+    // world boxes, the camera, and what the caller declared.
+    const vec3 cameraPosition = vec3(scene.camera.worldFromCamera[3]);
+    double originBound = std::max<double>(options_.rayOriginBound, maxAbsCoordinate(cameraPosition));
+    std::vector<double> worldToObjectGain(meshes.size(), 1.0), conditioning(meshes.size(), 1.0);
+    for (const ecs::InstanceSnapshot& inst : scene.instances) {
+        if (inst.mesh >= meshes.size()) continue;
+        const double objectToWorld = maxNormGain(inst.worldFromObject);
+        const double worldToObject = maxNormGain(objectFromWorldOf(inst.worldFromObject));
+        originBound = std::max(originBound, double(maxAbsCoordinate(vec3(inst.worldFromObject[3]))) +
+                                                objectToWorld * objectMagnitude_[inst.mesh]);
+        worldToObjectGain[inst.mesh] = std::max(worldToObjectGain[inst.mesh], worldToObject);
+        conditioning[inst.mesh] = std::max(conditioning[inst.mesh], worldToObject * objectToWorld);
+    }
+    // Step: per mesh, the padding for boxes of its magnitude and for ray
+    // origins mapped into its object space (docs/acceleration-structures.md).
+    neededPadding_.assign(meshes.size(), 0.f);
+    for (std::size_t id = 0; id < meshes.size(); ++id) {
+        const double originInObject = 3.0 * worldToObjectGain[id] * originBound;
+        neededPadding_[id] = quantizePaddingUp(static_cast<float>(
+            conditioning[id] * conservativeBoxPadding(objectMagnitude_[id], static_cast<float>(originInObject))));
+    }
+}
+
+float AccelManager::requiredPadding(ecs::MeshId mesh) const {
+    return mesh < neededPadding_.size() ? neededPadding_[mesh] : 0.f;
 }
 
 EmbreeDevice::EmbreeDevice(int threads) {
@@ -180,9 +281,12 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
         blas->boxes.push_back(g.proceduralBoxes);
         // Per-geometry side tables stay index-aligned with the geometries.
         const bool refitTracked = !info.procedural && g.deformable() && options_.refitRebuildThreshold > 0.f;
-        blas->clusterOrder.push_back(refitTracked ? mortonTriangleOrder(g) : std::vector<std::uint32_t>{});
+        const bool watertightTriangles = !info.procedural && options_.watertight;
+        std::vector<std::uint32_t> order =
+            refitTracked || watertightTriangles ? mortonTriangleOrder(g) : std::vector<std::uint32_t>{};
         blas->watertight.emplace_back();
         if (info.procedural) {
+            blas->clusterOrder.emplace_back();
             attachUserGeometry(*blas, g.proceduralBoxes.size(), blas->boxes.back().data(), RTC_BUILD_QUALITY_HIGH,
                                proceduralBoundsCallback, proceduralIntersectCallback, proceduralOccludedCallback);
             continue;
@@ -190,13 +294,16 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
         if (options_.watertight) {
             blas->watertight.back() = std::make_unique<WatertightTriangles>();
             WatertightTriangles& data = *blas->watertight.back();
-            data.indices = g.indices;
-            setWatertightPositions(data, g);
-            attachUserGeometry(*blas, g.triangleCount(), &data,
+            buildClusters(data, g, order);
+            data.padding = requiredPadding(id);
+            if (refitTracked) blas->clusterOrder.push_back(std::move(order));
+            else blas->clusterOrder.emplace_back();
+            attachUserGeometry(*blas, data.clusters.size(), &data,
                                g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH,
                                watertightBoundsCallback, watertightIntersectCallback, watertightOccludedCallback);
             continue;
         }
+        blas->clusterOrder.push_back(refitTracked ? std::move(order) : std::vector<std::uint32_t>{});
         RTCGeometry geom = rtcNewGeometry(device_.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
         // Deformable geometry keeps a refittable BVH.
         rtcSetGeometryBuildQuality(geom, g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH);
@@ -218,7 +325,8 @@ void AccelManager::refitBlas(const ecs::MeshAsset& mesh, ecs::MeshId id) {
     for (std::size_t i = 0; i < mesh.geometries.size(); ++i) {
         if (blas.info[i].procedural) continue;
         if (blas.watertight[i]) {
-            setWatertightPositions(*blas.watertight[i], mesh.geometries[i]);
+            refreshClusterVertices(*blas.watertight[i], mesh.geometries[i]);
+            blas.watertight[i]->padding = requiredPadding(id);
             rtcCommitGeometry(blas.geometries[i]);
             continue;
         }
@@ -263,8 +371,15 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     const ecs::FrameUpdate& u = scene.update;
     const auto& meshes = *scene.meshes;
 
-    // Step: BLAS work, exactly what the FrameUpdate lists.
+    // Step: the conservative padding every mesh needs for this frame's
+    // instances, camera and changed geometry.
     std::vector<std::uint8_t> touched(meshes.size(), 0);
+    for (ecs::MeshId id : u.rebuiltMeshes) touched.at(id) = 1;
+    for (ecs::MeshId id : u.refitMeshes) touched.at(id) = 1;
+    updateConservativePadding(scene, touched);
+    std::fill(touched.begin(), touched.end(), 0);
+
+    // Step: BLAS work, exactly what the FrameUpdate lists.
     const std::vector<ecs::Material>& materials = *scene.materials;
     bool rebuiltForQuality = false;
     for (ecs::MeshId id : u.rebuiltMeshes) {
@@ -299,8 +414,28 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
         }
         touched[id] = 1;
     }
-    for (std::size_t id = 0; id < meshes.size(); ++id)
-        if (!touched[id] && id < blases_.size() && blases_[id]) ++stats.blasReused;
+    // Step: untouched BLASes whose cluster boxes are now padded too little
+    // (ray origins grew in magnitude, an instance scaled down): pad again.
+    bool repadded = false;
+    for (std::size_t id = 0; id < meshes.size() && id < blases_.size(); ++id) {
+        if (touched[id] || !blases_[id]) continue;
+        Blas& blas = *blases_[id];
+        bool grew = false;
+        for (std::size_t i = 0; i < blas.watertight.size(); ++i)
+            if (blas.watertight[i] && blas.watertight[i]->padding < requiredPadding(static_cast<ecs::MeshId>(id))) {
+                blas.watertight[i]->padding = requiredPadding(static_cast<ecs::MeshId>(id));
+                rtcCommitGeometry(blas.geometries[i]);
+                grew = true;
+            }
+        if (!grew) {
+            ++stats.blasReused;
+            continue;
+        }
+        rtcCommitScene(blas.scene);
+        touched[id] = 1;
+        repadded = true;
+        ++stats.blasRepadded;
+    }
 
     // Step: opacity follows material edits (alpha mode) without a rebuild.
     if (u.materialsChanged)
@@ -323,7 +458,7 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty() || rebuiltForQuality) {
         rebuildTlas(scene);
         ++stats.tlasBuilds;
-    } else if (!u.movedInstances.empty() || !u.refitMeshes.empty()) {
+    } else if (!u.movedInstances.empty() || !u.refitMeshes.empty() || repadded) {
         for (const ecs::Entity e : u.movedInstances) {
             if (e.index >= instIdByEntityIndex_.size() || instIdByEntityIndex_[e.index] == ~0u) continue;
             const std::uint32_t id = instIdByEntityIndex_[e.index];
@@ -338,8 +473,8 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
             rtcCommitGeometry(geom);
             ++stats.instancesMoved;
         }
-        // Instances of refit meshes: their bounds changed with the BLAS.
-        if (!u.refitMeshes.empty())
+        // Instances of refit or re-padded meshes: their bounds changed with the BLAS.
+        if (!u.refitMeshes.empty() || repadded)
             for (std::uint32_t id = 0; id < instances_.size(); ++id)
                 if (touched[instances_[id].mesh]) rtcCommitGeometry(rtcGetGeometry(tlas_, id));
         rtcCommitScene(tlas_);

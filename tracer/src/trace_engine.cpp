@@ -76,10 +76,13 @@ struct PipelineContext {
     std::uint32_t laneCount = 0;
     std::uint32_t objectRaysInstance = RTC_INVALID_GEOMETRY_ID;
     std::array<ObjectSpaceRay, kMaxLanes> objectRays;
+    std::array<WatertightRay, kMaxLanes> watertightRays;  // the triangle test's constants of objectRays
+    WatertightRayPacket packet;                            // the same, as an 8-lane packet
 
     PipelineContext(const TraceEngine& engine, const TraceArgs& args, std::uint32_t depth, TraceCounters& counters,
                     const RayDesc* rays, void* const* payloads, bool coherent)
         : filter(engine, args, depth, counters, rays, payloads, lanes.data()) {
+        packet.clear();
         rtcInitIntersectContext(&embree);
         embree.filter = contextFilter;
         embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
@@ -99,7 +102,9 @@ struct PipelineContext {
         if (filterFree) embree.filter = accel.options().watertight ? filterFreeMarker : nullptr;
     }
 
-    const ObjectSpaceRay* objectRaysFor(std::uint32_t instanceIndex) {
+    // The object-space rays of every lane for `instanceIndex` (the lane's
+    // ObjectSpaceRay in objectRays, its triangle-test constants in watertightRays).
+    void objectRaysFor(std::uint32_t instanceIndex) {
         if (objectRaysInstance != instanceIndex) {
             const glm::dmat4& objectFromWorld = filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld;
             // Lanes often share their origin (camera rays): transform it once.
@@ -111,10 +116,11 @@ struct PipelineContext {
                     objectOrigin = objectSpacePoint(objectFromWorld, world.origin);
                 }
                 objectRays[lane] = {objectOrigin, objectSpaceVector(objectFromWorld, world.direction)};
+                watertightRays[lane] = makeWatertightRay(objectRays[lane].origin, objectRays[lane].direction);
+                packet.setRay(static_cast<int>(lane), watertightRays[lane]);
             }
             objectRaysInstance = instanceIndex;
         }
-        return objectRays.data();
     }
 };
 
@@ -250,82 +256,148 @@ void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args) {
 
 namespace {
 
-// Watertight triangles (AccelOptions::watertight): the Woop-Benthin-Wald test.
-// Inside a pipeline trace the object-space ray is recomputed from the world
-// ray with the shared instance transform (instance_transform.hpp; the same
-// inputs as the RT-core model, so t and barycentrics are bit-identical) and
-// the candidate goes through the DXR filter unless the trace is filter-free;
+// Watertight triangles (AccelOptions::watertight): one user primitive is a
+// cluster of up to 8 triangles, tested at once by the Woop-Benthin-Wald test
+// (watertight_triangle.hpp). Inside a pipeline trace the object-space ray is
+// recomputed from the world ray with the shared instance transform
+// (instance_transform.hpp; the same inputs as the RT-core model, so t and
+// barycentrics are bit-identical) and candidates go through the DXR filter
+// unless the trace is filter-free; plain Embree queries use Embree's object
+// ray and commit the nearest hit.
+vec3 clusterGeometricNormal(const TriangleCluster& c, std::uint32_t slot) {
+    const vec3 p0 = c.vertex(static_cast<int>(slot), 0);
+    return glm::cross(c.vertex(static_cast<int>(slot), 1) - p0, c.vertex(static_cast<int>(slot), 2) - p0);
+}
+
+
+// One candidate (slot of the cluster, lane i of the call) against the lane's
+// committed hit: the DXR filter (unless filter-free), then the commit.
+// Returns true when the lane is finished (an occlusion query found its hit).
+template <class Args>
+bool considerCandidate(const Args* a, unsigned i, PipelineContext* pipeline, bool occlusion, std::uint32_t lane,
+                       std::uint32_t instanceIndex, const TriangleCluster& cluster, std::uint32_t slot, float t,
+                       float b1, float b2) {
+    float& tfar = RTCRayN_tfar(rayOf(a), a->N, i);
+    if (t > tfar) return false;
+    RTCHitN* h = hitOf(a);
+    const std::uint32_t primitive = cluster.primitive[slot];
+    if (!occlusion && t == tfar && RTCHitN_geomID(h, a->N, i) != RTC_INVALID_GEOMETRY_ID &&
+        !hitReplaces(t, {instanceIndex, a->geomID, primitive}, tfar,
+                     {RTCHitN_instID(h, a->N, i, 0), RTCHitN_geomID(h, a->N, i), RTCHitN_primID(h, a->N, i)}))
+        return false;
+    if (pipeline && !pipeline->filterFree) {
+        const vec3 ng = clusterGeometricNormal(cluster, slot);
+        if (!pipeline->filter.triangle(lane, t, instanceIndex, a->geomID, primitive, pipeline->objectRays[lane].direction,
+                                       ng, b1, b2))
+            return false;
+    }
+    if (occlusion) {
+        tfar = -kInfinity;  // Embree's "occluded"
+        return true;
+    }
+    tfar = t;
+    RTCHitN_u(h, a->N, i) = b1;
+    RTCHitN_v(h, a->N, i) = b2;
+    const vec3 ng = clusterGeometricNormal(cluster, slot);
+    RTCHitN_Ng_x(h, a->N, i) = ng.x;
+    RTCHitN_Ng_y(h, a->N, i) = ng.y;
+    RTCHitN_Ng_z(h, a->N, i) = ng.z;
+    RTCHitN_geomID(h, a->N, i) = a->geomID;
+    RTCHitN_primID(h, a->N, i) = primitive;
+    RTCHitN_instID(h, a->N, i, 0) = instanceIndex;
+    return false;
+}
+
+// Embree's interval [tnear, tfar] is inclusive at both ends (pipeline traces
+// moved them one float inwards, making DXR's open interval); the watertight
+// test's ends are exclusive, so step one float outwards. At the upper end
+// that also lets ties at the committed t reach the id comparison
+// (hit_order.hpp), as in the RT-core model.
+float exclusiveStart(float tnearInclusive) {
+    return tnearInclusive > 0.f ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(tnearInclusive) - 1u)
+                                : -std::numeric_limits<float>::denorm_min();
+}
+
+// Watertight triangles (AccelOptions::watertight): one user primitive is a
+// cluster of up to 8 triangles (watertight_triangle.hpp). An 8-ray packet is
+// tested one triangle at a time, 8 rays per SIMD step (as Embree's own hybrid
+// triangle intersectors); a single ray is tested against all 8 triangles at
+// once. Inside a pipeline trace the object-space ray is recomputed from the
+// world ray with the shared instance transform (instance_transform.hpp; the
+// same inputs as the RT-core model, so t and barycentrics are bit-identical)
+// and candidates go through the DXR filter unless the trace is filter-free;
 // plain Embree queries use Embree's object ray and commit the nearest hit.
 template <class Args>
-void intersectWatertightTriangles(const Args* a, bool occlusion) {
+void intersectWatertightCluster(const Args* a, bool occlusion) {
     const auto& mesh = *static_cast<const WatertightTriangles*>(a->geometryUserPtr);
-    const std::uint32_t* tri = &mesh.indices[3 * a->primID];
-    const vec3& p0 = mesh.positions[tri[0]];
-    const vec3& p1 = mesh.positions[tri[1]];
-    const vec3& p2 = mesh.positions[tri[2]];
+    const TriangleCluster& cluster = mesh.clusters[a->primID];
     RTCRayN* rayN = rayOf(a);
     PipelineContext* pipeline =
         isPipelineContext(a->context) ? reinterpret_cast<PipelineContext*>(a->context) : nullptr;
     const std::uint32_t instanceIndex = a->context->instID[0];
-    const ObjectSpaceRay* objectRays = pipeline ? pipeline->objectRaysFor(instanceIndex) : nullptr;
+    if (pipeline) pipeline->objectRaysFor(instanceIndex);
+    auto watertightRay = [&](unsigned i) {
+        if (pipeline) return pipeline->watertightRays[RTCRayN_id(rayN, a->N, i)];
+        return makeWatertightRay(
+            vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i)),
+            vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i)));
+    };
+    auto laneOf = [&](unsigned i) { return pipeline ? RTCRayN_id(rayN, a->N, i) : 0u; };
+
+    // Step: a packet of several rays — 8 rays per SIMD step, one triangle at a
+    // time (pipeline packets keep lane == position, as trace8 submits them).
+    std::uint32_t callMask = 0;
+    bool lanesInPlace = true;
+    for (unsigned i = 0; i < a->N; ++i)
+        if (a->valid[i] != 0) {
+            callMask |= 1u << i;
+            lanesInPlace = lanesInPlace && (!pipeline || RTCRayN_id(rayN, a->N, i) == i);
+        }
+    if (a->N == WatertightRayPacket::kLanes && std::popcount(callMask) > 1 && lanesInPlace) {
+        WatertightRayPacket local;
+        WatertightRayPacket& packet = pipeline ? pipeline->packet : local;
+        if (!pipeline)
+            local.setRays(&RTCRayN_org_x(rayN, a->N, 0), &RTCRayN_org_y(rayN, a->N, 0), &RTCRayN_org_z(rayN, a->N, 0),
+                          &RTCRayN_dir_x(rayN, a->N, 0), &RTCRayN_dir_y(rayN, a->N, 0), &RTCRayN_dir_z(rayN, a->N, 0));
+        for (std::uint32_t m = callMask; m != 0; m &= m - 1) {
+            const unsigned i = static_cast<unsigned>(std::countr_zero(m));
+            packet.tMin[i] = exclusiveStart(RTCRayN_tnear(rayN, a->N, i));
+            packet.tMax[i] = tieInclusiveUpperBound(RTCRayN_tfar(rayN, a->N, i));
+        }
+        packet.activate(callMask);
+        PacketHits hits;
+        if (!intersectPacketWatertight(packet, cluster, hits)) return;
+        // Step: the candidates in slot order against each lane's live interval.
+        std::uint32_t finished = 0;
+        for (std::uint32_t slot = 0; slot < cluster.count; ++slot)
+            for (std::uint32_t m = hits.mask[slot] & ~finished; m != 0; m &= m - 1) {
+                const unsigned i = static_cast<unsigned>(std::countr_zero(m));
+                if (considerCandidate(a, i, pipeline, occlusion, laneOf(i), instanceIndex, cluster, slot,
+                                      hits.t[slot][i], hits.b1[slot][i], hits.b2[slot][i]))
+                    finished |= 1u << i;
+            }
+        return;
+    }
+
+    // Step: one ray at a time — all 8 triangles of the cluster per SIMD step.
+    ClusterHits hits;
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->valid[i] == 0) continue;
-        vec3 o, d;
-        if (pipeline) {
-            const ObjectSpaceRay& r = objectRays[RTCRayN_id(rayN, a->N, i)];
-            o = r.origin;
-            d = r.direction;
-        } else {
-            o = vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i));
-            d = vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i));
+        intersectClusterWatertight(watertightRay(i), cluster, exclusiveStart(RTCRayN_tnear(rayN, a->N, i)),
+                                   tieInclusiveUpperBound(RTCRayN_tfar(rayN, a->N, i)), hits);
+        for (std::uint32_t m = hits.mask; m != 0; m &= m - 1) {
+            const std::uint32_t slot = static_cast<std::uint32_t>(std::countr_zero(m));
+            if (considerCandidate(a, i, pipeline, occlusion, laneOf(i), instanceIndex, cluster, slot, hits.t[slot],
+                                  hits.b1[slot], hits.b2[slot]))
+                break;
         }
-        float& tfar = RTCRayN_tfar(rayN, a->N, i);
-        // Embree's interval [tnear, tfar] is inclusive at both ends (pipeline
-        // traces moved them one float inwards, making DXR's open interval); the
-        // watertight test's ends are exclusive, so step one float outwards.
-        // At the upper end that also lets ties at the committed t reach the
-        // id comparison (hit_order.hpp), as in the RT-core model.
-        const float tnearInclusive = RTCRayN_tnear(rayN, a->N, i);
-        const float tnear = tnearInclusive > 0.f ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(tnearInclusive) - 1u)
-                                                 : -std::numeric_limits<float>::denorm_min();
-        const std::optional<TriangleHit> hit =
-            intersectTriangleWatertight(o, d, p0, p1, p2, tnear, tieInclusiveUpperBound(tfar));
-        if (!hit) continue;
-        if (!occlusion && hit->t == tfar) {
-            RTCHitN* h = hitOf(a);
-            const bool committed = RTCHitN_geomID(h, a->N, i) != RTC_INVALID_GEOMETRY_ID;
-            if (committed &&
-                !hitReplaces(hit->t, {instanceIndex, a->geomID, a->primID}, tfar,
-                             {RTCHitN_instID(h, a->N, i, 0), RTCHitN_geomID(h, a->N, i), RTCHitN_primID(h, a->N, i)}))
-                continue;
-        }
-        const vec3 ng = glm::cross(p1 - p0, p2 - p0);
-        if (pipeline && !pipeline->filterFree) {
-            const std::uint32_t lane = RTCRayN_id(rayN, a->N, i);
-            if (!pipeline->filter.triangle(lane, hit->t, instanceIndex, a->geomID, a->primID, d, ng, hit->b1, hit->b2))
-                continue;
-        }
-        if (occlusion) {
-            tfar = -kInfinity;  // Embree's "occluded"
-            continue;
-        }
-        tfar = hit->t;
-        RTCHitN* h = hitOf(a);
-        RTCHitN_u(h, a->N, i) = hit->b1;
-        RTCHitN_v(h, a->N, i) = hit->b2;
-        RTCHitN_Ng_x(h, a->N, i) = ng.x;
-        RTCHitN_Ng_y(h, a->N, i) = ng.y;
-        RTCHitN_Ng_z(h, a->N, i) = ng.z;
-        RTCHitN_geomID(h, a->N, i) = a->geomID;
-        RTCHitN_primID(h, a->N, i) = a->primID;
-        RTCHitN_instID(h, a->N, i, 0) = instanceIndex;
     }
 }
 
 }  // namespace
 
-void watertightIntersectCallback(const RTCIntersectFunctionNArguments* args) { intersectWatertightTriangles(args, false); }
-void watertightOccludedCallback(const RTCOccludedFunctionNArguments* args) { intersectWatertightTriangles(args, true); }
+void watertightIntersectCallback(const RTCIntersectFunctionNArguments* args) { intersectWatertightCluster(args, false); }
+void watertightOccludedCallback(const RTCOccludedFunctionNArguments* args) { intersectWatertightCluster(args, true); }
 
 void proceduralIntersectCallback(const RTCIntersectFunctionNArguments* args) { runIntersectionShader(args, false); }
 void proceduralOccludedCallback(const RTCOccludedFunctionNArguments* args) { runIntersectionShader(args, true); }

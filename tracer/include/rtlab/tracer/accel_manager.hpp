@@ -6,6 +6,7 @@
 //   new/topology    -> BLAS rebuild
 //   untouched       -> no work
 #include <rtlab/ecs/snapshot.hpp>
+#include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <embree3/rtcore.h>
 
@@ -27,19 +28,24 @@ struct AccelOptions {
     std::uint32_t refitQualityCheckInterval = 8;
     // Watertight triangles: Embree 3.13.5's robust triangle test leaks rays
     // through shared vertices (docs/acceleration-structures.md). With this on,
-    // triangles are Embree user geometry intersected by a double-precision
-    // Woop-Benthin-Wald test, and each triangle's bounds are padded by
-    // watertightBoundsPadding x the geometry's extent, because Embree's
-    // user-geometry and instance BVHs use the non-robust box test.
+    // triangles are grouped into clusters of up to 8 (Morton order of their
+    // centroids), each cluster one Embree user primitive intersected by the
+    // single-precision Woop-Benthin-Wald test (watertight_triangle.hpp), and
+    // every cluster box is padded conservatively for the magnitude of its
+    // coordinates and of the ray origins (conservative_bounds.hpp), because
+    // Embree's user-geometry and instance BVHs use the non-robust box test.
     bool watertight = true;
-    float watertightBoundsPadding = 1e-4f;
+    // Largest |coordinate| of any ray origin the caller will trace from,
+    // beyond the scene's geometry and camera (which are always included).
+    // Raygen shaders that start rays far outside the scene set it.
+    float rayOriginBound = 0.f;
 };
 
-// The user data of a watertight triangle geometry (read by its callbacks).
+// The user data of a watertight triangle geometry (read by its callbacks):
+// clusters of up to kClusterTriangles triangles, one Embree user primitive each.
 struct WatertightTriangles {
-    std::vector<vec3> positions;
-    std::vector<std::uint32_t> indices;
-    float padding = 0.f;  // absolute bounds enlargement
+    std::vector<TriangleCluster> clusters;
+    float padding = 0.f;  // absolute enlargement of every cluster box (object space)
 };
 
 // Per-geometry facts the pipeline needs during traversal.
@@ -57,6 +63,7 @@ struct AccelUpdateStats {
     std::uint32_t tlasUpdates = 0;        // TLAS recommits for moved instances only
     std::uint32_t instancesMoved = 0;
     std::uint32_t blasRebuiltForQuality = 0;  // refits turned into rebuilds by the quality policy
+    std::uint32_t blasRepadded = 0;  // untouched BLASes whose cluster boxes grew because ray origins grew in magnitude
     float worstRefitDegradation = 1.f;        // max over BLASes checked this frame of refit cost / rebuild cost
     double buildMs = 0.0;
 };
@@ -117,7 +124,9 @@ public:
 private:
     struct Blas;
     RTCSceneFlags sceneFlags() const;
-    void setWatertightPositions(WatertightTriangles& data, const ecs::Geometry& g) const;
+    void fillClusters(WatertightTriangles& data, const ecs::Geometry& g) const;
+    void updateConservativePadding(const ecs::SceneSnapshot& scene, const std::vector<std::uint8_t>& changed);
+    float requiredPadding(ecs::MeshId mesh) const;
     void attachUserGeometry(Blas& blas, std::size_t primitives, void* userData, RTCBuildQuality quality,
                             RTCBoundsFunction bounds, RTCIntersectFunctionN intersect, RTCOccludedFunctionN occluded);
     void buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const std::vector<ecs::Material>& materials);
@@ -134,6 +143,10 @@ private:
     std::vector<InstanceFacts> instanceFacts_;
     bool allOpaque_ = true;
     bool anyProcedural_ = false;
+    // Conservative padding (conservative_bounds.hpp): per mesh the largest
+    // |object coordinate|, and the padding its clusters need this frame.
+    std::vector<float> objectMagnitude_;
+    std::vector<float> neededPadding_;
     std::vector<std::uint32_t> slotBase_;
     std::uint32_t slotCount_ = 0;
 };
