@@ -1,6 +1,7 @@
 // Embree's builder (rtcBuildBVH) into the model's flat BVH layout, and the
 // bottom-up refit.
 #include <rtlab/rtcore_sim/bvh.hpp>
+#include <rtlab/tracer/conservative_bounds.hpp>
 
 #include <embree3/rtcore_builder.h>
 #include <tbb/task_arena.h>
@@ -331,6 +332,7 @@ Blas buildBlas(const BvhBuilder& builder, const ecs::MeshAsset& mesh, const BvhP
     blas.triangles.reserve(blas.bvh.refs.size());
     for (const PrimitiveRef& r : blas.bvh.refs) blas.triangles.push_back(leafSlotOf(mesh.geometries[r.geometry], r.primitive));
     blas.buildSahCost = blas.bvh.sahCost(params.sahTraversalCost, params.sahIntersectionCost);
+    blas.magnitude = tracer::maxAbsCoordinate(blas.bvh.rootBounds);
     return blas;
 }
 
@@ -366,6 +368,7 @@ void refitBlas(Blas& blas, const ecs::MeshAsset& mesh) {
         }
     }
     bvh.rootBounds = bvh.root.isLeaf() ? leafBounds[bvh.root.index()] : bvh.nodes[bvh.root.index()].bounds();
+    blas.magnitude = tracer::maxAbsCoordinate(bvh.rootBounds);
 }
 
 }  // namespace rtlab::rtcore_sim

@@ -1,7 +1,9 @@
 #include <rtlab/rtcore_sim/model_scene.hpp>
+#include <rtlab/tracer/conservative_bounds.hpp>
 #include <rtlab/tracer/instance_transform.hpp>
 
 #include <algorithm>
+#include <cmath>
 
 namespace rtlab::rtcore_sim {
 
@@ -60,6 +62,7 @@ void ModelScene::rebuildTlas(const ecs::SceneSnapshot& scene, ModelUpdateStats& 
     instances_.clear();
     instances_.reserve(scene.instances.size());
     std::vector<BuildPrimitive> prims;
+    double magnitude = 0.0, conditioning = 1.0;
     for (std::uint32_t i = 0; i < scene.instances.size(); ++i) {
         const ecs::InstanceSnapshot& s = scene.instances[i];
         if (!blas(s.mesh)) {  // not listed in any FrameUpdate yet: build on first use
@@ -73,12 +76,24 @@ void ModelScene::rebuildTlas(const ecs::SceneSnapshot& scene, ModelUpdateStats& 
         inst.mask = s.mask;
         const Bvh& bvh = blases_[s.mesh]->bvh;
         if (!bvh.empty()) inst.worldBounds = bvh.rootBounds.transformed(s.worldFromObject);
+        // Step: what this instance brings to the TLAS's conservative padding.
+        const double objectToWorld = tracer::maxNormGain(s.worldFromObject);
+        const double kappa = objectToWorld * tracer::maxNormGain(inst.objectFromWorld);
+        if (!bvh.empty() && std::isfinite(kappa)) {
+            const double reach = std::max({double(tracer::maxAbsCoordinate(inst.worldBounds)),
+                                           objectToWorld * blases_[s.mesh]->magnitude,
+                                           double(tracer::maxAbsCoordinate(vec3(s.worldFromObject[3])))});
+            magnitude = std::max(magnitude, kappa * reach);
+            conditioning = std::max(conditioning, kappa);
+        }
         // Instances with nothing to hit stay out of the TLAS (Embree skips them too).
         if (!inst.worldBounds.empty() && isFinite(inst.worldBounds.lo) && isFinite(inst.worldBounds.hi))
             prims.push_back(BuildPrimitive{inst.worldBounds, PrimitiveRef{0, i}});
         instances_.push_back(inst);
     }
     tlas_ = builder_.build(prims, tlasBuildSettings(params_));
+    tlasMagnitude_ = static_cast<float>(magnitude);
+    tlasConditioning_ = static_cast<float>(conditioning);
     tlasBuilt_ = true;
     ++stats.tlasBuilds;
     stats.instancesMoved = static_cast<std::uint32_t>(scene.update.movedInstances.size());

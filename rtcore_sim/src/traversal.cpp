@@ -1,5 +1,6 @@
 // The traversal step shared by the functional traversal and the timing model.
 #include <rtlab/rtcore_sim/traversal.hpp>
+#include <rtlab/tracer/conservative_bounds.hpp>
 #include <rtlab/tracer/hit_order.hpp>
 #include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
@@ -19,7 +20,7 @@ constexpr float errorGamma(int n) { return (n * kMachineEpsilon) / (1.f - n * kM
 // The slab test, inlined into the traversal step: true with the entry
 // distance in tEntry when the box is hit.
 inline bool slabTest(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax,
-                     float& tEntry) {
+                     float& tEntry, float padding = 0.f) {
     constexpr float kFarScale = 1.f + 2.f * errorGamma(3);
     float tNear = tMin;
     float tFar = tMax;
@@ -28,8 +29,8 @@ inline bool slabTest(const Aabb& box, const vec3& origin, const vec3& invDirecti
         // A zero direction component gives +-inf, or NaN when the origin lies
         // exactly on the plane; max/min below ignore NaN (the slab then holds the whole ray).
         const bool negative = std::signbit(invDirection[a]);
-        const float nearPlane = negative ? box.hi[a] : box.lo[a];
-        const float farPlane = negative ? box.lo[a] : box.hi[a];
+        const float nearPlane = negative ? box.hi[a] + padding : box.lo[a] - padding;
+        const float farPlane = negative ? box.lo[a] - padding : box.hi[a] + padding;
         const float tA = (nearPlane - origin[a]) * invDirection[a];
         const float tB = (farPlane - origin[a]) * invDirection[a] * kFarScale;
         tNear = tA > tNear ? tA : tNear;
@@ -72,7 +73,11 @@ void RayTraversal::begin(const ModelScene& scene, const SimRay& ray) {
     tClosest_ = ray.ray.tMax;
     hit_ = ModelHit{};
     counters_ = TraversalCounters{};
-    world_ = SpaceRay{ray.ray.origin, ray.ray.direction, reciprocalDirection(ray.ray.direction)};
+    // Padding of TLAS boxes: the instances' magnitudes, and the origin's as
+    // an instance transform may amplify the rounding of the object-space ray.
+    world_ = SpaceRay{ray.ray.origin, ray.ray.direction, reciprocalDirection(ray.ray.direction),
+                      tracer::conservativeBoxPadding(scene.tlasMagnitude(), 3.f * scene.tlasConditioning() *
+                                                                                tracer::maxAbsCoordinate(ray.ray.origin))};
     object_ = world_;
     blas_ = nullptr;
     instanceIndex_ = 0;
@@ -120,6 +125,8 @@ void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo
         object_.origin = objectRay.origin;
         object_.direction = objectRay.direction;
         object_.invDirection = reciprocalDirection(object_.direction);
+        object_.padding = blas_ ? tracer::conservativeBoxPadding(blas_->magnitude, tracer::maxAbsCoordinate(object_.origin))
+                                : 0.f;
         if (!blas_ || blas_->bvh.empty()) return selectNext(info);
         current_ = StackEntry{blas_->bvh.root.bits, current.tEntry, EntryKind::BlasRef};
         return;
@@ -144,7 +151,8 @@ void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo
         counters_.boxTests += node.childCount;
         for (std::uint32_t i = 0; i < node.childCount; ++i) {
             float tEntry;
-            if (!slabTest(node.childBounds[i], space.origin, space.invDirection, ray_.ray.tMin, tClosest_, tEntry))
+            if (!slabTest(node.childBounds[i], space.origin, space.invDirection, ray_.ray.tMin, tClosest_, tEntry,
+                          space.padding))
                 continue;
             // Insertion sort by entry distance, nearest first.
             std::uint32_t k = hitCount++;

@@ -136,6 +136,7 @@ struct Blas {
     bool hasProcedural = false;                   // some geometry is procedural
     double buildSahCost = 0.0;
     bool spatialSplits = false;
+    float magnitude = 0.f;  // largest |object coordinate| of the root box (conservative padding)
 
     bool isProcedural(const PrimitiveRef& ref) const { return hasProcedural && proceduralCounts[ref.geometry] != 0; }
     Aabb proceduralBox(std::size_t refIndex) const { return Aabb{triangles[refIndex].v[0], triangles[refIndex].v[1]}; }

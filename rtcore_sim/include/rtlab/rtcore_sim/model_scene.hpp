@@ -51,6 +51,12 @@ public:
     const BvhParams& params() const { return params_; }
     const Bvh& tlas() const { return tlas_; }
     const std::vector<ModelInstance>& instances() const { return instances_; }
+    // For conservative TLAS box tests (tracer/conservative_bounds.hpp): the
+    // largest magnitude any instance brings into world space (its world box,
+    // its object coordinates scaled, its translation), times the worst
+    // conditioning of an instance transform, and that conditioning.
+    float tlasMagnitude() const { return tlasMagnitude_; }
+    float tlasConditioning() const { return tlasConditioning_; }
     // The BLAS of `mesh`, or nullptr when it was never built.
     const Blas* blas(ecs::MeshId mesh) const { return mesh < blases_.size() ? blases_[mesh].get() : nullptr; }
     // One more than the largest MeshId that has (or had) a BLAS slot.
@@ -70,6 +76,8 @@ private:
     std::vector<ModelInstance> instances_;
     Bvh tlas_;
     bool tlasBuilt_ = false;
+    float tlasMagnitude_ = 0.f;
+    float tlasConditioning_ = 1.f;
     std::uint64_t generation_ = 0;
 };
 

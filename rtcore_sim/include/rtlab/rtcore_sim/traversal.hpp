@@ -189,6 +189,10 @@ private:
         vec3 origin;
         vec3 direction;
         vec3 invDirection;
+        // Node boxes are enlarged by this much for this ray, so that the box
+        // test is conservative at the magnitude of the boxes and the origin
+        // (tracer/conservative_bounds.hpp).
+        float padding = 0.f;
     };
 
     const ModelScene* scene_ = nullptr;
