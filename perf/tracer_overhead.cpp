@@ -1,6 +1,8 @@
 // Pipeline overhead against raw Embree, packet vs single ray, thread scaling.
 // All on the same primary rays of builtin:showcase at 1024x1024.
 //   BM_RawIntersect8      rtcIntersect8 over 16x16 tiles, no callbacks (the floor)
+//   BM_RawIntersect8Bounce rtcIntersect8 over cosine-weighted diffuse bounce rays
+//                         from every primary hit (incoherent), one thread
 //   BM_PipelinePacket     Pipeline::dispatchCoherent, trivial closest-hit/miss
 //   BM_PipelineSingleRay  Pipeline::dispatchRays + traceRay per pixel
 // Each runs with 1 and 2 threads (first argument) and with the default
@@ -9,11 +11,15 @@
 #include "bench_scenes.hpp"
 
 #include <rtlab/core/parallel.hpp>
+#include <rtlab/rtcore_sim/model_scene.hpp>
+#include <rtlab/rtcore_sim/traversal.hpp>
+#include <rtlab/rtcore_sim/workloads.hpp>
 #include <rtlab/tracer/pipeline.hpp>
 
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <array>
 
 namespace {
@@ -81,6 +87,64 @@ void BM_RawIntersect8(benchmark::State& state) {
     state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
 }
 
+// Diffuse bounce rays of the showcase at 512x512 (the RT-core model finds
+// the primary hits; both back ends give the same ones).
+const std::vector<rtcore_sim::SimRay>& bounceRays() {
+    static const std::vector<rtcore_sim::SimRay> rays = [] {
+        const auto& scene = showcase(true);
+        rtcore_sim::ModelScene model(rtcore_sim::BvhParams{});
+        model.update(scene.snapshot);
+        const shaders::PinholeCamera camera = scene.camera(512, 512);
+        std::vector<rtcore_sim::SimRay> primary;
+        for (int y = 0; y < 512; ++y)
+            for (int x = 0; x < 512; ++x) {
+                const tracer::RayDesc r = bench::primaryRay(camera, x, y);
+                rtcore_sim::SimRay s;
+                s.ray.origin = r.origin;
+                s.ray.direction = r.direction;
+                primary.push_back(s);
+            }
+        std::vector<rtcore_sim::ModelHit> hits(primary.size());
+        for (std::size_t i = 0; i < primary.size(); ++i) {
+            rtcore_sim::TraversalCounters c;
+            hits[i] = rtcore_sim::traceClosestHit(model, primary[i].ray, c);
+        }
+        return rtcore_sim::diffuseBounceRays(scene.snapshot, primary, hits);
+    }();
+    return rays;
+}
+
+void BM_RawIntersect8Bounce(benchmark::State& state) {
+    const ThreadLimit limit(1);
+    const auto& scene = showcase(state.range(0) != 0);
+    const std::vector<rtcore_sim::SimRay>& rays = bounceRays();
+    std::vector<float> out(rays.size());
+    for (auto _ : state) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+        for (std::size_t first = 0; first < rays.size(); first += 8) {
+            alignas(32) std::array<int, 8> valid{};
+            alignas(32) RTCRayHit8 rh{};
+            for (std::size_t i = 0; i < 8; ++i) {
+                valid[i] = first + i < rays.size() ? -1 : 0;
+                const rtcore_sim::ModelRay& r = rays[std::min(first + i, rays.size() - 1)].ray;
+                rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
+                rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+                rh.ray.tnear[i] = r.tMin;
+                rh.ray.tfar[i] = r.tMax;
+                rh.ray.mask[i] = 0xff;
+                rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+            }
+            rtcIntersect8(valid.data(), scene.accel->tlas(), &ctx, &rh);
+            for (std::size_t i = 0; i < 8 && first + i < rays.size(); ++i)
+                out[first + i] = rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ? -1.f : rh.ray.tfar[i];
+        }
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["rays_per_s"] = benchmark::Counter(double(rays.size()) * state.iterations(), benchmark::Counter::kIsRate);
+}
+
 void BM_PipelinePacket(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
     const auto& scene = showcase(state.range(1) != 0);
@@ -114,6 +178,7 @@ void BM_PipelineSingleRay(benchmark::State& state) {
 }
 
 BENCHMARK(BM_RawIntersect8)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_RawIntersect8Bounce)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_PipelinePacket)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_PipelineSingleRay)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 

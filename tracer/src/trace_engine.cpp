@@ -69,20 +69,23 @@ struct PipelineContext {
     // flags): Embree runs without the filter and the committed hit's HitKind
     // and record are computed once, after traversal.
     bool filterFree = false;
-    // The object-space rays of every lane for the instance being traversed
-    // (instance_transform.hpp), so that watertight triangles see exactly the
-    // object ray every back end computes from the world ray. Embree traverses
-    // one instance at a time for a whole packet, so one instance is cached.
+    // The object-space rays of every lane for an instance (instance_transform.hpp),
+    // so that watertight triangles see exactly the object ray every back end
+    // computes from the world ray, as the triangle test's 8-lane packet. Embree
+    // traverses one instance at a time for a whole packet but may return to
+    // one: the last few instances are kept (direct-mapped by index).
+    struct InstanceRays {
+        std::uint32_t instance = RTC_INVALID_GEOMETRY_ID;
+        WatertightRayPacket packet;
+        std::array<vec3, kMaxLanes> objectDirection;
+    };
+    static constexpr std::uint32_t kCachedInstances = 4;
     std::uint32_t laneCount = 0;
-    std::uint32_t objectRaysInstance = RTC_INVALID_GEOMETRY_ID;
-    std::array<ObjectSpaceRay, kMaxLanes> objectRays;
-    std::array<WatertightRay, kMaxLanes> watertightRays;  // the triangle test's constants of objectRays
-    WatertightRayPacket packet;                            // the same, as an 8-lane packet
+    std::array<InstanceRays, kCachedInstances> instanceRays;
 
     PipelineContext(const TraceEngine& engine, const TraceArgs& args, std::uint32_t depth, TraceCounters& counters,
                     const RayDesc* rays, void* const* payloads, bool coherent)
         : filter(engine, args, depth, counters, rays, payloads, lanes.data()) {
-        packet.clear();
         rtcInitIntersectContext(&embree);
         embree.filter = contextFilter;
         embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
@@ -102,25 +105,28 @@ struct PipelineContext {
         if (filterFree) embree.filter = accel.options().watertight ? filterFreeMarker : nullptr;
     }
 
-    // The object-space rays of every lane for `instanceIndex` (the lane's
-    // ObjectSpaceRay in objectRays, its triangle-test constants in watertightRays).
-    void objectRaysFor(std::uint32_t instanceIndex) {
-        if (objectRaysInstance != instanceIndex) {
-            const glm::dmat4& objectFromWorld = filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld;
-            // Lanes often share their origin (camera rays): transform it once.
-            vec3 worldOrigin{0.f}, objectOrigin{0.f};
-            for (std::uint32_t lane = 0; lane < laneCount; ++lane) {
-                const RayDesc& world = filter.ray(lane);
-                if (lane == 0 || std::memcmp(&worldOrigin, &world.origin, sizeof(vec3)) != 0) {
-                    worldOrigin = world.origin;
-                    objectOrigin = objectSpacePoint(objectFromWorld, world.origin);
-                }
-                objectRays[lane] = {objectOrigin, objectSpaceVector(objectFromWorld, world.direction)};
-                watertightRays[lane] = makeWatertightRay(objectRays[lane].origin, objectRays[lane].direction);
-                packet.setRay(static_cast<int>(lane), watertightRays[lane]);
+    InstanceRays& objectRaysFor(std::uint32_t instanceIndex) {
+        InstanceRays& e = instanceRays[instanceIndex % kCachedInstances];
+        if (e.instance == instanceIndex) return e;
+        const glm::dmat4& objectFromWorld = filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld;
+        alignas(32) float ox[kMaxLanes] = {}, oy[kMaxLanes] = {}, oz[kMaxLanes] = {};
+        alignas(32) float dx[kMaxLanes] = {}, dy[kMaxLanes] = {}, dz[kMaxLanes] = {};
+        // Lanes often share their origin (camera rays): transform it once.
+        vec3 worldOrigin{0.f}, objectOrigin{0.f};
+        for (std::uint32_t lane = 0; lane < laneCount; ++lane) {
+            const RayDesc& world = filter.ray(lane);
+            if (lane == 0 || std::memcmp(&worldOrigin, &world.origin, sizeof(vec3)) != 0) {
+                worldOrigin = world.origin;
+                objectOrigin = objectSpacePoint(objectFromWorld, world.origin);
             }
-            objectRaysInstance = instanceIndex;
+            const vec3 direction = objectSpaceVector(objectFromWorld, world.direction);
+            e.objectDirection[lane] = direction;
+            ox[lane] = objectOrigin.x, oy[lane] = objectOrigin.y, oz[lane] = objectOrigin.z;
+            dx[lane] = direction.x, dy[lane] = direction.y, dz[lane] = direction.z;
         }
+        e.packet.setRays(ox, oy, oz, dx, dy, dz);
+        e.instance = instanceIndex;
+        return e;
     }
 };
 
@@ -287,7 +293,7 @@ bool considerCandidate(const Args* a, unsigned i, PipelineContext* pipeline, boo
         return false;
     if (pipeline && !pipeline->filterFree) {
         const vec3 ng = clusterGeometricNormal(cluster, slot);
-        if (!pipeline->filter.triangle(lane, t, instanceIndex, a->geomID, primitive, pipeline->objectRays[lane].direction,
+        if (!pipeline->filter.triangle(lane, t, instanceIndex, a->geomID, primitive, pipeline->objectRaysFor(instanceIndex).objectDirection[lane],
                                        ng, b1, b2))
             return false;
     }
@@ -335,9 +341,9 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
     PipelineContext* pipeline =
         isPipelineContext(a->context) ? reinterpret_cast<PipelineContext*>(a->context) : nullptr;
     const std::uint32_t instanceIndex = a->context->instID[0];
-    if (pipeline) pipeline->objectRaysFor(instanceIndex);
+    PipelineContext::InstanceRays* instanceRays = pipeline ? &pipeline->objectRaysFor(instanceIndex) : nullptr;
     auto watertightRay = [&](unsigned i) {
-        if (pipeline) return pipeline->watertightRays[RTCRayN_id(rayN, a->N, i)];
+        if (pipeline) return instanceRays->packet.ray(static_cast<int>(RTCRayN_id(rayN, a->N, i)));
         return makeWatertightRay(
             vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i)),
             vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i)));
@@ -355,7 +361,7 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
         }
     if (a->N == WatertightRayPacket::kLanes && std::popcount(callMask) > 1 && lanesInPlace) {
         WatertightRayPacket local;
-        WatertightRayPacket& packet = pipeline ? pipeline->packet : local;
+        WatertightRayPacket& packet = pipeline ? instanceRays->packet : local;
         if (!pipeline)
             local.setRays(&RTCRayN_org_x(rayN, a->N, 0), &RTCRayN_org_y(rayN, a->N, 0), &RTCRayN_org_z(rayN, a->N, 0),
                           &RTCRayN_dir_x(rayN, a->N, 0), &RTCRayN_dir_y(rayN, a->N, 0), &RTCRayN_dir_z(rayN, a->N, 0));

@@ -269,35 +269,19 @@ void WatertightRayPacket::activate(std::uint32_t lanes) {
     kz = zIs0[first] ? 0 : zIs1[first] ? 1 : 2;
 }
 
-void WatertightRayPacket::clear() {
-    *this = WatertightRayPacket{};
-    for (std::int32_t* a : {xIs0, xIs1, yIs0, yIs1, zIs0, zIs1, permutation})
-        for (int i = 0; i < kLanes; ++i) a[i] = 0;
-    for (float* a : {ox, oy, oz, sx, sy, sz, tMin, tMax})
-        for (int i = 0; i < kLanes; ++i) a[i] = 0.f;
-}
-
-void WatertightRayPacket::setRay(int lane, const WatertightRay& ray) {
-    const std::uint32_t bit = 1u << lane;
-    if (!ray.valid) {
-        validRays &= ~bit;
-        return;
-    }
-    validRays |= bit;
-    xIs0[lane] = ray.kx == 0 ? -1 : 0;
-    xIs1[lane] = ray.kx == 1 ? -1 : 0;
-    yIs0[lane] = ray.ky == 0 ? -1 : 0;
-    yIs1[lane] = ray.ky == 1 ? -1 : 0;
-    zIs0[lane] = ray.kz == 0 ? -1 : 0;
-    zIs1[lane] = ray.kz == 1 ? -1 : 0;
-    permutation[lane] = (xIs0[lane] & 1) | (xIs1[lane] & 2) | (yIs0[lane] & 4) | (yIs1[lane] & 8) |
-                        (zIs0[lane] & 16) | (zIs1[lane] & 32);
-    ox[lane] = ray.ox;
-    oy[lane] = ray.oy;
-    oz[lane] = ray.oz;
-    sx[lane] = ray.sx;
-    sy[lane] = ray.sy;
-    sz[lane] = ray.sz;
+WatertightRay WatertightRayPacket::ray(int lane) const {
+    WatertightRay r;
+    r.valid = (validRays >> lane) & 1u;
+    r.kx = xIs0[lane] ? 0 : xIs1[lane] ? 1 : 2;
+    r.ky = yIs0[lane] ? 0 : yIs1[lane] ? 1 : 2;
+    r.kz = zIs0[lane] ? 0 : zIs1[lane] ? 1 : 2;
+    r.ox = ox[lane];
+    r.oy = oy[lane];
+    r.oz = oz[lane];
+    r.sx = sx[lane];
+    r.sy = sy[lane];
+    r.sz = sz[lane];
+    return r;
 }
 
 bool intersectPacketWatertight(const WatertightRayPacket& rays, const TriangleCluster& cluster, PacketHits& out) {

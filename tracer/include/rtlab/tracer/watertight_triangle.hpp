@@ -82,8 +82,8 @@ void intersectClusterWatertight(const WatertightRay& ray, const TriangleCluster&
 struct alignas(32) WatertightRayPacket {
     static constexpr int kLanes = 8;
     // Not initialised here (a packet is set up per callback); setRays writes
-    // every lane, clear() zeroes all before lanes are set one by one, so
-    // inactive lanes never compute with garbage.
+    // every lane (zeros where a ray is invalid), so inactive lanes never
+    // compute with garbage.
     alignas(32) std::int32_t xIs0[kLanes], xIs1[kLanes];  // -1 where kx == 0 / kx == 1 (else kx == 2)
     alignas(32) std::int32_t yIs0[kLanes], yIs1[kLanes];
     alignas(32) std::int32_t zIs0[kLanes], zIs1[kLanes];
@@ -98,12 +98,11 @@ struct alignas(32) WatertightRayPacket {
     bool uniform = false;
     int kx = 0, ky = 1, kz = 2;
 
-    void clear();
-    // Lane `lane` takes `ray`'s constants.
-    void setRay(int lane, const WatertightRay& ray);
     // Every lane from structure-of-arrays origins and directions (8 each):
     // the same constants as makeWatertightRay per lane, 8 lanes per SIMD step.
     void setRays(const float* ox, const float* oy, const float* oz, const float* dx, const float* dy, const float* dz);
+    // Lane `lane` as a single ray (valid only where validRays has its bit).
+    WatertightRay ray(int lane) const;
     // Activates the valid rays among `lanes` (after their tMin/tMax are set)
     // and finds out whether they share one permutation.
     void activate(std::uint32_t lanes);
