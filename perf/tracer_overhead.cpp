@@ -1,7 +1,10 @@
 // Pipeline overhead against raw Embree, packet vs single ray, thread scaling.
 // All on the same primary rays of builtin:showcase at 1024x1024.
-//   BM_RawIntersect8      rtcIntersect8 over 16x16 tiles, no callbacks (the floor)
-//   BM_RawIntersect8Bounce rtcIntersect8 over cosine-weighted diffuse bounce rays
+//   BM_RawIntersect8      8-ray packets over 16x16 tiles, no shaders (the floor):
+//                         the watertight default through tracer::queryClosest8
+//                         (the traversal the pipeline runs), Embree's native
+//                         triangles through rtcIntersect8 itself
+//   BM_RawIntersect8Bounce the same over cosine-weighted diffuse bounce rays
 //                         from every primary hit (incoherent), one thread
 //   BM_PipelinePacket     Pipeline::dispatchCoherent, trivial closest-hit/miss
 //   BM_PipelineSingleRay  Pipeline::dispatchRays + traceRay per pixel
@@ -15,6 +18,7 @@
 #include <rtlab/rtcore_sim/traversal.hpp>
 #include <rtlab/rtcore_sim/workloads.hpp>
 #include <rtlab/tracer/pipeline.hpp>
+#include <rtlab/tracer/ray_query.hpp>
 
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>
@@ -50,6 +54,39 @@ tracer::Pipeline<HitPayload>::Desc trivialShaders(const tracer::AccelManager& ac
     return desc;
 }
 
+// One packet of up to 8 rays, closest hits' t (-1 for a miss) into out:
+// watertight scenes through the tracer's query (ray_query.hpp), native ones
+// straight through rtcIntersect8 with Embree's own context.
+void tracePacket(const tracer::AccelManager& accel, const tracer::RayDesc* rays, const bool* active, float* out,
+                 tracer::RayCoherence coherence) {
+    if (accel.options().watertight) {
+        std::array<tracer::QueryHit, 8> hits;
+        tracer::queryClosest8(accel, rays, active, hits.data(), coherence);
+        for (int i = 0; i < 8; ++i)
+            if (active[i]) out[i] = hits[i].hit ? hits[i].t : -1.f;
+        return;
+    }
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = coherence == tracer::RayCoherence::Coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT
+                                                            : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    alignas(32) std::array<int, 8> valid{};
+    alignas(32) RTCRayHit8 rh{};
+    for (int i = 0; i < 8; ++i) {
+        valid[i] = active[i] ? -1 : 0;
+        const tracer::RayDesc& r = rays[i];
+        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
+        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+        rh.ray.tnear[i] = r.tMin;
+        rh.ray.tfar[i] = r.tMax;
+        rh.ray.mask[i] = 0xff;
+        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect8(valid.data(), accel.tlas(), &ctx, &rh);
+    for (int i = 0; i < 8; ++i)
+        if (active[i]) out[i] = rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ? -1.f : rh.ray.tfar[i];
+}
+
 void BM_RawIntersect8(benchmark::State& state) {
     const ThreadLimit limit(static_cast<int>(state.range(0)));
     const auto& scene = showcase(state.range(1) != 0);
@@ -59,27 +96,17 @@ void BM_RawIntersect8(benchmark::State& state) {
     for (auto _ : state) {
         parallelForEach(tiles.size(), [&](std::size_t ti) {
             const Tile& tile = tiles[ti];
-            RTCIntersectContext ctx;
-            rtcInitIntersectContext(&ctx);
-            ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x0 = tile.x0; x0 < tile.x1; x0 += 8) {
-                    alignas(32) std::array<int, 8> valid{};
-                    alignas(32) RTCRayHit8 rh{};
+                    std::array<tracer::RayDesc, 8> rays;
+                    std::array<bool, 8> active{};
+                    alignas(32) std::array<float, 8> t{};
                     for (int i = 0; i < 8; ++i) {
-                        valid[i] = x0 + i < tile.x1 ? -1 : 0;
-                        const tracer::RayDesc r = bench::primaryRay(camera, x0 + i, y);
-                        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
-                        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
-                        rh.ray.tnear[i] = 0.f;
-                        rh.ray.tfar[i] = kInfinity;
-                        rh.ray.mask[i] = 0xff;
-                        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+                        active[i] = x0 + i < tile.x1;
+                        if (active[i]) rays[i] = bench::primaryRay(camera, x0 + i, y);
                     }
-                    rtcIntersect8(valid.data(), scene.accel->tlas(), &ctx, &rh);
-                    for (int i = 0; i < 8 && x0 + i < tile.x1; ++i)
-                        out[static_cast<std::size_t>(y) * kSize + x0 + i] =
-                            rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ? -1.f : rh.ray.tfar[i];
+                    tracePacket(*scene.accel, rays.data(), active.data(), t.data(), tracer::RayCoherence::Coherent);
+                    for (int i = 0; i < 8 && x0 + i < tile.x1; ++i) out[static_cast<std::size_t>(y) * kSize + x0 + i] = t[i];
                 }
         });
         benchmark::DoNotOptimize(out.data());
@@ -120,25 +147,17 @@ void BM_RawIntersect8Bounce(benchmark::State& state) {
     const std::vector<rtcore_sim::SimRay>& rays = bounceRays();
     std::vector<float> out(rays.size());
     for (auto _ : state) {
-        RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-        ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
         for (std::size_t first = 0; first < rays.size(); first += 8) {
-            alignas(32) std::array<int, 8> valid{};
-            alignas(32) RTCRayHit8 rh{};
-            for (std::size_t i = 0; i < 8; ++i) {
-                valid[i] = first + i < rays.size() ? -1 : 0;
-                const rtcore_sim::ModelRay& r = rays[std::min(first + i, rays.size() - 1)].ray;
-                rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
-                rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
-                rh.ray.tnear[i] = r.tMin;
-                rh.ray.tfar[i] = r.tMax;
-                rh.ray.mask[i] = 0xff;
-                rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+            std::array<tracer::RayDesc, 8> packet;
+            std::array<bool, 8> active{};
+            alignas(32) std::array<float, 8> t{};
+            for (std::size_t i = 0; i < 8 && first + i < rays.size(); ++i) {
+                const rtcore_sim::ModelRay& r = rays[first + i].ray;
+                packet[i] = tracer::RayDesc{r.origin, r.tMin, r.direction, r.tMax};
+                active[i] = true;
             }
-            rtcIntersect8(valid.data(), scene.accel->tlas(), &ctx, &rh);
-            for (std::size_t i = 0; i < 8 && first + i < rays.size(); ++i)
-                out[first + i] = rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID ? -1.f : rh.ray.tfar[i];
+            tracePacket(*scene.accel, packet.data(), active.data(), t.data(), tracer::RayCoherence::Incoherent);
+            for (std::size_t i = 0; i < 8 && first + i < rays.size(); ++i) out[first + i] = t[i];
         }
         benchmark::DoNotOptimize(out.data());
     }

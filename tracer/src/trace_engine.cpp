@@ -4,10 +4,12 @@
 // the any-hit shader). The instance mask is Embree's ray mask. Procedural
 // primitives run the intersection shader from Embree's user geometry
 // callbacks; an accepted ReportHit() is committed into Embree's ray/hit.
+#include <rtlab/core/simd.hpp>
 #include <rtlab/tracer/candidate_filter.hpp>
 #include <rtlab/tracer/hit_order.hpp>
 #include <rtlab/tracer/instance_transform.hpp>
 #include <rtlab/tracer/pipeline.hpp>
+#include <rtlab/tracer/ray_query.hpp>
 #include <rtlab/tracer/watertight_triangle.hpp>
 
 #include <algorithm>
@@ -57,11 +59,65 @@ void contextFilter(const RTCFilterFunctionNArguments* args);
 // Embree never calls it for watertight triangles (user geometry), and the
 // callbacks recognise the pipeline context by it.
 void filterFreeMarker(const RTCFilterFunctionNArguments*) {}
+// Marks a shader-free ray query (ray_query.hpp), likewise never called.
+void queryMarker(const RTCFilterFunctionNArguments*) {}
 
-// RTCIntersectContext extended with the state of one trace call. Embree
-// hands the context to every callback; the lane is recovered from ray.id.
-struct PipelineContext {
+struct PipelineContext;
+
+// The context every rtlab traversal call hands Embree (RTCIntersectContext
+// extended; Embree passes it to every callback). It carries the world rays
+// of the call, so that watertight triangles see exactly the object-space ray
+// every back end computes from the world ray (instance_transform.hpp), as
+// the triangle test's 8-lane packet, set up once per instance and not per
+// callback. Embree traverses one instance at a time for a whole packet but
+// may return to one: the last few instances are kept (direct-mapped by
+// index). The lane of a ray is its Embree ray id.
+struct TraversalContext {
     RTCIntersectContext embree;  // must stay first
+    PipelineContext* pipeline = nullptr;  // the DXR state of a pipeline trace; null for a plain query
+    const AccelManager* accel = nullptr;
+    alignas(32) float worldOrigin[3][kMaxLanes];
+    alignas(32) float worldDirection[3][kMaxLanes];  // zero for lanes without a valid ray
+
+    struct InstanceRays {
+        std::uint32_t instance = RTC_INVALID_GEOMETRY_ID;
+        WatertightRayPacket packet;
+        std::array<vec3, kMaxLanes> objectDirection;
+    };
+    static constexpr std::uint32_t kCachedInstances = 8;
+    std::array<InstanceRays, kCachedInstances> instanceRays;
+
+    TraversalContext(const AccelManager& a, RTCFilterFunctionN marker, bool coherent) : accel(&a) {
+        rtcInitIntersectContext(&embree);
+        embree.filter = marker;
+        embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    }
+    // Lane `lane`'s world ray (a zero direction where there is no valid ray:
+    // the watertight test then never hits in that lane).
+    void setWorldRay(std::uint32_t lane, const RayDesc& r, bool valid) {
+        const vec3 d = valid ? r.direction : vec3(0.f);
+        const vec3 o = valid ? r.origin : vec3(0.f);
+        for (int k = 0; k < 3; ++k) {
+            worldOrigin[k][lane] = o[k];
+            worldDirection[k][lane] = d[k];
+        }
+    }
+
+    InstanceRays& objectRaysFor(std::uint32_t instanceIndex) {
+        InstanceRays& e = instanceRays[instanceIndex % kCachedInstances];
+        if (e.instance == instanceIndex) return e;
+        // Lanes without a ray have a zero direction and stay invalid.
+        alignas(32) float o[3][kMaxLanes], d[3][kMaxLanes];
+        objectSpaceRays8(accel->instanceFacts(instanceIndex).objectFromWorld, worldOrigin, worldDirection, o, d);
+        for (std::uint32_t lane = 0; lane < kMaxLanes; ++lane) e.objectDirection[lane] = vec3(d[0][lane], d[1][lane], d[2][lane]);
+        e.packet.setRays(o[0], o[1], o[2], d[0], d[1], d[2]);
+        e.instance = instanceIndex;
+        return e;
+    }
+};
+
+// A pipeline trace: the traversal context plus the DXR state of the call.
+struct PipelineContext : TraversalContext {
     std::array<LaneCommitState, kMaxLanes> lanes;
     CandidateFilter filter;
     bool occlusion = false;
@@ -69,26 +125,12 @@ struct PipelineContext {
     // flags): Embree runs without the filter and the committed hit's HitKind
     // and record are computed once, after traversal.
     bool filterFree = false;
-    // The object-space rays of every lane for an instance (instance_transform.hpp),
-    // so that watertight triangles see exactly the object ray every back end
-    // computes from the world ray, as the triangle test's 8-lane packet. Embree
-    // traverses one instance at a time for a whole packet but may return to
-    // one: the last few instances are kept (direct-mapped by index).
-    struct InstanceRays {
-        std::uint32_t instance = RTC_INVALID_GEOMETRY_ID;
-        WatertightRayPacket packet;
-        std::array<vec3, kMaxLanes> objectDirection;
-    };
-    static constexpr std::uint32_t kCachedInstances = 4;
-    std::uint32_t laneCount = 0;
-    std::array<InstanceRays, kCachedInstances> instanceRays;
 
     PipelineContext(const TraceEngine& engine, const TraceArgs& args, std::uint32_t depth, TraceCounters& counters,
                     const RayDesc* rays, void* const* payloads, bool coherent)
-        : filter(engine, args, depth, counters, rays, payloads, lanes.data()) {
-        rtcInitIntersectContext(&embree);
-        embree.filter = contextFilter;
-        embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+        : TraversalContext(engine.accel(), contextFilter, coherent),
+          filter(engine, args, depth, counters, rays, payloads, lanes.data()) {
+        pipeline = this;
         // A shadow-style query (first hit ends the search, no closest-hit) is an
         // occlusion query: Embree stops at the first committed hit.
         occlusion =
@@ -104,38 +146,18 @@ struct PipelineContext {
             opaqueInEffect && !accel.anyProcedural() && !(args.rayFlags & kCandidateFlags) && !needsFirstHitStop;
         if (filterFree) embree.filter = accel.options().watertight ? filterFreeMarker : nullptr;
     }
-
-    InstanceRays& objectRaysFor(std::uint32_t instanceIndex) {
-        InstanceRays& e = instanceRays[instanceIndex % kCachedInstances];
-        if (e.instance == instanceIndex) return e;
-        const glm::dmat4& objectFromWorld = filter.engine().accel().instanceFacts(instanceIndex).objectFromWorld;
-        alignas(32) float ox[kMaxLanes] = {}, oy[kMaxLanes] = {}, oz[kMaxLanes] = {};
-        alignas(32) float dx[kMaxLanes] = {}, dy[kMaxLanes] = {}, dz[kMaxLanes] = {};
-        // Lanes often share their origin (camera rays): transform it once.
-        vec3 worldOrigin{0.f}, objectOrigin{0.f};
-        for (std::uint32_t lane = 0; lane < laneCount; ++lane) {
-            const RayDesc& world = filter.ray(lane);
-            if (lane == 0 || std::memcmp(&worldOrigin, &world.origin, sizeof(vec3)) != 0) {
-                worldOrigin = world.origin;
-                objectOrigin = objectSpacePoint(objectFromWorld, world.origin);
-            }
-            const vec3 direction = objectSpaceVector(objectFromWorld, world.direction);
-            e.objectDirection[lane] = direction;
-            ox[lane] = objectOrigin.x, oy[lane] = objectOrigin.y, oz[lane] = objectOrigin.z;
-            dx[lane] = direction.x, dy[lane] = direction.y, dz[lane] = direction.z;
-        }
-        e.packet.setRays(ox, oy, oz, dx, dy, dz);
-        e.instance = instanceIndex;
-        return e;
-    }
 };
 
-bool isPipelineContext(const RTCIntersectContext* c) {
-    return c && (c->filter == contextFilter || c->filter == filterFreeMarker);
+// The rtlab context behind an Embree context, or null for a foreign one
+// (a plain rtcIntersect call on the TLAS).
+TraversalContext* traversalContextOf(const RTCIntersectContext* c) {
+    if (c && (c->filter == contextFilter || c->filter == filterFreeMarker || c->filter == queryMarker))
+        return reinterpret_cast<TraversalContext*>(const_cast<RTCIntersectContext*>(c));
+    return nullptr;
 }
 
 void contextFilter(const RTCFilterFunctionNArguments* a) {
-    auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
+    PipelineContext& ctx = *traversalContextOf(a->context)->pipeline;
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->valid[i] == 0) continue;
         const std::uint32_t lane = RTCRayN_id(a->ray, a->N, i);
@@ -161,6 +183,32 @@ float openIntervalEnd(float tMax) {
     if (tMax == 0.f) return tMax;  // empty interval either way
     return tMax == kInfinity ? std::numeric_limits<float>::max()
                              : std::bit_cast<float>(std::bit_cast<std::uint32_t>(tMax) - 1u);
+}
+
+// An Embree ray for a DXR ray (the open interval made closed, one float
+// inwards), lane i of a packet or a single one; hits start invalid.
+void setEmbreeRay8(RTCRayHit8& rh, int i, const RayDesc& r, bool valid, std::uint32_t mask) {
+    rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
+    rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+    rh.ray.tnear[i] = valid ? openIntervalStart(r.tMin) : 0.f;
+    rh.ray.tfar[i] = valid ? openIntervalEnd(r.tMax) : 0.f;
+    rh.ray.mask[i] = mask & 0xff;
+    rh.ray.id[i] = static_cast<unsigned>(i);
+    rh.ray.flags[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+}
+RTCRayHit embreeRay(const RayDesc& r, std::uint32_t mask) {
+    RTCRayHit rh{};
+    rh.ray.org_x = r.origin.x; rh.ray.org_y = r.origin.y; rh.ray.org_z = r.origin.z;
+    rh.ray.dir_x = r.direction.x; rh.ray.dir_y = r.direction.y; rh.ray.dir_z = r.direction.z;
+    rh.ray.tnear = openIntervalStart(r.tMin);
+    rh.ray.tfar = openIntervalEnd(r.tMax);
+    rh.ray.mask = mask & 0xff;
+    rh.ray.id = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    return rh;
 }
 
 // Filter-free path: the committed hit straight from Embree's result, with
@@ -208,8 +256,9 @@ RTCHitN* hitOf(const RTCOccludedFunctionNArguments*) { return nullptr; }
 // Shared body of the intersect and occluded callbacks for procedural primitives.
 template <class Args>
 void runIntersectionShader(const Args* a, bool occlusion) {
-    if (!isPipelineContext(a->context)) return;  // non-pipeline traces see no procedural hits
-    auto& ctx = *reinterpret_cast<PipelineContext*>(a->context);
+    TraversalContext* traversal = traversalContextOf(a->context);
+    if (!traversal || !traversal->pipeline) return;  // non-pipeline traces see no procedural hits
+    PipelineContext& ctx = *traversal->pipeline;
     RTCRayN* rayN = rayOf(a);
     const std::uint32_t instanceIndex = a->context->instID[0];
     for (unsigned i = 0; i < a->N; ++i) {
@@ -293,8 +342,8 @@ bool considerCandidate(const Args* a, unsigned i, PipelineContext* pipeline, boo
         return false;
     if (pipeline && !pipeline->filterFree) {
         const vec3 ng = clusterGeometricNormal(cluster, slot);
-        if (!pipeline->filter.triangle(lane, t, instanceIndex, a->geomID, primitive, pipeline->objectRaysFor(instanceIndex).objectDirection[lane],
-                                       ng, b1, b2))
+        if (!pipeline->filter.triangle(lane, t, instanceIndex, a->geomID, primitive,
+                                       pipeline->objectRaysFor(instanceIndex).objectDirection[lane], ng, b1, b2))
             return false;
     }
     if (occlusion) {
@@ -314,7 +363,7 @@ bool considerCandidate(const Args* a, unsigned i, PipelineContext* pipeline, boo
     return false;
 }
 
-// Embree's interval [tnear, tfar] is inclusive at both ends (pipeline traces
+// Embree's interval [tnear, tfar] is inclusive at both ends (rtlab's traces
 // moved them one float inwards, making DXR's open interval); the watertight
 // test's ends are exclusive, so step one float outwards. At the upper end
 // that also lets ties at the committed t reach the id comparison
@@ -324,76 +373,111 @@ float exclusiveStart(float tnearInclusive) {
                                 : -std::numeric_limits<float>::denorm_min();
 }
 
+// exclusiveStart and tieInclusiveUpperBound for 4 lanes at once (the packet
+// callbacks set 8 intervals per call): the same bits as the scalar forms for
+// every t Embree hands over (non-negative or NaN tnear; tfar >= 0, +inf or
+// NaN; a negative tfar belongs to a finished lane that is never tested).
+void setPacketIntervals(const float* tnear, const float* tfar, float* tMin, float* tMax) {
+    using VF = simd::vfloat<4>;
+    using VI = simd::vint<4>;
+    const VF zero = simd::splat<4>(0.f), inf = simd::splat<4>(kInfinity);
+    for (int first = 0; first < kMaxLanes; first += 4) {
+        const VF lo = simd::loadu<4>(tnear + first), hi = simd::loadu<4>(tfar + first);
+        // Step: one float down / up is one step of the bit pattern (GCC vector
+        // casts reinterpret the bits).
+        const VF loStep = (VF)((VI)lo - 1), hiStep = (VF)((VI)hi + 1);
+        const VF start = simd::select<4>(lo > zero, loStep, simd::splat<4>(-std::numeric_limits<float>::denorm_min()));
+        const VF end = simd::select<4>((hi >= zero) & (hi < inf), hiStep, hi);
+        simd::storeu<4>(tMin + first, start);
+        simd::storeu<4>(tMax + first, end);
+    }
+}
+
+// The valid lanes of an 8-wide callback (bit i for valid[i] != 0) and,
+// given the ray ids, whether every valid lane's id is its position.
+std::uint32_t packetLanes(const int* valid, const unsigned* ids, bool& lanesInPlace) {
+    using VI = simd::vint<4>;
+    const VI iota{0, 1, 2, 3}, four = {4, 4, 4, 4}, zero{0, 0, 0, 0};
+    const VI v0 = *reinterpret_cast<const VI*>(valid), v1 = *reinterpret_cast<const VI*>(valid + 4);
+    const std::uint32_t mask = simd::signMask<4>(v0 != zero) | (simd::signMask<4>(v1 != zero) << 4);
+    lanesInPlace = true;
+    if (ids) {
+        const VI i0 = *reinterpret_cast<const VI*>(ids), i1 = *reinterpret_cast<const VI*>(ids + 4);
+        const std::uint32_t inPlace = simd::signMask<4>(i0 == iota) | (simd::signMask<4>(i1 == iota + four) << 4);
+        lanesInPlace = (mask & ~inPlace) == 0;
+    }
+    return mask;
+}
+
 // Watertight triangles (AccelOptions::watertight): one user primitive is a
 // cluster of up to 8 triangles (watertight_triangle.hpp). An 8-ray packet is
 // tested one triangle at a time, 8 rays per SIMD step (as Embree's own hybrid
 // triangle intersectors); a single ray is tested against all 8 triangles at
-// once. Inside a pipeline trace the object-space ray is recomputed from the
-// world ray with the shared instance transform (instance_transform.hpp; the
-// same inputs as the RT-core model, so t and barycentrics are bit-identical)
-// and candidates go through the DXR filter unless the trace is filter-free;
-// plain Embree queries use Embree's object ray and commit the nearest hit.
+// once. Inside an rtlab trace (pipeline or query) the object-space rays come
+// from the context, computed once per instance from the world rays with the
+// shared instance transform (instance_transform.hpp; the same inputs as the
+// RT-core model, so t and barycentrics are bit-identical), and candidates go
+// through the DXR filter unless the trace is filter-free; plain Embree calls
+// use Embree's object ray and commit the nearest hit.
 template <class Args>
 void intersectWatertightCluster(const Args* a, bool occlusion) {
     const auto& mesh = *static_cast<const WatertightTriangles*>(a->geometryUserPtr);
     const TriangleCluster& cluster = mesh.clusters[a->primID];
     RTCRayN* rayN = rayOf(a);
-    PipelineContext* pipeline =
-        isPipelineContext(a->context) ? reinterpret_cast<PipelineContext*>(a->context) : nullptr;
+    TraversalContext* traversal = traversalContextOf(a->context);
+    PipelineContext* pipeline = traversal ? traversal->pipeline : nullptr;
     const std::uint32_t instanceIndex = a->context->instID[0];
-    PipelineContext::InstanceRays* instanceRays = pipeline ? &pipeline->objectRaysFor(instanceIndex) : nullptr;
-    auto watertightRay = [&](unsigned i) {
-        if (pipeline) return instanceRays->packet.ray(static_cast<int>(RTCRayN_id(rayN, a->N, i)));
-        return makeWatertightRay(
-            vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i)),
-            vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i)));
-    };
-    auto laneOf = [&](unsigned i) { return pipeline ? RTCRayN_id(rayN, a->N, i) : 0u; };
+    TraversalContext::InstanceRays* instanceRays = traversal ? &traversal->objectRaysFor(instanceIndex) : nullptr;
+    auto laneOf = [&](unsigned i) { return traversal ? RTCRayN_id(rayN, a->N, i) : 0u; };
 
     // Step: a packet of several rays — 8 rays per SIMD step, one triangle at a
-    // time (pipeline packets keep lane == position, as trace8 submits them).
-    std::uint32_t callMask = 0;
-    bool lanesInPlace = true;
-    for (unsigned i = 0; i < a->N; ++i)
-        if (a->valid[i] != 0) {
-            callMask |= 1u << i;
-            lanesInPlace = lanesInPlace && (!pipeline || RTCRayN_id(rayN, a->N, i) == i);
+    // time (rtlab's packets keep lane == position, as they are submitted).
+    std::uint32_t callMask = 0;  // valid lanes of an 8-wide call
+    if (a->N == WatertightRayPacket::kLanes) {
+        bool lanesInPlace = true;
+        callMask = packetLanes(a->valid, traversal ? &RTCRayN_id(rayN, a->N, 0) : nullptr, lanesInPlace);
+        if ((callMask & (callMask - 1u)) != 0 && lanesInPlace) {  // more than one ray
+            WatertightRayPacket local;
+            WatertightRayPacket& packet = instanceRays ? instanceRays->packet : local;
+            if (!instanceRays)
+                local.setRays(&RTCRayN_org_x(rayN, a->N, 0), &RTCRayN_org_y(rayN, a->N, 0),
+                              &RTCRayN_org_z(rayN, a->N, 0), &RTCRayN_dir_x(rayN, a->N, 0),
+                              &RTCRayN_dir_y(rayN, a->N, 0), &RTCRayN_dir_z(rayN, a->N, 0));
+            setPacketIntervals(&RTCRayN_tnear(rayN, a->N, 0), &RTCRayN_tfar(rayN, a->N, 0), packet.tMin,
+                               packet.tMax);
+            packet.activate(callMask);
+            PacketHits hits;
+            if (!intersectPacketWatertight(packet, cluster, hits)) return;
+            // Step: the candidates in slot order against each lane's live interval.
+            std::uint32_t finished = 0;
+            for (std::uint32_t slot = 0; slot < cluster.count; ++slot)
+                for (std::uint32_t m = hits.mask[slot] & ~finished; m != 0; m &= m - 1) {
+                    const unsigned i = static_cast<unsigned>(std::countr_zero(m));
+                    if (considerCandidate(a, i, pipeline, occlusion, i, instanceIndex, cluster, slot,
+                                          hits.t[slot][i], hits.b1[slot][i], hits.b2[slot][i]))
+                        finished |= 1u << i;
+                }
+            return;
         }
-    if (a->N == WatertightRayPacket::kLanes && std::popcount(callMask) > 1 && lanesInPlace) {
-        WatertightRayPacket local;
-        WatertightRayPacket& packet = pipeline ? instanceRays->packet : local;
-        if (!pipeline)
-            local.setRays(&RTCRayN_org_x(rayN, a->N, 0), &RTCRayN_org_y(rayN, a->N, 0), &RTCRayN_org_z(rayN, a->N, 0),
-                          &RTCRayN_dir_x(rayN, a->N, 0), &RTCRayN_dir_y(rayN, a->N, 0), &RTCRayN_dir_z(rayN, a->N, 0));
-        for (std::uint32_t m = callMask; m != 0; m &= m - 1) {
-            const unsigned i = static_cast<unsigned>(std::countr_zero(m));
-            packet.tMin[i] = exclusiveStart(RTCRayN_tnear(rayN, a->N, i));
-            packet.tMax[i] = tieInclusiveUpperBound(RTCRayN_tfar(rayN, a->N, i));
-        }
-        packet.activate(callMask);
-        PacketHits hits;
-        if (!intersectPacketWatertight(packet, cluster, hits)) return;
-        // Step: the candidates in slot order against each lane's live interval.
-        std::uint32_t finished = 0;
-        for (std::uint32_t slot = 0; slot < cluster.count; ++slot)
-            for (std::uint32_t m = hits.mask[slot] & ~finished; m != 0; m &= m - 1) {
-                const unsigned i = static_cast<unsigned>(std::countr_zero(m));
-                if (considerCandidate(a, i, pipeline, occlusion, laneOf(i), instanceIndex, cluster, slot,
-                                      hits.t[slot][i], hits.b1[slot][i], hits.b2[slot][i]))
-                    finished |= 1u << i;
-            }
-        return;
     }
 
     // Step: one ray at a time — all 8 triangles of the cluster per SIMD step.
     ClusterHits hits;
     for (unsigned i = 0; i < a->N; ++i) {
-        if (a->valid[i] == 0) continue;
-        intersectClusterWatertight(watertightRay(i), cluster, exclusiveStart(RTCRayN_tnear(rayN, a->N, i)),
+        if (a->N == WatertightRayPacket::kLanes ? !((callMask >> i) & 1u) : a->valid[i] == 0) continue;
+        const std::uint32_t lane = laneOf(i);
+        const WatertightRay ray =
+            instanceRays ? instanceRays->packet.ray(static_cast<int>(lane))
+                         : makeWatertightRay(
+                               vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i),
+                                    RTCRayN_org_z(rayN, a->N, i)),
+                               vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i),
+                                    RTCRayN_dir_z(rayN, a->N, i)));
+        intersectClusterWatertight(ray, cluster, exclusiveStart(RTCRayN_tnear(rayN, a->N, i)),
                                    tieInclusiveUpperBound(RTCRayN_tfar(rayN, a->N, i)), hits);
         for (std::uint32_t m = hits.mask; m != 0; m &= m - 1) {
             const std::uint32_t slot = static_cast<std::uint32_t>(std::countr_zero(m));
-            if (considerCandidate(a, i, pipeline, occlusion, laneOf(i), instanceIndex, cluster, slot, hits.t[slot],
+            if (considerCandidate(a, i, pipeline, occlusion, lane, instanceIndex, cluster, slot, hits.t[slot],
                                   hits.b1[slot], hits.b2[slot]))
                 break;
         }
@@ -424,22 +508,19 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     void* payloads[1] = {payload};
     // A single ray is a one-lane trace; no packet overhead for Embree.
     PipelineContext ctx(*this, args, depth, counters, &ray, payloads, false);
-    ctx.laneCount = 1;
+    const bool valid = isValidRay(ray);
+    ctx.setWorldRay(0, ray, valid);
+    for (std::uint32_t lane = 1; lane < kMaxLanes; ++lane) ctx.setWorldRay(lane, ray, false);
     const std::uint32_t type = args.rayContribution & 0xf;
-    if (!isValidRay(ray) || !accel_.tlas()) {
+    if (!valid || !accel_.tlas()) {
         // DXR: such rays are undefined; we count them as misses.
         ++counters.rays[type];
         ++counters.misses[type];
         return out;
     }
+    RTCRayHit rh = embreeRay(ray, args.instanceInclusionMask);
     if (ctx.occlusion) {
-        RTCRay r{};
-        r.org_x = ray.origin.x; r.org_y = ray.origin.y; r.org_z = ray.origin.z;
-        r.dir_x = ray.direction.x; r.dir_y = ray.direction.y; r.dir_z = ray.direction.z;
-        r.tnear = openIntervalStart(ray.tMin);
-        r.tfar = openIntervalEnd(ray.tMax);
-        r.mask = args.instanceInclusionMask & 0xff;
-        r.id = 0;
+        RTCRay& r = rh.ray;
         rtcOccluded1(accel_.tlas(), &ctx.embree, &r);
         ctx.filter.rethrowIfFailed();
         // Occlusion gives no hit details; the committed filter state does.
@@ -447,15 +528,6 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
         ctx.filter.finish(0, hit, hit ? ray.tMin : kInfinity, 0, 0, 0, out);
         return out;
     }
-    RTCRayHit rh{};
-    rh.ray.org_x = ray.origin.x; rh.ray.org_y = ray.origin.y; rh.ray.org_z = ray.origin.z;
-    rh.ray.dir_x = ray.direction.x; rh.ray.dir_y = ray.direction.y; rh.ray.dir_z = ray.direction.z;
-    rh.ray.tnear = openIntervalStart(ray.tMin);
-    rh.ray.tfar = openIntervalEnd(ray.tMax);
-    rh.ray.mask = args.instanceInclusionMask & 0xff;
-    rh.ray.id = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(accel_.tlas(), &ctx.embree, &rh);
     ctx.filter.rethrowIfFailed();
     if (ctx.filterFree && rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
@@ -471,7 +543,6 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
 void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
                          std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const {
     PipelineContext ctx(*this, args, depth, counters, rays, payloads, true);
-    ctx.laneCount = kMaxLanes;
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh{};
     bool any = false;
@@ -480,15 +551,8 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
         const bool ok = active[i] && isValidRay(r);
         valid[i] = ok ? -1 : 0;
         any = any || ok;
-        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
-        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
-        rh.ray.tnear[i] = ok ? openIntervalStart(r.tMin) : 0.f;
-        rh.ray.tfar[i] = ok ? openIntervalEnd(r.tMax) : 0.f;
-        rh.ray.mask[i] = args.instanceInclusionMask & 0xff;
-        rh.ray.id[i] = static_cast<unsigned>(i);
-        rh.ray.flags[i] = 0;
-        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+        ctx.setWorldRay(static_cast<std::uint32_t>(i), r, ok);
+        setEmbreeRay8(rh, i, r, ok, args.instanceInclusionMask);
     }
     // Step: early-out on an empty mask.
     if (any && accel_.tlas()) {
@@ -521,6 +585,97 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
         if (active[i])
             ctx.filter.finish(i, valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar[i], rh.hit.instID[0][i],
                        rh.hit.geomID[i], rh.hit.primID[i], out[i]);
+}
+
+// Ray queries (ray_query.hpp): a traversal context without pipeline state;
+// the watertight callbacks commit the nearest hit with the tie rule.
+namespace {
+
+RTCFilterFunctionN queryMarkerFor(const AccelManager& accel) {
+    return accel.options().watertight ? queryMarker : nullptr;
+}
+
+QueryHit queryHitOf(const RTCRayHit8& rh, int i) {
+    QueryHit h;
+    if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) return h;
+    h.hit = true;
+    h.t = rh.ray.tfar[i];
+    h.u = rh.hit.u[i];
+    h.v = rh.hit.v[i];
+    h.instance = rh.hit.instID[0][i];
+    h.geometry = rh.hit.geomID[i];
+    h.primitive = rh.hit.primID[i];
+    return h;
+}
+
+// The packet set-up queryClosest8 and queryAny8 share; returns whether any lane is traced.
+bool setQueryPacket(TraversalContext& ctx, const RayDesc* rays, const bool* active, std::uint32_t mask,
+                    int* valid, RTCRayHit8& rh) {
+    bool any = false;
+    for (int i = 0; i < kMaxLanes; ++i) {
+        const bool ok = active[i] && isValidRay(rays[i]);
+        valid[i] = ok ? -1 : 0;
+        any = any || ok;
+        ctx.setWorldRay(static_cast<std::uint32_t>(i), rays[i], ok);
+        setEmbreeRay8(rh, i, rays[i], ok, mask);
+    }
+    return any && ctx.accel->tlas();
+}
+
+TraversalContext singleRayContext(const AccelManager& accel, const RayDesc& ray, bool valid) {
+    TraversalContext ctx(accel, queryMarkerFor(accel), false);
+    ctx.setWorldRay(0, ray, valid);
+    for (std::uint32_t lane = 1; lane < kMaxLanes; ++lane) ctx.setWorldRay(lane, ray, false);
+    return ctx;
+}
+
+}  // namespace
+
+void queryClosest8(const AccelManager& accel, const RayDesc* rays, const bool* active, QueryHit* out,
+                   RayCoherence coherence, std::uint32_t instanceMask) {
+    TraversalContext ctx(accel, queryMarkerFor(accel), coherence == RayCoherence::Coherent);
+    alignas(32) int valid[kMaxLanes];
+    alignas(32) RTCRayHit8 rh;
+    if (setQueryPacket(ctx, rays, active, instanceMask, valid, rh)) rtcIntersect8(valid, accel.tlas(), &ctx.embree, &rh);
+    for (int i = 0; i < kMaxLanes; ++i)
+        if (active[i]) out[i] = valid[i] ? queryHitOf(rh, i) : QueryHit{};
+}
+
+void queryAny8(const AccelManager& accel, const RayDesc* rays, const bool* active, bool* out, RayCoherence coherence,
+               std::uint32_t instanceMask) {
+    TraversalContext ctx(accel, queryMarkerFor(accel), coherence == RayCoherence::Coherent);
+    alignas(32) int valid[kMaxLanes];
+    alignas(32) RTCRayHit8 rh;
+    if (setQueryPacket(ctx, rays, active, instanceMask, valid, rh)) rtcOccluded8(valid, accel.tlas(), &ctx.embree, &rh.ray);
+    for (int i = 0; i < kMaxLanes; ++i)
+        if (active[i]) out[i] = valid[i] && rh.ray.tfar[i] < 0.f;
+}
+
+QueryHit queryClosest(const AccelManager& accel, const RayDesc& ray, std::uint32_t instanceMask) {
+    const bool valid = isValidRay(ray);
+    if (!valid || !accel.tlas()) return {};
+    TraversalContext ctx = singleRayContext(accel, ray, valid);
+    RTCRayHit rh = embreeRay(ray, instanceMask);
+    rtcIntersect1(accel.tlas(), &ctx.embree, &rh);
+    QueryHit h;
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return h;
+    h.hit = true;
+    h.t = rh.ray.tfar;
+    h.u = rh.hit.u;
+    h.v = rh.hit.v;
+    h.instance = rh.hit.instID[0];
+    h.geometry = rh.hit.geomID;
+    h.primitive = rh.hit.primID;
+    return h;
+}
+
+bool queryAny(const AccelManager& accel, const RayDesc& ray, std::uint32_t instanceMask) {
+    const bool valid = isValidRay(ray);
+    if (!valid || !accel.tlas()) return false;
+    TraversalContext ctx = singleRayContext(accel, ray, valid);
+    RTCRayHit rh = embreeRay(ray, instanceMask);
+    rtcOccluded1(accel.tlas(), &ctx.embree, &rh.ray);
+    return rh.ray.tfar < 0.f;
 }
 
 }  // namespace rtlab::tracer

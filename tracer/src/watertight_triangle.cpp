@@ -242,6 +242,27 @@ __attribute__((target("avx2"))) bool intersectPacketAvx2(const WatertightRayPack
 
 }  // namespace
 
+namespace {
+
+// Whether the lanes in `lanes` (not empty) share one permutation; if so,
+// sets the packet's kx, ky, kz to it.
+bool sharePermutation(WatertightRayPacket& p, std::uint32_t lanes) {
+    // Step: the permutation of the first lane, then whether all share it.
+    const int first = std::countr_zero(lanes);
+    const std::int32_t c = p.permutation[first];
+    using VI = simd::vint<4>;
+    const VI cs = {c, c, c, c};
+    const VI* perm = reinterpret_cast<const VI*>(p.permutation);
+    const std::uint32_t differs = simd::signMask<4>(perm[0] != cs) | (simd::signMask<4>(perm[1] != cs) << 4);
+    if ((differs & lanes) != 0) return false;
+    p.kx = p.xIs0[first] ? 0 : p.xIs1[first] ? 1 : 2;
+    p.ky = p.yIs0[first] ? 0 : p.yIs1[first] ? 1 : 2;
+    p.kz = p.zIs0[first] ? 0 : p.zIs1[first] ? 1 : 2;
+    return true;
+}
+
+}  // namespace
+
 void WatertightRayPacket::setRays(const float* ox, const float* oy, const float* oz, const float* dx, const float* dy,
                                   const float* dz) {
     static const bool avx2 = simd::hasAvx2();
@@ -251,22 +272,12 @@ void WatertightRayPacket::setRays(const float* ox, const float* oy, const float*
         setPacketLanes<4>(*this, 0, ox, oy, oz, dx, dy, dz);
         setPacketLanes<4>(*this, 4, ox, oy, oz, dx, dy, dz);
     }
+    uniformValid = validRays != 0 && sharePermutation(*this, validRays);
 }
 
 void WatertightRayPacket::activate(std::uint32_t lanes) {
     activeMask = lanes & validRays;
-    uniform = false;
-    if (activeMask == 0) return;
-    // Step: the permutation of the first active lane, then whether all share it.
-    const int first = std::countr_zero(activeMask);
-    const std::int32_t c = permutation[first];
-    std::uint32_t differs = 0;
-    for (int i = 0; i < kLanes; ++i) differs |= (permutation[i] != c ? 1u : 0u) << i;
-    if ((differs & activeMask) != 0) return;
-    uniform = true;
-    kx = xIs0[first] ? 0 : xIs1[first] ? 1 : 2;
-    ky = yIs0[first] ? 0 : yIs1[first] ? 1 : 2;
-    kz = zIs0[first] ? 0 : zIs1[first] ? 1 : 2;
+    uniform = activeMask != 0 && (uniformValid || sharePermutation(*this, activeMask));
 }
 
 WatertightRay WatertightRayPacket::ray(int lane) const {

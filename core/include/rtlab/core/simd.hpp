@@ -61,9 +61,15 @@ RTLAB_SIMD_INLINE std::uint32_t signMask(const vint<N>& mask) {
     if constexpr (N == 4) {
         return static_cast<std::uint32_t>(__builtin_ia32_movmskps((vfloat<4>)mask));
     } else {
-        std::uint32_t bits = 0;
-        for (int i = 0; i < N; ++i) bits |= (mask[i] < 0 ? 1u : 0u) << i;
-        return bits;
+        // No movmskps without AVX in this (untargeted) template: each lane's
+        // bit, then an OR-reduction by shuffles (a few vector instructions
+        // once inlined into an AVX2 kernel, instead of 8 lane extracts).
+        static_assert(N == 8);
+        const vint<8> bits = (mask < 0) & vint<8>{1, 2, 4, 8, 16, 32, 64, 128};
+        vint<4> r = __builtin_shufflevector(bits, bits, 0, 1, 2, 3) | __builtin_shufflevector(bits, bits, 4, 5, 6, 7);
+        r = r | __builtin_shufflevector(r, r, 2, 3, 0, 1);
+        r = r | __builtin_shufflevector(r, r, 1, 0, 3, 2);
+        return static_cast<std::uint32_t>(r[0]);
     }
 }
 

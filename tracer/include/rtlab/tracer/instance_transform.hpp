@@ -34,6 +34,13 @@ inline vec3 objectSpaceVector(const glm::dmat4& m, const vec3& v) {
                 static_cast<float>((m[0][2] * x + m[1][2] * y) + m[2][2] * z));
 }
 
+// Eight rays at once, structure of arrays ([axis][lane]): lane by lane the
+// same bits as objectSpacePoint / objectSpaceVector (lane-wise double
+// arithmetic in the same order, rounded once to float; AVX2 when the CPU has
+// it). The traversal contexts set up a packet's object rays per instance with it.
+void objectSpaceRays8(const glm::dmat4& objectFromWorld, const float (&worldOrigin)[3][8],
+                      const float (&worldDirection)[3][8], float (&objectOrigin)[3][8], float (&objectDirection)[3][8]);
+
 inline ObjectSpaceRay toObjectSpace(const glm::dmat4& objectFromWorld, const vec3& worldOrigin,
                                     const vec3& worldDirection) {
     return {objectSpacePoint(objectFromWorld, worldOrigin), objectSpaceVector(objectFromWorld, worldDirection)};

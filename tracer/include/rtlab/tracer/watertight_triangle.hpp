@@ -97,6 +97,9 @@ struct alignas(32) WatertightRayPacket {
     // are then permuted once per triangle instead of per lane.
     bool uniform = false;
     int kx = 0, ky = 1, kz = 2;
+    // All valid lanes share one permutation (found once by setRays): then any
+    // activated subset does, with no per-lane check.
+    bool uniformValid = false;
 
     // Every lane from structure-of-arrays origins and directions (8 each):
     // the same constants as makeWatertightRay per lane, 8 lanes per SIMD step.
