@@ -186,18 +186,7 @@ float openIntervalEnd(float tMax) {
 }
 
 // An Embree ray for a DXR ray (the open interval made closed, one float
-// inwards), lane i of a packet or a single one; hits start invalid.
-void setEmbreeRay8(RTCRayHit8& rh, int i, const RayDesc& r, bool valid, std::uint32_t mask) {
-    rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
-    rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
-    rh.ray.tnear[i] = valid ? openIntervalStart(r.tMin) : 0.f;
-    rh.ray.tfar[i] = valid ? openIntervalEnd(r.tMax) : 0.f;
-    rh.ray.mask[i] = mask & 0xff;
-    rh.ray.id[i] = static_cast<unsigned>(i);
-    rh.ray.flags[i] = 0;
-    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
-}
+// inwards); the hit starts invalid.
 RTCRayHit embreeRay(const RayDesc& r, std::uint32_t mask) {
     RTCRayHit rh{};
     rh.ray.org_x = r.origin.x; rh.ray.org_y = r.origin.y; rh.ray.org_z = r.origin.z;
@@ -209,6 +198,59 @@ RTCRayHit embreeRay(const RayDesc& r, std::uint32_t mask) {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     return rh;
+}
+
+// An Embree packet for up to 8 DXR rays (lanes with active[i] false or an
+// invalid ray get valid[i] = 0) and the context's world rays; returns
+// whether any lane is traced. Validity and the open interval (made closed,
+// one float inwards: openIntervalStart/End) 4 lanes per SIMD step.
+bool setEmbreePacket(TraversalContext& ctx, const RayDesc* rays, const bool* active, std::uint32_t mask, int* valid,
+                     RTCRayHit8& rh) {
+    // Step: structure of arrays.
+    for (int i = 0; i < kMaxLanes; ++i) {
+        const RayDesc& r = rays[i];
+        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
+        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+        rh.ray.tnear[i] = r.tMin;
+        rh.ray.tfar[i] = r.tMax;
+        rh.ray.time[i] = 0.f;
+        rh.ray.mask[i] = mask & 0xff;
+        rh.ray.id[i] = static_cast<unsigned>(i);
+        rh.ray.flags[i] = 0;
+        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+        valid[i] = active[i] ? -1 : 0;
+    }
+    // Step: isValidRay, the interval and the world rays, 4 lanes at a time.
+    using VF = simd::vfloat<4>;
+    using VI = simd::vint<4>;
+    const VF zero = simd::splat<4>(0.f), inf = simd::splat<4>(kInfinity);
+    auto finite = [&](const VF& v) { return (v - v) == zero; };  // false for inf and NaN
+    std::uint32_t any = 0;
+    for (int first = 0; first < kMaxLanes; first += 4) {
+        auto at = [&](float* a) { return simd::loadu<4>(a + first); };
+        const VF ox = at(rh.ray.org_x), oy = at(rh.ray.org_y), oz = at(rh.ray.org_z);
+        const VF dx = at(rh.ray.dir_x), dy = at(rh.ray.dir_y), dz = at(rh.ray.dir_z);
+        const VF lo = at(rh.ray.tnear), hi = at(rh.ray.tfar);
+        const VI ok = *reinterpret_cast<const VI*>(valid + first) & finite(ox) & finite(oy) & finite(oz) &
+                      finite(dx) & finite(dy) & finite(dz) & (lo >= zero) & (hi >= lo);
+        *reinterpret_cast<VI*>(valid + first) = ok;
+        any |= simd::signMask<4>(ok);
+        const VF start = simd::select<4>(lo == inf, lo,
+                                         simd::select<4>(lo == zero, simd::splat<4>(std::numeric_limits<float>::denorm_min()),
+                                                         (VF)((VI)lo + 1)));
+        const VF end = simd::select<4>(hi == zero, hi,
+                                       simd::select<4>(hi == inf, simd::splat<4>(std::numeric_limits<float>::max()),
+                                                       (VF)((VI)hi - 1)));
+        simd::storeu<4>(rh.ray.tnear + first, simd::select<4>(ok, start, zero));
+        simd::storeu<4>(rh.ray.tfar + first, simd::select<4>(ok, end, zero));
+        const VF o[3] = {ox, oy, oz}, d[3] = {dx, dy, dz};
+        for (int k = 0; k < 3; ++k) {
+            simd::storeu<4>(ctx.worldOrigin[k] + first, simd::select<4>(ok, o[k], zero));
+            simd::storeu<4>(ctx.worldDirection[k] + first, simd::select<4>(ok, d[k], zero));
+        }
+    }
+    return any != 0 && ctx.accel->tlas();
 }
 
 // Filter-free path: the committed hit straight from Embree's result, with
@@ -393,6 +435,13 @@ void setPacketIntervals(const float* tnear, const float* tfar, float* tMin, floa
     }
 }
 
+// Set bits of an 8-bit mask (std::popcount is a library call without -mpopcnt).
+std::uint32_t laneCount8(std::uint32_t m) {
+    m = m - ((m >> 1) & 0x55u);
+    m = (m & 0x33u) + ((m >> 2) & 0x33u);
+    return (m + (m >> 4)) & 0x0fu;
+}
+
 // The valid lanes of an 8-wide callback (bit i for valid[i] != 0) and,
 // given the ray ids, whether every valid lane's id is its position.
 std::uint32_t packetLanes(const int* valid, const unsigned* ids, bool& lanesInPlace) {
@@ -436,7 +485,8 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
     if (a->N == WatertightRayPacket::kLanes) {
         bool lanesInPlace = true;
         callMask = packetLanes(a->valid, traversal ? &RTCRayN_id(rayN, a->N, 0) : nullptr, lanesInPlace);
-        if ((callMask & (callMask - 1u)) != 0 && lanesInPlace) {  // more than one ray
+        // Fewer rays than triangles: the per-ray form below needs fewer SIMD tests.
+        if (laneCount8(callMask) + 1u > cluster.count && (callMask & (callMask - 1u)) != 0 && lanesInPlace) {
             WatertightRayPacket local;
             WatertightRayPacket& packet = instanceRays ? instanceRays->packet : local;
             if (!instanceRays)
@@ -544,18 +594,10 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
                          std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const {
     PipelineContext ctx(*this, args, depth, counters, rays, payloads, true);
     alignas(32) int valid[kMaxLanes];
-    alignas(32) RTCRayHit8 rh{};
-    bool any = false;
-    for (int i = 0; i < kMaxLanes; ++i) {
-        const RayDesc& r = rays[i];
-        const bool ok = active[i] && isValidRay(r);
-        valid[i] = ok ? -1 : 0;
-        any = any || ok;
-        ctx.setWorldRay(static_cast<std::uint32_t>(i), r, ok);
-        setEmbreeRay8(rh, i, r, ok, args.instanceInclusionMask);
-    }
+    alignas(32) RTCRayHit8 rh;
+    const bool any = setEmbreePacket(ctx, rays, active, args.instanceInclusionMask, valid, rh);
     // Step: early-out on an empty mask.
-    if (any && accel_.tlas()) {
+    if (any) {
         ++counters.packetsTraced;
         if (ctx.occlusion) {
             alignas(32) RTCRay8 r{};
@@ -608,20 +650,6 @@ QueryHit queryHitOf(const RTCRayHit8& rh, int i) {
     return h;
 }
 
-// The packet set-up queryClosest8 and queryAny8 share; returns whether any lane is traced.
-bool setQueryPacket(TraversalContext& ctx, const RayDesc* rays, const bool* active, std::uint32_t mask,
-                    int* valid, RTCRayHit8& rh) {
-    bool any = false;
-    for (int i = 0; i < kMaxLanes; ++i) {
-        const bool ok = active[i] && isValidRay(rays[i]);
-        valid[i] = ok ? -1 : 0;
-        any = any || ok;
-        ctx.setWorldRay(static_cast<std::uint32_t>(i), rays[i], ok);
-        setEmbreeRay8(rh, i, rays[i], ok, mask);
-    }
-    return any && ctx.accel->tlas();
-}
-
 TraversalContext singleRayContext(const AccelManager& accel, const RayDesc& ray, bool valid) {
     TraversalContext ctx(accel, queryMarkerFor(accel), false);
     ctx.setWorldRay(0, ray, valid);
@@ -636,7 +664,7 @@ void queryClosest8(const AccelManager& accel, const RayDesc* rays, const bool* a
     TraversalContext ctx(accel, queryMarkerFor(accel), coherence == RayCoherence::Coherent);
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh;
-    if (setQueryPacket(ctx, rays, active, instanceMask, valid, rh)) rtcIntersect8(valid, accel.tlas(), &ctx.embree, &rh);
+    if (setEmbreePacket(ctx, rays, active, instanceMask, valid, rh)) rtcIntersect8(valid, accel.tlas(), &ctx.embree, &rh);
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i]) out[i] = valid[i] ? queryHitOf(rh, i) : QueryHit{};
 }
@@ -646,7 +674,7 @@ void queryAny8(const AccelManager& accel, const RayDesc* rays, const bool* activ
     TraversalContext ctx(accel, queryMarkerFor(accel), coherence == RayCoherence::Coherent);
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh;
-    if (setQueryPacket(ctx, rays, active, instanceMask, valid, rh)) rtcOccluded8(valid, accel.tlas(), &ctx.embree, &rh.ray);
+    if (setEmbreePacket(ctx, rays, active, instanceMask, valid, rh)) rtcOccluded8(valid, accel.tlas(), &ctx.embree, &rh.ray);
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i]) out[i] = valid[i] && rh.ray.tfar[i] < 0.f;
 }
