@@ -80,15 +80,18 @@ struct TraversalContext {
     alignas(32) float worldDirection[3][kMaxLanes];  // zero for lanes without a valid ray
 
     struct InstanceRays {
-        std::uint32_t instance = RTC_INVALID_GEOMETRY_ID;
         WatertightRayPacket packet;
         std::array<vec3, kMaxLanes> objectDirection;
     };
     static constexpr std::uint32_t kCachedInstances = 8;
+    // Which instance each entry holds: the tags in one cache line, so that a
+    // context starts (and a lookup hits) without touching the entries.
+    std::array<std::uint32_t, kCachedInstances> cachedInstance;
     std::array<InstanceRays, kCachedInstances> instanceRays;
 
     TraversalContext(const AccelManager& a, RTCFilterFunctionN marker, bool coherent) : accel(&a) {
         rtcInitIntersectContext(&embree);
+        cachedInstance.fill(RTC_INVALID_GEOMETRY_ID);
         embree.filter = marker;
         embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
     }
@@ -104,14 +107,15 @@ struct TraversalContext {
     }
 
     InstanceRays& objectRaysFor(std::uint32_t instanceIndex) {
-        InstanceRays& e = instanceRays[instanceIndex % kCachedInstances];
-        if (e.instance == instanceIndex) return e;
+        const std::uint32_t slot = instanceIndex % kCachedInstances;
+        InstanceRays& e = instanceRays[slot];
+        if (cachedInstance[slot] == instanceIndex) return e;
         // Lanes without a ray have a zero direction and stay invalid.
         alignas(32) float o[3][kMaxLanes], d[3][kMaxLanes];
         objectSpaceRays8(accel->instanceFacts(instanceIndex).objectFromWorld, worldOrigin, worldDirection, o, d);
         for (std::uint32_t lane = 0; lane < kMaxLanes; ++lane) e.objectDirection[lane] = vec3(d[0][lane], d[1][lane], d[2][lane]);
         e.packet.setRays(o[0], o[1], o[2], d[0], d[1], d[2]);
-        e.instance = instanceIndex;
+        cachedInstance[slot] = instanceIndex;
         return e;
     }
 };

@@ -105,16 +105,6 @@ RTLAB_SIMD_INLINE void intersectSlots(const WatertightRay& r, const TriangleClus
     simd::storeu<N>(&out.b2[first], w / det);
 }
 
-__attribute__((target("avx2"))) void intersectClusterAvx2(const WatertightRay& r, const TriangleCluster& c,
-                                                         float tMin, float tMax, ClusterHits& out) {
-    intersectSlots<8>(r, c, 0, tMin, tMax, out);
-}
-
-void intersectClusterSse2(const WatertightRay& r, const TriangleCluster& c, float tMin, float tMax, ClusterHits& out) {
-    intersectSlots<4>(r, c, 0, tMin, tMax, out);
-    if (c.count > 4) intersectSlots<4>(r, c, 4, tMin, tMax, out);
-}
-
 // Lanes [first, first + N) of the packet against one triangle.
 template <int N>
 RTLAB_SIMD_INLINE std::uint32_t intersectPacketLanes(const WatertightRayPacket& p, int first, const TriangleCluster& c,
@@ -242,11 +232,8 @@ __attribute__((target("avx2"))) bool intersectPacketAvx2(const WatertightRayPack
 
 }  // namespace
 
-namespace {
-
-// Whether the lanes in `lanes` (not empty) share one permutation; if so,
-// sets the packet's kx, ky, kz to it.
-bool sharePermutation(WatertightRayPacket& p, std::uint32_t lanes) {
+bool WatertightRayPacket::sharePermutation(std::uint32_t lanes) {
+    WatertightRayPacket& p = *this;
     // Step: the permutation of the first lane, then whether all share it.
     const int first = std::countr_zero(lanes);
     const std::int32_t c = p.permutation[first];
@@ -261,8 +248,6 @@ bool sharePermutation(WatertightRayPacket& p, std::uint32_t lanes) {
     return true;
 }
 
-}  // namespace
-
 void WatertightRayPacket::setRays(const float* ox, const float* oy, const float* oz, const float* dx, const float* dy,
                                   const float* dz) {
     static const bool avx2 = simd::hasAvx2();
@@ -272,28 +257,10 @@ void WatertightRayPacket::setRays(const float* ox, const float* oy, const float*
         setPacketLanes<4>(*this, 0, ox, oy, oz, dx, dy, dz);
         setPacketLanes<4>(*this, 4, ox, oy, oz, dx, dy, dz);
     }
-    uniformValid = validRays != 0 && sharePermutation(*this, validRays);
+    uniformValid = validRays != 0 && sharePermutation(validRays);
 }
 
-void WatertightRayPacket::activate(std::uint32_t lanes) {
-    activeMask = lanes & validRays;
-    uniform = activeMask != 0 && (uniformValid || sharePermutation(*this, activeMask));
-}
 
-WatertightRay WatertightRayPacket::ray(int lane) const {
-    WatertightRay r;
-    r.valid = (validRays >> lane) & 1u;
-    r.kx = xIs0[lane] ? 0 : xIs1[lane] ? 1 : 2;
-    r.ky = yIs0[lane] ? 0 : yIs1[lane] ? 1 : 2;
-    r.kz = zIs0[lane] ? 0 : zIs1[lane] ? 1 : 2;
-    r.ox = ox[lane];
-    r.oy = oy[lane];
-    r.oz = oz[lane];
-    r.sx = sx[lane];
-    r.sy = sy[lane];
-    r.sz = sz[lane];
-    return r;
-}
 
 bool intersectPacketWatertight(const WatertightRayPacket& rays, const TriangleCluster& cluster, PacketHits& out) {
     static const bool avx2 = simd::hasAvx2();
@@ -304,9 +271,7 @@ void intersectClusterWatertight(const WatertightRay& r, const TriangleCluster& c
                                 ClusterHits& out) {
     out.mask = 0;
     if (!r.valid) return;
-    static const bool avx2 = simd::hasAvx2();
-    if (avx2) intersectClusterAvx2(r, c, tMin, tMax, out);
-    else intersectClusterSse2(r, c, tMin, tMax, out);
+    intersectSlots<kClusterTriangles>(r, c, 0, tMin, tMax, out);
 }
 
 }  // namespace rtlab::tracer

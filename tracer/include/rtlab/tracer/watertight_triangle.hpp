@@ -12,9 +12,11 @@
 //
 // Two forms with identical arithmetic, so that they give the same bits:
 //   intersectTriangleWatertight   one triangle (the RT-core model's triangle unit)
-//   intersectClusterWatertight    up to 8 triangles in structure-of-arrays form,
-//                                 4- or 8-wide SIMD (Embree's watertight user
-//                                 geometry; tracer/accel_manager.hpp)
+//   intersectClusterWatertight    up to 4 triangles in structure-of-arrays form,
+//                                 one 4-wide SIMD step (Embree's watertight
+//                                 user geometry for single rays)
+//   intersectPacketWatertight     one triangle against 8 rays per SIMD step
+//                                 (Embree's packets)
 // Both rely on lane-wise IEEE float arithmetic without FMA contraction (ISO
 // mode; core/simd.hpp).
 #include <rtlab/core/math.hpp>
@@ -52,12 +54,16 @@ inline std::optional<TriangleHit> intersectTriangleWatertight(const vec3& origin
 
 // Up to kClusterTriangles triangles of one geometry, vertex coordinates in
 // structure-of-arrays form: v[vertex][axis][slot]. Unused slots hold a
-// degenerate triangle (all vertices equal), which never hits.
-inline constexpr int kClusterTriangles = 8;
-struct alignas(32) TriangleCluster {
+// degenerate triangle (all vertices equal), which never hits. Four slots:
+// clusters end early where their box would outgrow their triangles (1.6
+// triangles on average on the showcase), and a 176-byte cluster keeps the
+// working set near Embree's own triangle leaves (an 8-slot one took 352
+// bytes for the same triangles and missed the cache on most callbacks).
+inline constexpr int kClusterTriangles = 4;
+struct alignas(16) TriangleCluster {
+    std::uint32_t count = 0;  // first: shares a cache line with the vertices
     float v[3][3][kClusterTriangles] = {};
     std::array<std::uint32_t, kClusterTriangles> primitive{};  // triangle index in the geometry per slot
-    std::uint32_t count = 0;
 
     vec3 vertex(int slot, int k) const { return vec3(v[k][0][slot], v[k][1][slot], v[k][2][slot]); }
     void set(int slot, const vec3& p0, const vec3& p1, const vec3& p2);
@@ -67,13 +73,13 @@ struct alignas(32) TriangleCluster {
 // tMin < t < tMax; t/b1/b2 are valid for those slots.
 struct ClusterHits {
     std::uint32_t mask = 0;
-    alignas(32) float t[kClusterTriangles];
-    alignas(32) float b1[kClusterTriangles];
-    alignas(32) float b2[kClusterTriangles];
+    alignas(16) float t[kClusterTriangles];
+    alignas(16) float b1[kClusterTriangles];
+    alignas(16) float b2[kClusterTriangles];
 };
 
-// Tests every slot of `cluster` at once (8-wide with AVX2, else two 4-wide
-// halves); slot s gives exactly intersectTriangleWatertight's result.
+// Tests every slot of `cluster` in one 4-wide SIMD step; slot s gives exactly
+// intersectTriangleWatertight's result.
 void intersectClusterWatertight(const WatertightRay& ray, const TriangleCluster& cluster, float tMin, float tMax,
                                 ClusterHits& out);
 
@@ -105,10 +111,29 @@ struct alignas(32) WatertightRayPacket {
     // the same constants as makeWatertightRay per lane, 8 lanes per SIMD step.
     void setRays(const float* ox, const float* oy, const float* oz, const float* dx, const float* dy, const float* dz);
     // Lane `lane` as a single ray (valid only where validRays has its bit).
-    WatertightRay ray(int lane) const;
+    WatertightRay ray(int lane) const {
+        WatertightRay r;
+        r.valid = (validRays >> lane) & 1u;
+        r.kx = xIs0[lane] ? 0 : xIs1[lane] ? 1 : 2;
+        r.ky = yIs0[lane] ? 0 : yIs1[lane] ? 1 : 2;
+        r.kz = zIs0[lane] ? 0 : zIs1[lane] ? 1 : 2;
+        r.ox = ox[lane];
+        r.oy = oy[lane];
+        r.oz = oz[lane];
+        r.sx = sx[lane];
+        r.sy = sy[lane];
+        r.sz = sz[lane];
+        return r;
+    }
     // Activates the valid rays among `lanes` (after their tMin/tMax are set)
     // and finds out whether they share one permutation.
-    void activate(std::uint32_t lanes);
+    void activate(std::uint32_t lanes) {
+        activeMask = lanes & validRays;
+        uniform = activeMask != 0 && (uniformValid || sharePermutation(activeMask));
+    }
+    // Whether the lanes in `lanes` (not empty) share one permutation; if so,
+    // sets kx, ky, kz to it.
+    bool sharePermutation(std::uint32_t lanes);
 };
 
 // Every slot of `cluster` against every active lane of `rays`: mask[slot]
