@@ -229,6 +229,27 @@ TEST_F(GltfCompressionFiles, MeshoptViewLargerThanItsBufferViewIsAnInputError) {
     EXPECT_NE(err.find("exceed the bufferView"), std::string::npos) << err;
 }
 
+TEST_F(GltfCompressionFiles, MeshoptFallbackBufferMisuseIsRefusedBeforeAllocating) {
+    const fs::path p = meshoptFile(icosphere()).write(file("huge.gltf"));
+    const Json original = Json::parse(std::ifstream(p));
+    // 1.9 GB claimed from a few kB of compressed positions: refused, not allocated.
+    Json doc = original;
+    doc["buffers"][1]["byteLength"] = 2000000000;
+    doc["bufferViews"][0]["byteLength"] = 1900000000;
+    doc["bufferViews"][0]["extensions"]["EXT_meshopt_compression"]["count"] = 1900000000 / 12;
+    std::ofstream(file("huge.gltf")) << doc.dump();
+    std::string err = loadError(file("huge.gltf"));
+    EXPECT_NE(err.find("cannot fill the bufferView's 1900000000 bytes"), std::string::npos) << err;
+    // Only compressed bufferViews may use a fallback buffer (it has no data).
+    doc = original;
+    doc["bufferViews"][1].erase("extensions");
+    std::ofstream(file("plain.gltf")) << doc.dump();
+    err = loadError(file("plain.gltf"));
+    EXPECT_NE(err.find("bufferViews[1] is not EXT_meshopt_compression-compressed but uses fallback buffer 1"),
+              std::string::npos)
+        << err;
+}
+
 // ---------------------------------------------------------------------------
 // KHR_mesh_quantization
 // ---------------------------------------------------------------------------

@@ -462,9 +462,10 @@ struct MeshoptView {
 // What the pre-check learned that the later stages need.
 struct Prechecked {
     std::vector<MeshoptView> meshopt;
-    // Fallback buffers without data (EXT_meshopt_compression): index and
-    // byteLength. tinygltf cannot load a buffer without a uri, so they are
-    // handed to it as 1-byte placeholders and zero-filled afterwards.
+    // Fallback buffers without data (EXT_meshopt_compression): index and the
+    // bytes their bufferViews cover. tinygltf cannot load a buffer without a
+    // uri, so they are handed to it as 1-byte placeholders and zero-filled
+    // afterwards.
     std::vector<std::pair<std::size_t, std::uint64_t>> placeholders;
     // Draco primitives whose indices accessor has no bufferView (the indices
     // are in the Draco data): tinygltf rejects those, so the JSON it parses
@@ -492,6 +493,12 @@ void precheckDraco(Json& doc, Prechecked& out) {
     }
 }
 
+// meshopt's codecs store at least 2 bits per 16 decoded bytes (vertex
+// codec; the index codecs need more), so a bufferView cannot decode to more
+// than this: larger claims are malformed and are refused before any memory
+// is set aside for them.
+std::uint64_t maxMeshoptDecodedBytes(std::uint64_t compressedBytes) { return 64 * compressedBytes + 65536; }
+
 void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
     const Json empty = Json::array();
     const Json& buffers = doc.contains("buffers") ? doc["buffers"] : empty;
@@ -501,15 +508,20 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
         const Json& b = buffers[i];
         const auto ext = b.find("extensions");
         if (b.contains("uri") || ext == b.end() || !ext->contains("EXT_meshopt_compression")) continue;
-        const Json& m = (*ext)["EXT_meshopt_compression"];
-        if (m.value("fallback", false)) {
-            placeholder[i] = 1;
-            out.placeholders.emplace_back(i, jsonUInt(b, "byteLength", 0));
-        }
+        placeholder[i] = (*ext)["EXT_meshopt_compression"].value("fallback", false);
     }
+    // Per placeholder buffer: the bytes its views cover, and what they may decode to.
+    std::vector<std::uint64_t> covered(buffers.size(), 0), decodable(buffers.size(), 0);
     for (std::size_t i = 0; i < views.size(); ++i) {
         const auto ext = views[i].find("extensions");
-        if (ext == views[i].end() || !ext->contains("EXT_meshopt_compression")) continue;
+        const bool compressed = ext != views[i].end() && ext->contains("EXT_meshopt_compression");
+        const std::size_t target = jsonUInt(views[i], "buffer", 0);  // < buffers.size(): checked before
+        if (!compressed) {
+            if (placeholder[target])
+                fail(cat("bufferViews[", i, "] is not EXT_meshopt_compression-compressed but uses fallback buffer ",
+                         target, ", which has no data"));
+            continue;
+        }
         const Json& m = (*ext)["EXT_meshopt_compression"];
         const std::string where = cat("bufferViews[", i, "].extensions.EXT_meshopt_compression");
         MeshoptView v;
@@ -526,10 +538,15 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
             fail(cat(where, " (byteOffset ", v.sourceOffset, " + byteLength ", v.sourceLength, ") exceeds buffers[",
                      v.sourceBuffer, "] (", sourceBytes, " bytes)"));
         if (v.stride == 0 || v.count == 0) fail(cat(where, ": byteStride and count must be at least 1"));
-        const std::uint64_t viewBytes = jsonUInt(views[i], "byteLength", 0);
+        const std::uint64_t viewOffset = jsonUInt(views[i], "byteOffset", 0), viewBytes = jsonUInt(views[i], "byteLength", 0);
         if (v.count > viewBytes / v.stride)
             fail(cat(where, ": ", v.count, " elements of ", v.stride, " bytes exceed the bufferView's ", viewBytes,
                      " bytes"));
+        if (viewBytes > maxMeshoptDecodedBytes(v.sourceLength))
+            fail(cat(where, ": ", v.sourceLength, " compressed bytes cannot fill the bufferView's ", viewBytes,
+                     " bytes"));
+        covered[target] = std::max(covered[target], viewOffset + viewBytes);
+        decodable[target] += maxMeshoptDecodedBytes(v.sourceLength);
         const std::string mode = m["mode"].get<std::string>(), filter = m.value("filter", std::string("NONE"));
         if (mode == "ATTRIBUTES") v.mode = compression::MeshoptMode::Attributes;
         else if (mode == "TRIANGLES") v.mode = compression::MeshoptMode::Triangles;
@@ -542,10 +559,14 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
         else fail(cat(where, ": unknown filter '", filter, "'"));
         out.meshopt.push_back(v);
     }
-    for (const auto& [index, bytes] : out.placeholders) {
-        (void)bytes;
-        doc["buffers"][index]["uri"] = "data:application/octet-stream;base64,AA==";
-        doc["buffers"][index]["byteLength"] = 1;
+    for (std::size_t i = 0; i < buffers.size(); ++i) {
+        if (!placeholder[i]) continue;
+        if (covered[i] > decodable[i])
+            fail(cat("buffers[", i, "]: its EXT_meshopt_compression bufferViews cover ", covered[i],
+                     " bytes, more than their compressed data can decode to"));
+        out.placeholders.emplace_back(i, covered[i]);
+        doc["buffers"][i]["uri"] = "data:application/octet-stream;base64,AA==";
+        doc["buffers"][i]["byteLength"] = 1;
     }
 }
 
@@ -634,13 +655,13 @@ Prechecked precheckJson(const std::filesystem::path& path, bool binary, const Fa
     return out;
 }
 
-// Gives placeholder buffers their declared size and decodes every
-// EXT_meshopt_compression bufferView into place (after tinygltf, before stage 3).
 void restoreHiddenIndices(tg::Model& model, const Prechecked& pre) {
     for (const auto& [mesh, primitive, accessor] : pre.hiddenIndices)
         model.meshes.at(mesh).primitives.at(primitive).indices = static_cast<int>(accessor);
 }
 
+// Gives placeholder buffers the size their views cover and decodes every
+// EXT_meshopt_compression bufferView into place (after tinygltf, before stage 3).
 void decodeMeshoptViews(tg::Model& model, const Prechecked& pre, const Fail& fail) {
     for (const auto& [index, bytes] : pre.placeholders)
         model.buffers.at(index).data.assign(static_cast<std::size_t>(bytes), 0);
