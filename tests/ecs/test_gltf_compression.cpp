@@ -131,11 +131,17 @@ GltfBuilder plainFile(const TestMesh& m) {
 // The same mesh with every bufferView meshopt-compressed into buffer 0 and
 // decoded into a fallback buffer 1: positions (ATTRIBUTES), indices
 // (TRIANGLES), normals as 8-bit octahedral (ATTRIBUTES + OCTAHEDRAL filter,
-// normalized byte VEC3: KHR_mesh_quantization). `corrupt` breaks the
-// position stream's header byte.
-GltfBuilder meshoptFile(const TestMesh& m, bool corrupt = false) {
+// normalized byte VEC3: KHR_mesh_quantization). `filtered` uses the other
+// codecs instead: EXPONENTIAL positions, 32-bit INDICES (an index sequence),
+// 16-bit OCTAHEDRAL normals. `corrupt` breaks the position stream's header.
+struct MeshoptOptions {
+    bool filtered = false;
+    bool corrupt = false;
+};
+GltfBuilder meshoptFile(const TestMesh& m, MeshoptOptions options = {}) {
     const std::size_t n = m.positions.size(), k = m.indices.size();
-    const std::size_t posBytes = n * 12, idxBytes = (k * 2 + 3) / 4 * 4, nrmBytes = n * 4;
+    const std::size_t indexSize = options.filtered ? 4 : 2, octSize = options.filtered ? 8 : 4;
+    const std::size_t posBytes = n * 12, idxBytes = (k * indexSize + 3) / 4 * 4, nrmBytes = n * octSize;
     GltfBuilder b;
     const int fallback = b.addFallbackBuffer(posBytes + idxBytes + nrmBytes);
     std::size_t fallbackOffset = 0;
@@ -158,25 +164,38 @@ GltfBuilder meshoptFile(const TestMesh& m, bool corrupt = false) {
         return out;
     };
 
-    std::vector<unsigned char> pos = encodeVertices(m.positions.data(), n, 12);
-    if (corrupt) pos[0] = 0;
-    const int posView = view(pos, n, 12, "ATTRIBUTES", nullptr, true);
+    std::vector<unsigned char> pos;
+    if (options.filtered) {
+        std::vector<std::uint32_t> exp(n * 3);
+        meshopt_encodeFilterExp(exp.data(), n, 12, 20, &m.positions[0].x);
+        pos = encodeVertices(exp.data(), n, 12);
+    } else {
+        pos = encodeVertices(m.positions.data(), n, 12);
+    }
+    if (options.corrupt) pos[0] = 0;
+    const int posView = view(pos, n, 12, "ATTRIBUTES", options.filtered ? "EXPONENTIAL" : nullptr, true);
 
     const std::vector<unsigned int> idx32(m.indices.begin(), m.indices.end());
-    std::vector<unsigned char> idx(meshopt_encodeIndexBufferBound(k, n));
-    idx.resize(meshopt_encodeIndexBuffer(idx.data(), idx.size(), idx32.data(), k));
-    const int idxView = view(idx, k, 2, "TRIANGLES", nullptr, false);
+    std::vector<unsigned char> idx;
+    if (options.filtered) {
+        idx.resize(meshopt_encodeIndexSequenceBound(k, n));
+        idx.resize(meshopt_encodeIndexSequence(idx.data(), idx.size(), idx32.data(), k));
+    } else {
+        idx.resize(meshopt_encodeIndexBufferBound(k, n));
+        idx.resize(meshopt_encodeIndexBuffer(idx.data(), idx.size(), idx32.data(), k));
+    }
+    const int idxView = view(idx, k, indexSize, options.filtered ? "INDICES" : "TRIANGLES", nullptr, false);
 
     std::vector<float> normal4;
     for (const vec3& v : m.normals) normal4.insert(normal4.end(), {v.x, v.y, v.z, 1.f});
-    std::vector<std::int8_t> oct(n * 4);
-    meshopt_encodeFilterOct(oct.data(), n, 4, 8, normal4.data());
-    const int nrmView = view(encodeVertices(oct.data(), n, 4), n, 4, "ATTRIBUTES", "OCTAHEDRAL", true);
+    std::vector<std::uint8_t> oct(n * octSize);
+    meshopt_encodeFilterOct(oct.data(), n, octSize, options.filtered ? 16 : 8, normal4.data());
+    const int nrmView = view(encodeVertices(oct.data(), n, octSize), n, octSize, "ATTRIBUTES", "OCTAHEDRAL", true);
 
     const int posAcc = b.addAccessor(posView, 5126, n, "VEC3");
-    const int nrmAcc = b.addAccessor(nrmView, 5120, n, "VEC3");
+    const int nrmAcc = b.addAccessor(nrmView, options.filtered ? 5122 : 5120, n, "VEC3");
     b.doc()["accessors"][nrmAcc]["normalized"] = true;
-    const int idxAcc = b.addAccessor(idxView, 5123, k, "SCALAR");
+    const int idxAcc = b.addAccessor(idxView, options.filtered ? 5125 : 5123, k, "SCALAR");
     addPrimitive(b, posAcc, nrmAcc, idxAcc);
     b.doc()["extensionsUsed"] = {"EXT_meshopt_compression", "KHR_mesh_quantization"};
     b.doc()["extensionsRequired"] = {"EXT_meshopt_compression", "KHR_mesh_quantization"};
@@ -192,9 +211,12 @@ std::vector<std::uint32_t> canonicalTriangles(std::vector<std::uint32_t> indices
     return indices;
 }
 
-void expectSameTriangles(const Geometry& decoded, const Geometry& plain, float normalTolerance) {
+void expectSameTriangles(const Geometry& decoded, const Geometry& plain, float normalTolerance,
+                         float positionTolerance = 0.f) {
     EXPECT_EQ(canonicalTriangles(decoded.indices), canonicalTriangles(plain.indices));
-    EXPECT_EQ(decoded.positions, plain.positions);  // the vertex codec is lossless
+    ASSERT_EQ(decoded.positions.size(), plain.positions.size());
+    for (std::size_t i = 0; i < plain.positions.size(); ++i)  // the vertex codec itself is lossless
+        ASSERT_LE(glm::length(decoded.positions[i] - plain.positions[i]), positionTolerance) << i;
     ASSERT_EQ(decoded.normals.size(), plain.normals.size());
     for (std::size_t i = 0; i < plain.normals.size(); ++i)
         ASSERT_LT(glm::length(decoded.normals[i] - plain.normals[i]), normalTolerance) << i;
@@ -216,8 +238,20 @@ TEST_F(GltfCompressionFiles, MeshoptDecodesToThePlainTriangles) {
     }
 }
 
+TEST_F(GltfCompressionFiles, MeshoptFiltersAndIndexSequencesDecode) {
+    const TestMesh mesh = icosphere();
+    World plain, world;
+    load::loadGltf(plain, plainFile(mesh).write(file("plain.gltf")));
+    load::loadGltf(world, meshoptFile(mesh, {.filtered = true}).write(file("filtered.gltf")));
+    // 20-bit exponential positions (radius 2: within ~4e-6), the index
+    // sequence as it was, 16-bit octahedral normals.
+    const Geometry& g = world.mesh(0).geometries.at(0);
+    EXPECT_EQ(g.indices, plain.mesh(0).geometries.at(0).indices);
+    expectSameTriangles(g, plain.mesh(0).geometries.at(0), 1e-3f, 1e-5f);
+}
+
 TEST_F(GltfCompressionFiles, CorruptMeshoptDataIsAnInputError) {
-    const std::string err = loadError(meshoptFile(icosphere(), true).write(file("broken.gltf")));
+    const std::string err = loadError(meshoptFile(icosphere(), {.corrupt = true}).write(file("broken.gltf")));
     EXPECT_NE(err.find("broken.gltf"), std::string::npos) << err;
     EXPECT_NE(err.find("EXT_meshopt_compression"), std::string::npos) << err;
 }
