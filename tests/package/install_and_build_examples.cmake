@@ -3,7 +3,8 @@
 # landed there, then configures, builds and runs (through its own ctest) every
 # project under examples/ out of tree, with only that prefix on
 # CMAKE_PREFIX_PATH. Run as
-#   cmake -DRTLAB_BINARY_DIR=... -DRTLAB_SOURCE_DIR=... -DWORK_DIR=... -DGENERATOR=... -P this-file
+#   cmake -DRTLAB_BINARY_DIR=... -DRTLAB_SOURCE_DIR=... -DWORK_DIR=... -DGENERATOR=...
+#         [-DEXAMPLE_FLAGS="compile and link flags"] -P this-file
 foreach(var RTLAB_BINARY_DIR RTLAB_SOURCE_DIR WORK_DIR GENERATOR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "install_and_build_examples.cmake: -D${var}=... is required")
@@ -40,10 +41,13 @@ if(private_headers)
   message(FATAL_ERROR "internal headers were installed: ${private_headers}")
 endif()
 
-set(launcher "")
+set(extra_args "")
 find_program(CCACHE_PROGRAM ccache)
 if(CCACHE_PROGRAM)
-  set(launcher "-DCMAKE_CXX_COMPILER_LAUNCHER=${CCACHE_PROGRAM}")
+  list(APPEND extra_args "-DCMAKE_CXX_COMPILER_LAUNCHER=${CCACHE_PROGRAM}")
+endif()
+if(EXAMPLE_FLAGS)  # e.g. the sanitizers of an instrumented rtlab build
+  list(APPEND extra_args "-DCMAKE_CXX_FLAGS=${EXAMPLE_FLAGS}" "-DCMAKE_EXE_LINKER_FLAGS=${EXAMPLE_FLAGS}")
 endif()
 
 file(GLOB examples LIST_DIRECTORIES true "${RTLAB_SOURCE_DIR}/examples/*")
@@ -56,7 +60,7 @@ foreach(example ${examples})
   set(build "${WORK_DIR}/build-${name}")
   file(REMOVE_RECURSE "${build}")
   run_step("${name}: configure" ${CMAKE_COMMAND} -S "${example}" -B "${build}" -G "${GENERATOR}"
-           -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}" -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF ${launcher})
+           -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}" -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF ${extra_args})
   # The package came from the scratch prefix, not from the build tree.
   file(STRINGS "${build}/CMakeCache.txt" rtlab_dir REGEX "^rtlab_DIR:")
   string(FIND "${rtlab_dir}" "${prefix}/" at)
