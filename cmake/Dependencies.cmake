@@ -1,15 +1,12 @@
 # Every third-party dependency, found once. All come from Debian packages
-# installed by scripts/install-deps.sh.
-find_package(Threads REQUIRED)
-find_package(TBB REQUIRED)
-find_package(embree 3 REQUIRED)
-find_package(glm REQUIRED)
-find_package(nlohmann_json 3 REQUIRED)
-find_package(OpenEXR REQUIRED)
-find_package(TinyGLTF REQUIRED)
+# installed by scripts/install-deps.sh. The libraries' own dependencies are
+# listed in rtlabLibraryDependencies.cmake, which the installed package's
+# rtlabConfig.cmake reuses.
+macro(rtlab_find_dependency)
+  find_package(${ARGV} REQUIRED)
+endmacro()
+include(${CMAKE_CURRENT_LIST_DIR}/rtlabLibraryDependencies.cmake)
 find_package(CLI11 REQUIRED)
-list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
-find_package(OpenVDB REQUIRED)
 if(RTLAB_BUILD_TESTS)
   find_package(GTest REQUIRED)
 endif()
@@ -21,12 +18,18 @@ if(NOT EXISTS /usr/include/stb/stb_image_write.h)
 endif()
 
 # rtlab_add_module(NAME DEPS ...): one library per top-level folder, sources
-# globbed from NAME/src, public headers in NAME/include/rtlab/NAME.
+# globbed from NAME/src, public headers in NAME/include/rtlab/NAME. Each is
+# installed and exported as rtlab::NAME (the package: top-level CMakeLists.txt).
 function(rtlab_add_module name)
   cmake_parse_arguments(M "" "" "PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   file(GLOB_RECURSE srcs CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/src/*.cpp)
   add_library(rtlab_${name} STATIC ${srcs})
   add_library(rtlab::${name} ALIAS rtlab_${name})
-  target_include_directories(rtlab_${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
+  set_target_properties(rtlab_${name} PROPERTIES EXPORT_NAME ${name})
+  target_compile_features(rtlab_${name} PUBLIC cxx_std_20)
+  target_include_directories(rtlab_${name} PUBLIC $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+                                                  $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(rtlab_${name} PUBLIC ${M_PUBLIC_DEPS} PRIVATE ${M_PRIVATE_DEPS})
+  install(TARGETS rtlab_${name} EXPORT rtlabTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endfunction()

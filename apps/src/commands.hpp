@@ -8,6 +8,10 @@
 #include <string>
 #include <vector>
 
+namespace rtlab::ecs {
+class World;
+}
+
 namespace rtlab::app {
 
 struct RenderOptions {
@@ -79,5 +83,9 @@ int runConverge(const ConvergeOptions& options);
 
 // Progress line on stderr, only when stderr is a terminal.
 void progress(const std::string& line);
+
+// ecs::load::loadScene, then one "rtlab: warning: ..." line on stderr per
+// warning the loaders recorded (World::loadReport(), e.g. skipped points/lines).
+void loadSceneWithWarnings(ecs::World& world, const std::string& source);
 
 }  // namespace rtlab::app

@@ -153,7 +153,7 @@ int runConverge(const ConvergeOptions& o) {
     // Step: the scene, static (frame time 0), with only the G-buffer and this effect planned.
     const ThreadLimit threadLimit(o.threads);
     ecs::World world;
-    ecs::load::loadScene(world, o.scene);
+    loadSceneWithWarnings(world, o.scene);
     const ecs::FrameUpdate update = world.update(0.f);
     const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, update);
     tracer::AccelOptions accelOptions;

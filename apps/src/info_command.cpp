@@ -14,10 +14,13 @@ void addInfoCommand(CLI::App& app, InfoOptions& o) {
 
 int runInfo(const InfoOptions& o) {
     ecs::World world;
-    ecs::load::loadScene(world, o.scene);
+    loadSceneWithWarnings(world, o.scene);
 
-    std::size_t triangles = 0, instancedTriangles = 0;
-    for (const ecs::MeshAsset& m : world.meshes()) triangles += m.triangleCount();
+    std::size_t triangles = 0, instancedTriangles = 0, degenerate = 0;
+    for (const ecs::MeshAsset& m : world.meshes()) {
+        triangles += m.triangleCount();
+        degenerate += ecs::load::degenerateTriangleCount(m);
+    }
     world.each<ecs::MeshInstance>([&](ecs::Entity, const ecs::MeshInstance& inst) {
         instancedTriangles += world.mesh(inst.mesh).triangleCount();
     });
@@ -39,7 +42,8 @@ int runInfo(const InfoOptions& o) {
     std::printf("entities: %u\n", world.entityCount());
     std::printf("meshes: %zu (%zu deformable)\n", world.meshes().size(), deformable);
     std::printf("instances: %zu\n", world.count<ecs::MeshInstance>());
-    std::printf("triangles: %zu unique, %zu instanced\n", triangles, instancedTriangles);
+    std::printf("triangles: %zu unique, %zu instanced, %zu of the unique degenerate (zero area)\n", triangles,
+                instancedTriangles, degenerate);
     std::printf("materials: %zu (%zu alpha-masked, %zu transmissive, %zu with roughness <= 0.3, %zu emissive)\n",
                 world.materials().size(), masked, transmissive, glossy, emissive);
     std::printf("textures: %zu\n", world.textures().size());
@@ -50,6 +54,9 @@ int runInfo(const InfoOptions& o) {
     std::printf("skins: %zu\n", world.count<ecs::Skin>());
     std::printf("volumes: %zu\n", world.count<ecs::Volume>());
     std::printf("animations: %zu, length %.3f s\n", world.animations().size(), world.animationDuration());
+    const ecs::LoadReport& report = world.loadReport();
+    std::printf("skipped primitives: %u points, %u lines (triangles only)\n", report.skippedPointPrimitives,
+                report.skippedLinePrimitives);
     const Aabb b = ecs::load::worldBounds(world);
     if (!b.empty())
         std::printf("bounds: [%g %g %g] - [%g %g %g]\n", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);

@@ -4,6 +4,7 @@
 
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/memory.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
 
 #include <iostream>
 #include <unistd.h>
@@ -13,6 +14,11 @@ namespace rtlab::app {
 void progress(const std::string& line) {
     static const bool terminal = isatty(STDERR_FILENO) != 0;
     if (terminal) std::cerr << "\r\033[K" << line << std::flush;
+}
+
+void loadSceneWithWarnings(ecs::World& world, const std::string& source) {
+    ecs::load::loadScene(world, source);
+    for (const std::string& w : world.loadReport().warnings) std::cerr << "rtlab: warning: " << w << "\n";
 }
 
 }  // namespace rtlab::app

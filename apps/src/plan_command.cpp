@@ -27,7 +27,7 @@ shaders::PlanOptions planOptions(const std::string& effects, const std::string& 
 int runPlan(const PlanOptions& o) {
     const shaders::PlanOptions options = planOptions(o.effects, o.gi);
     ecs::World world;
-    ecs::load::loadScene(world, o.scene);
+    loadSceneWithWarnings(world, o.scene);
     const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
     const shaders::FramePlan plan = shaders::planFrame(scene, options);
     if (o.json) {

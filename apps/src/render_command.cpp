@@ -181,7 +181,7 @@ int runRender(const RenderOptions& o) {
     const ThreadLimit threadLimit(o.threads);
     ecs::World world;
     const Stopwatch loadClock;
-    ecs::load::loadScene(world, o.scene);
+    loadSceneWithWarnings(world, o.scene);
     const double loadMs = loadClock.elapsedMs();
 
     tracer::AccelOptions accelOptions;
@@ -202,6 +202,10 @@ int runRender(const RenderOptions& o) {
     shaders::FrameHistory history;
     std::uint64_t totalMismatches = 0, totalVerified = 0;
     stats["timing"] = {{"loadMs", loadMs}};
+    const ecs::LoadReport& report = world.loadReport();
+    stats["load"] = {{"skippedPrimitives",
+                      {{"points", report.skippedPointPrimitives}, {"lines", report.skippedLinePrimitives}}},
+                     {"warnings", report.warnings}};
     stats["frames"] = nlohmann::json::array();
 
     for (int f = 0; f < o.frames; ++f) {

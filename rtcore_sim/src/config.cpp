@@ -23,6 +23,13 @@ std::string listAllowed(const std::vector<nlohmann::json>& allowed) {
     return s;
 }
 
+std::vector<nlohmann::json> allowedValues(const ParamInfo& info) {
+    if (!info.allowedNow) return info.allowed;
+    std::vector<nlohmann::json> out;
+    for (const std::string& name : info.allowedNow()) out.emplace_back(name);
+    return out;
+}
+
 [[noreturn]] void fail(const std::string& where, const std::string& key, const std::string& problem) {
     throw InputError(where, key + ": " + problem);
 }
@@ -102,10 +109,12 @@ nlohmann::json checkParamValue(const ParamInfo& info, const nlohmann::json& valu
         case ParamKind::Boolean:
             if (!value.is_boolean()) fail(where, key, "must be true or false (got " + value.dump() + ")");
             return value;
-        case ParamKind::Choice:
-            for (const nlohmann::json& a : info.allowed)
+        case ParamKind::Choice: {
+            const std::vector<nlohmann::json> allowed = allowedValues(info);
+            for (const nlohmann::json& a : allowed)
                 if (value == a) return value;
-            fail(where, key, "must be one of " + listAllowed(info.allowed) + " (got " + value.dump() + ")");
+            fail(where, key, "must be one of " + listAllowed(allowed) + " (got " + value.dump() + ")");
+        }
     }
     fail(where, key, "unsupported parameter kind");
 }
@@ -163,9 +172,10 @@ const ParamTable<CoreParams>& coreParamTable() {
 const ParamTable<SchedulerParams>& schedulerParamTable() {
     static const ParamTable<SchedulerParams> table = [] {
         ParamTable<SchedulerParams> t;
-        t.addStringChoice("policy", &SchedulerParams::policy,
-                          "which ready ray issues next: fifo, oldestFirst or treelet (Aila & Karras 2010 treelet queues)",
-                          schedulerPolicyNames());
+        t.addRegistryChoice("policy", &SchedulerParams::policy,
+                            "which ready ray issues next: fifo, oldestFirst, treelet (Aila & Karras 2010 treelet "
+                            "queues) or a policy registered with registerSchedulerPolicy",
+                            &schedulerPolicyNames);
         t.addUnsigned("issueWidth", &SchedulerParams::issueWidth, "traversal steps the scheduler issues per cycle", 1, 64);
         t.addUnsigned("treeletBytes", &SchedulerParams::treeletBytes,
                       "treelet policy: BVH memory per treelet (a treelet = an aligned block of this many bytes)", 64,
@@ -346,8 +356,8 @@ nlohmann::json RtCoreConfig::describe() {
             nlohmann::json d;
             d["description"] = f.info.description;
             d["default"] = f.info.defaultValue;
-            if (!f.info.allowed.empty())
-                d["allowed"] = f.info.allowed;
+            if (const std::vector<nlohmann::json> allowed = allowedValues(f.info); !allowed.empty())
+                d["allowed"] = allowed;
             else if (f.info.kind == ParamKind::Unsigned || f.info.kind == ParamKind::Real)
                 d["range"] = {f.info.min, f.info.max};
             out[name][f.info.name] = std::move(d);

@@ -4,19 +4,47 @@
 #include <rtlab/core/error.hpp>
 #include <rtlab/rtcore_sim/scheduler.hpp>
 
+#include <mutex>
+#include <stdexcept>
+
 namespace rtlab::rtcore_sim {
 
 #define RTCORE_SIM_POLICY(stem) const SchedulerPolicyEntry& rtcoreSimPolicy_##stem();
 #include "scheduler_policy_list.inc"
 #undef RTCORE_SIM_POLICY
 
-const std::vector<const SchedulerPolicyEntry*>& schedulerPolicies() {
-    static const std::vector<const SchedulerPolicyEntry*> policies = {
+namespace {
+
+std::mutex& registryMutex() {
+    static std::mutex m;
+    return m;
+}
+
+// The built-in policies followed by the registered ones (guarded by registryMutex()).
+std::vector<const SchedulerPolicyEntry*>& registry() {
+    static std::vector<const SchedulerPolicyEntry*> policies = {
 #define RTCORE_SIM_POLICY(stem) &rtcoreSimPolicy_##stem(),
 #include "scheduler_policy_list.inc"
 #undef RTCORE_SIM_POLICY
     };
     return policies;
+}
+
+}  // namespace
+
+std::vector<const SchedulerPolicyEntry*> schedulerPolicies() {
+    const std::lock_guard<std::mutex> lock(registryMutex());
+    return registry();
+}
+
+void registerSchedulerPolicy(const SchedulerPolicyEntry& entry) {
+    if (entry.name.empty()) throw std::invalid_argument("registerSchedulerPolicy: empty policy name");
+    if (!entry.create) throw std::invalid_argument("registerSchedulerPolicy: policy \"" + entry.name + "\" has no factory");
+    const std::lock_guard<std::mutex> lock(registryMutex());
+    for (const SchedulerPolicyEntry* p : registry())
+        if (p->name == entry.name)
+            throw std::invalid_argument("registerSchedulerPolicy: policy \"" + entry.name + "\" is already registered");
+    registry().push_back(&entry);
 }
 
 std::vector<std::string> schedulerPolicyNames() {

@@ -4,11 +4,14 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
+#include <vector>
 #include <sys/wait.h>
 
 namespace fs = std::filesystem;
@@ -179,6 +182,116 @@ TEST(Cli, RenderThirdPartyGltf) {
     std::ifstream in(out / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
     EXPECT_GT(stats["frames"][0]["rays"]["primary"]["hits"].get<int>(), 0);
+}
+
+// Debian's assimp glTF2 models, every .gltf/.glb: the valid ones render
+// (Draco and points/lines files included); the malformed ones, and the one
+// that requires an extension outside the supported list, exit 2 with one
+// line naming the file and the problem.
+TEST(Cli, EveryAssimpGltfRendersOrExitsTwoWithOneLine) {
+    if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    const std::map<std::string, std::string> exitTwo = {
+        {"BoxTextured-glTF-techniqueWebGL/BoxTextured.gltf", "requires unsupported glTF extension KHR_technique_webgl"},
+        {"BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb", "non-finite"},
+        {"IncorrectVertexArrays/Cube.gltf", "exceeds buffers[0]"},
+        {"IndexOutOfRange/AllIndicesOutOfRange.gltf", "out of range"},
+        {"IndexOutOfRange/IndexOutOfRange.gltf", "out of range"},
+        {"MissingBin/BoxTextured.gltf", "BoxTextured0.bin"},
+        {"RecursiveNodes/RecursiveNodes.gltf", "cycle"},
+        {"SchemaFailures/sceneWrongType.gltf", "scene: expected a non-negative integer"},
+        {"wrongTypes/badArray.gltf", "expected an array"},
+        {"wrongTypes/badExtension.gltf", "expected a JSON object"},
+        {"wrongTypes/badNumber.gltf", "normalTexture"},
+        {"wrongTypes/badObject.gltf", "expected a JSON object"},
+        {"wrongTypes/badString.gltf", "expected a string"},
+        {"wrongTypes/badUint.gltf", "expected a non-negative integer"},
+    };
+    std::vector<fs::path> files;
+    for (const auto& e : fs::recursive_directory_iterator(kAssimp))
+        if (e.is_regular_file() && (e.path().extension() == ".gltf" || e.path().extension() == ".glb"))
+            files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    ASSERT_GE(files.size(), 40u);
+    std::size_t rendered = 0, rejected = 0;
+    for (const fs::path& f : files) {
+        const std::string rel = fs::relative(f, kAssimp).string();
+        const fs::path out = freshDir("assimp");
+        const CliRun r = runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
+        const auto expected = exitTwo.find(rel);
+        if (expected == exitTwo.end()) {
+            EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
+            EXPECT_TRUE(fs::exists(out / "frame_0000.png")) << rel;
+            rendered += r.exitCode == 0;
+        } else {
+            EXPECT_EQ(r.exitCode, 2) << rel << "\n" << r.out;
+            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << rel << "\n" << r.out;
+            EXPECT_NE(r.out.find(f.filename().string()), std::string::npos) << rel << "\n" << r.out;
+            EXPECT_NE(r.out.find(expected->second), std::string::npos) << rel << "\n" << r.out;
+            EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << rel;
+            rejected += r.exitCode == 2;
+        }
+    }
+    EXPECT_EQ(rejected, exitTwo.size());
+    EXPECT_EQ(rendered, files.size() - exitTwo.size());
+}
+
+// A file with only points or lines: an empty frame, one warning line, the
+// skipped primitives counted in stats.json and by `info`.
+TEST(Cli, PointsOrLinesOnlyGltfRendersAnEmptyFrameWithOneWarning) {
+    if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    const fs::path modes = kAssimp / "glTF-Asset-Generator/Mesh_PrimitiveMode";
+    const fs::path out = freshDir("points");
+    const CliRun r = runCli("render --width 16 --height 16 --scene " + (modes / "Mesh_PrimitiveMode_00.gltf").string() +
+                            " --out " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    std::size_t warnings = 0;
+    for (std::size_t at = r.out.find("rtlab: warning:"); at != std::string::npos; at = r.out.find("rtlab: warning:", at + 1))
+        ++warnings;
+    EXPECT_EQ(warnings, 1u) << r.out;
+    EXPECT_NE(r.out.find("Mesh_PrimitiveMode_00.gltf: skipped 1 points and 0 lines"), std::string::npos) << r.out;
+    std::ifstream in(out / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(in);
+    EXPECT_EQ(stats["load"]["skippedPrimitives"]["points"].get<int>(), 1);
+    EXPECT_EQ(stats["load"]["skippedPrimitives"]["lines"].get<int>(), 0);
+    EXPECT_EQ(stats["frames"][0]["rays"]["primary"]["hits"].get<int>(), 0);
+    EXPECT_EQ(stats["frames"][0]["rays"]["primary"]["misses"].get<int>(), 16 * 16);
+
+    const CliRun info = runCli("info --scene " + (modes / "Mesh_PrimitiveMode_08.gltf").string());
+    ASSERT_EQ(info.exitCode, 0) << info.out;
+    EXPECT_NE(info.out.find("skipped primitives: 0 points, 1 lines"), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find("triangles: 0 unique"), std::string::npos) << info.out;
+}
+
+// The Draco-compressed engine renders like the uncompressed .glb: `info`
+// counts the .glb's triangles minus its degenerate ones (Draco's encoder
+// drops those), and nearly the same primary rays hit (Draco quantizes
+// positions).
+TEST(Cli, DracoGltfRendersLikeTheGlb) {
+    if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    int hits[2] = {0, 0};
+    unsigned long triangles[2] = {0, 0}, instanced[2] = {0, 0}, degenerate[2] = {0, 0};
+    const char* files[2] = {"draco/2CylinderEngine.gltf", "2CylinderEngine-glTF-Binary/2CylinderEngine.glb"};
+    for (int i = 0; i < 2; ++i) {
+        const fs::path out = freshDir("draco" + std::to_string(i));
+        const CliRun r = runCli("render --width 48 --height 32 --denoise none --effects gbuffer --scene " +
+                                (kAssimp / files[i]).string() + " --out " + out.string());
+        ASSERT_EQ(r.exitCode, 0) << files[i] << "\n" << r.out;
+        std::ifstream in(out / "stats.json");
+        hits[i] = nlohmann::json::parse(in)["frames"][0]["rays"]["primary"]["hits"].get<int>();
+        const CliRun info = runCli("info --scene " + (kAssimp / files[i]).string());
+        ASSERT_EQ(info.exitCode, 0) << info.out;
+        const std::size_t at = info.out.find("triangles:");
+        ASSERT_NE(at, std::string::npos) << info.out;
+        ASSERT_EQ(std::sscanf(info.out.c_str() + at, "triangles: %lu unique, %lu instanced, %lu", &triangles[i],
+                              &instanced[i], &degenerate[i]),
+                  3)
+            << info.out;
+    }
+    EXPECT_GT(degenerate[1], 0u);
+    EXPECT_LT(degenerate[0], degenerate[1] / 100);  // a few collapsed by Draco's quantization
+    EXPECT_EQ(triangles[0], triangles[1] - degenerate[1]);
+    EXPECT_GT(hits[1], 48 * 32 / 10);
+    EXPECT_NEAR(hits[0], hits[1], hits[1] / 50 + 2);
 }
 
 // --backend rtcore: the model traces every ray; --verify traces each again

@@ -1,5 +1,7 @@
 // glTF loader: real third-party files from Debian's assimp-testmodels (valid
 // and malformed) plus small hand-written files with base64 data-URI buffers.
+#include "gltf_test_util.hpp"
+
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 
@@ -14,16 +16,16 @@
 #include <string>
 #include <vector>
 
-#include <unistd.h>
-
 namespace {
 
 using namespace rtlab;
 using namespace rtlab::ecs;
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
+using test::GltfBuilder;
 
-const fs::path kModels = "/usr/share/assimp/models/glTF2";
+using test::kModels;
+using test::loadError;
 
 #define SKIP_WITHOUT_ASSIMP_MODELS()                                                                  \
     do {                                                                                              \
@@ -31,17 +33,6 @@ const fs::path kModels = "/usr/share/assimp/models/glTF2";
             GTEST_SKIP() << kModels.string()                                                          \
                          << " is missing: scripts/install-deps.sh installs assimp-testmodels";        \
     } while (0)
-
-// Loads into a fresh world; returns the InputError message or "" on success.
-std::string loadError(const fs::path& path) {
-    World world;
-    try {
-        load::loadGltf(world, path);
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
-}
 
 std::size_t totalTriangles(const World& world) {
     std::size_t n = 0;
@@ -198,7 +189,6 @@ TEST(GltfLoaderAssimpModels, MalformedFilesThrowInputErrorNamingTheFile) {
         {"wrongTypes/badUint.gltf", "index: expected a non-negative integer"},
         {"SchemaFailures/sceneWrongType.gltf", "scene: expected a non-negative integer"},
         {"IncorrectVertexArrays/Cube.gltf", "exceeds buffers[0]"},
-        {"draco/2CylinderEngine.gltf", "KHR_draco_mesh_compression"},
         {"BoxTextured-glTF-techniqueWebGL/BoxTextured.gltf", "KHR_technique_webgl"},
     };
     for (const Case& c : cases) {
@@ -222,18 +212,28 @@ TEST(GltfLoaderAssimpModels, MalformedFilesThrowInputErrorNamingTheFile) {
 
 TEST(GltfLoaderAssimpModels, PrimitiveModeFiles) {
     SKIP_WITHOUT_ASSIMP_MODELS();
-    // glTF-Asset-Generator Mesh_PrimitiveMode_NN: 00-03 and 07-10 are points
-    // and lines (rejected), the rest are triangles / strips / fans.
+    // glTF-Asset-Generator Mesh_PrimitiveMode_NN: 00 and 07 are points, 01-03
+    // and 08-10 lines (skipped with one warning, no mesh instance), the rest
+    // triangles / strips / fans.
     for (int i = 0; i <= 15; ++i) {
         const std::string name = std::string("glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_") +
                                  (i < 10 ? "0" : "") + std::to_string(i) + ".gltf";
         SCOPED_TRACE(name);
-        const bool lines = i <= 3 || (i >= 7 && i <= 10);
-        const std::string err = loadError(kModels / name);
-        if (lines) {
-            EXPECT_NE(err.find("points/lines are not supported"), std::string::npos) << err;
+        const bool points = i == 0 || i == 7;
+        const bool lines = (i >= 1 && i <= 3) || (i >= 8 && i <= 10);
+        World world;
+        ASSERT_NO_THROW(load::loadGltf(world, kModels / name));
+        const LoadReport& report = world.loadReport();
+        EXPECT_EQ(report.skippedPointPrimitives, points ? 1u : 0u);
+        EXPECT_EQ(report.skippedLinePrimitives, lines ? 1u : 0u);
+        ASSERT_EQ(report.warnings.size(), points || lines ? 1u : 0u);
+        if (points || lines) {
+            EXPECT_NE(report.warnings[0].find(name), std::string::npos) << report.warnings[0];
+            EXPECT_EQ(world.count<MeshInstance>(), 0u);
+            EXPECT_EQ(totalTriangles(world), 0u);
         } else {
-            EXPECT_EQ(err, "");
+            EXPECT_EQ(world.count<MeshInstance>(), 1u);
+            EXPECT_GT(totalTriangles(world), 0u);
         }
     }
     World world;
@@ -245,95 +245,8 @@ TEST(GltfLoaderAssimpModels, PrimitiveModeFiles) {
 // Hand-written files
 // ---------------------------------------------------------------------------
 
-std::string base64(const std::vector<std::uint8_t>& data) {
-    static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    std::string out;
-    std::size_t i = 0;
-    for (; i + 2 < data.size(); i += 3) {
-        const std::uint32_t v = (data[i] << 16) | (data[i + 1] << 8) | data[i + 2];
-        for (int s = 18; s >= 0; s -= 6) out += kAlphabet[(v >> s) & 63];
-    }
-    if (i + 1 == data.size()) {
-        const std::uint32_t v = data[i] << 16;
-        out += kAlphabet[(v >> 18) & 63];
-        out += kAlphabet[(v >> 12) & 63];
-        out += "==";
-    } else if (i + 2 == data.size()) {
-        const std::uint32_t v = (data[i] << 16) | (data[i + 1] << 8);
-        out += kAlphabet[(v >> 18) & 63];
-        out += kAlphabet[(v >> 12) & 63];
-        out += kAlphabet[(v >> 6) & 63];
-        out += '=';
-    }
-    return out;
-}
-
-// Builds a glTF document with one buffer embedded as a data URI.
-class GltfBuilder {
-public:
-    GltfBuilder() {
-        doc_["asset"] = {{"version", "2.0"}};
-        for (const char* k : {"accessors", "bufferViews", "meshes", "nodes"}) doc_[k] = Json::array();
-    }
-    // Appends raw bytes as a new bufferView; returns its index.
-    int addView(const void* data, std::size_t bytes) {
-        while (bin_.size() % 4) bin_.push_back(0);
-        const std::size_t offset = bin_.size();
-        const auto* p = static_cast<const std::uint8_t*>(data);
-        bin_.insert(bin_.end(), p, p + bytes);
-        doc_["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}});
-        return static_cast<int>(doc_["bufferViews"].size() - 1);
-    }
-    int addAccessor(int view, int componentType, std::size_t count, const char* type) {
-        doc_["accessors"].push_back(
-            {{"bufferView", view}, {"componentType", componentType}, {"count", count}, {"type", type}});
-        return static_cast<int>(doc_["accessors"].size() - 1);
-    }
-    int positions(const std::vector<vec3>& p) {
-        return addAccessor(addView(p.data(), p.size() * sizeof(vec3)), 5126, p.size(), "VEC3");
-    }
-    template <class T>
-    int indices(const std::vector<T>& idx) {
-        const int ct = sizeof(T) == 1 ? 5121 : sizeof(T) == 2 ? 5123 : 5125;
-        return addAccessor(addView(idx.data(), idx.size() * sizeof(T)), ct, idx.size(), "SCALAR");
-    }
-    int mesh(Json primitives, const char* name = "m") {
-        doc_["meshes"].push_back({{"name", name}, {"primitives", std::move(primitives)}});
-        return static_cast<int>(doc_["meshes"].size() - 1);
-    }
-    int node(Json node) {
-        doc_["nodes"].push_back(std::move(node));
-        return static_cast<int>(doc_["nodes"].size() - 1);
-    }
-    Json& doc() { return doc_; }
-
-    fs::path write(const fs::path& path) {
-        Json d = doc_;
-        if (!bin_.empty())
-            d["buffers"] = Json::array(
-                {{{"byteLength", bin_.size()}, {"uri", "data:application/octet-stream;base64," + base64(bin_)}}});
-        std::ofstream(path) << d.dump(1);
-        return path;
-    }
-
-private:
-    Json doc_;
-    std::vector<std::uint8_t> bin_;
-};
-
-class GltfLoaderFiles : public ::testing::Test {
+class GltfLoaderFiles : public test::ScratchDirTest {
 protected:
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               ("rtlab_gltf_" + std::to_string(::getpid()) + "_" + info->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override {
-        std::error_code ec;
-        fs::remove_all(dir_, ec);
-    }
-    fs::path file(const std::string& name) const { return dir_ / name; }
 
     // One triangle-mesh primitive with the given mode and optional indices, in one node.
     fs::path writeSingle(const std::string& name, const std::vector<vec3>& pos, int mode, int indexAccessor,
@@ -352,8 +265,6 @@ protected:
                    c = g.positions[g.indices[3 * t + 2]];
         return glm::normalize(glm::cross(b - a, c - a));
     }
-
-    fs::path dir_;
 };
 
 TEST_F(GltfLoaderFiles, TriangleStripBecomesConsistentlyWoundList) {
@@ -409,22 +320,51 @@ TEST_F(GltfLoaderFiles, IndexOutOfRangeThrows) {
     EXPECT_NE(err.find("index 3 at position 2 is out of range"), std::string::npos) << err;
 }
 
-TEST_F(GltfLoaderFiles, LinesPrimitiveThrows) {
+TEST_F(GltfLoaderFiles, LinesPrimitiveIsSkippedWithOneWarning) {
     GltfBuilder b;
     const fs::path p = writeSingle("lines.gltf", {{0, 0, 0}, {1, 0, 0}}, 1, -1, b);
-    const std::string err = loadError(p);
-    EXPECT_NE(err.find("lines.gltf"), std::string::npos) << err;
-    EXPECT_NE(err.find("mesh 'm' primitive 0: points/lines are not supported (triangles only)"), std::string::npos)
-        << err;
+    World world;
+    const auto roots = load::loadGltf(world, p);
+    ASSERT_EQ(roots.size(), 1u);  // the node stays, without a mesh instance
+    EXPECT_FALSE(world.has<MeshInstance>(roots[0]));
+    EXPECT_TRUE(world.meshes().empty());
+    EXPECT_EQ(world.loadReport().skippedLinePrimitives, 1u);
+    EXPECT_EQ(world.loadReport().skippedPointPrimitives, 0u);
+    ASSERT_EQ(world.loadReport().warnings.size(), 1u);
+    const std::string& w = world.loadReport().warnings[0];
+    EXPECT_NE(w.find("lines.gltf"), std::string::npos) << w;
+    EXPECT_NE(w.find("0 points and 1 lines"), std::string::npos) << w;
+    EXPECT_EQ(w.find('\n'), std::string::npos);
 }
 
-TEST_F(GltfLoaderFiles, MixedTriangleAndLinePrimitivesThrow) {
+TEST_F(GltfLoaderFiles, MixedPrimitivesKeepTrianglesAndCountTheRest) {
     GltfBuilder b;
     const int pos = b.positions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
-    b.mesh(Json::array({{{"attributes", {{"POSITION", pos}}}}, {{"attributes", {{"POSITION", pos}}}, {"mode", 3}}}));
+    b.mesh(Json::array({{{"attributes", {{"POSITION", pos}}}, {"mode", 0}},
+                        {{"attributes", {{"POSITION", pos}}}},
+                        {{"attributes", {{"POSITION", pos}}}, {"mode", 3}},
+                        {{"attributes", {{"POSITION", pos}}}, {"mode", 2}}}));
     b.node({{"mesh", 0}});
-    const std::string err = loadError(b.write(file("mixed.gltf")));
-    EXPECT_NE(err.find("primitive 1: points/lines are not supported"), std::string::npos) << err;
+    b.node({{"mesh", 0}});
+    World world;
+    load::loadGltf(world, b.write(file("mixed.gltf")));
+    ASSERT_EQ(world.meshes().size(), 1u);
+    ASSERT_EQ(world.mesh(0).geometries.size(), 1u);  // the triangle primitive
+    EXPECT_EQ(totalTriangles(world), 1u);
+    EXPECT_EQ(world.count<MeshInstance>(), 2u);
+    // Counted per glTF mesh, not per instance; one warning for the file.
+    EXPECT_EQ(world.loadReport().skippedPointPrimitives, 1u);
+    EXPECT_EQ(world.loadReport().skippedLinePrimitives, 2u);
+    EXPECT_EQ(world.loadReport().warnings.size(), 1u);
+}
+
+TEST_F(GltfLoaderFiles, SkippedPrimitivesAreStillValidated) {
+    GltfBuilder b;
+    const fs::path p = writeSingle("badlines.gltf", {{0, 0, 0}, {1, 0, 0}}, 1,
+                                   b.indices(std::vector<std::uint16_t>{0, 2}), b);
+    const std::string err = loadError(p);
+    EXPECT_NE(err.find("badlines.gltf"), std::string::npos) << err;
+    EXPECT_NE(err.find("index 2 at position 1 is out of range"), std::string::npos) << err;
 }
 
 TEST_F(GltfLoaderFiles, NodeCycleThrows) {
@@ -490,10 +430,10 @@ TEST_F(GltfLoaderFiles, WrongAccessorTypeThrows) {
 
 TEST_F(GltfLoaderFiles, UnsupportedRequiredExtensionThrows) {
     GltfBuilder b;
-    b.doc()["extensionsRequired"] = {"KHR_mesh_quantization"};
-    b.doc()["extensionsUsed"] = {"KHR_mesh_quantization"};
+    b.doc()["extensionsRequired"] = {"KHR_mesh_quantization", "KHR_texture_basisu"};
+    b.doc()["extensionsUsed"] = {"KHR_mesh_quantization", "KHR_texture_basisu"};
     const std::string err = loadError(b.write(file("ext.gltf")));
-    EXPECT_NE(err.find("unsupported glTF extension KHR_mesh_quantization"), std::string::npos) << err;
+    EXPECT_NE(err.find("unsupported glTF extension KHR_texture_basisu"), std::string::npos) << err;
 }
 
 TEST_F(GltfLoaderFiles, WrongFileExtensionThrows) {

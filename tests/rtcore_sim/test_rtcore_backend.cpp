@@ -9,13 +9,18 @@
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
+#include <rtlab/rtcore_sim/scheduler.hpp>
 #include <rtlab/shaders_cpp/preview_shading.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <memory>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 using namespace rtlab;
 using namespace rtlab::rtcore_sim;
@@ -173,4 +178,51 @@ TEST(RtCoreBackend, RecordingRayOrderNeedsAnOrderDependentBackEnd) {
     accel.update(scene);
     shaders::PreviewSettings settings{16, 16, nullptr, true};
     EXPECT_THROW(shaders::renderPreview(accel, scene, settings), std::invalid_argument);
+}
+
+namespace {
+
+// Last ready ray first, counting its decisions.
+class LifoPolicy final : public SchedulerPolicy {
+public:
+    static inline std::uint64_t pops = 0;
+    void push(const ReadyRay& ray) override { stack_.push_back(ray); }
+    bool pop(ReadyRay& out) override {
+        if (stack_.empty()) return false;
+        out = stack_.back();
+        stack_.pop_back();
+        ++pops;
+        return true;
+    }
+    std::size_t size() const override { return stack_.size(); }
+    bool usesAddress() const override { return false; }
+
+private:
+    std::vector<ReadyRay> stack_;
+};
+
+}  // namespace
+
+// A scheduling policy registered at run time, from outside the library: the
+// configuration accepts its name, the model issues through it, and the hits
+// stay Embree's.
+TEST(RtCoreBackend, PolicyRegisteredFromOutsideTheLibrary) {
+    static const SchedulerPolicyEntry lifo{
+        "testLifo", "last ready ray issues first",
+        [](const SchedulerParams&) -> std::unique_ptr<SchedulerPolicy> { return std::make_unique<LifoPolicy>(); }};
+    static const bool registered = (registerSchedulerPolicy(lifo), true);  // once, even under --gtest_repeat
+    ASSERT_TRUE(registered);
+    EXPECT_THROW(registerSchedulerPolicy(lifo), std::invalid_argument);
+    const std::vector<std::string> names = schedulerPolicyNames();
+    EXPECT_NE(std::find(names.begin(), names.end(), "testLifo"), names.end());
+
+    RtCoreConfig config;
+    EXPECT_THROW(config.set("scheduler.policy=noSuchPolicy"), InputError);
+    config.set("scheduler.policy=testLifo");
+    LifoPolicy::pops = 0;
+    const BothBackEnds r = renderBoth("builtin:cornell", 1, 64, 48, config);
+    EXPECT_GT(LifoPolicy::pops, 0u);
+    EXPECT_EQ(r.rtcore.stats["scheduler"]["policy"], "testLifo");
+    EXPECT_EQ(r.rtcore.verify.mismatches, 0u);
+    EXPECT_TRUE(compareImages(r.rtcore.preview.image, r.embree.image).identical);
 }

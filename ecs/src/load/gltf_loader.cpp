@@ -30,8 +30,9 @@
 //     validated, channels that target nodes outside the loaded scene are
 //     dropped, channels without a target node are ignored (glTF spec).
 //   - Primitive modes: triangles, strips and fans (converted to lists with
-//     the spec's winding); points and lines are rejected, even when mixed
-//     with triangle primitives.
+//     the spec's winding). Points and lines are validated, then skipped and
+//     counted (World::loadReport(), one warning line per file); a node
+//     whose mesh has nothing else gets no MeshInstance.
 //   - Non-finite positions, normals, UVs, weights or animation values are
 //     InputErrors. Zero-length normals are replaced per vertex by generated
 //     ones; missing normals are generated.
@@ -43,9 +44,19 @@
 //   - A baseColorTexture that uses texCoord != 0 is dropped (only UV0 is
 //     loaded), as is a texture without decoded image data or with an
 //     unsupported pixel format (not 8/16-bit, 1-4 channels).
-//   - KHR_mesh_quantization, Draco, KHR_texture_transform etc. are not
-//     supported: a file that *requires* an unsupported extension is rejected.
+//   - Compressed geometry: KHR_draco_mesh_compression (decoded per primitive;
+//     its attributes replace the accessors they name, its faces the indices),
+//     EXT_meshopt_compression (bufferViews decoded in place after tinygltf;
+//     fallback buffers without data are handed to tinygltf as placeholders)
+//     and KHR_mesh_quantization (integer positions, normals, UVs, morph
+//     deltas, accepted when the file lists the extension). Decoders live in
+//     gltf_compression.cpp.
+//   - A file that *requires* an extension outside isSupportedExtension()
+//     (docs/scene-format.md, "glTF support") is rejected naming it;
+//     KHR_texture_transform etc. are ignored when merely used.
 #define GLM_ENABLE_EXPERIMENTAL
+
+#include "gltf_compression.hpp"
 
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
@@ -61,7 +72,9 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <limits>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -197,8 +210,10 @@ const Schema& gltfSchema() {
                                   {"KHR_materials_ior", &iorExt},
                                   {"KHR_materials_volume", &volumeExt},
                                   {"KHR_materials_emissive_strength", &emissiveStrengthExt}}};
+    static const Schema dracoExt{{uintProp("bufferView", true), {"attributes", Kind::UIntMap, true}}};
     static const Schema primitive{{{"attributes", Kind::UIntMap, true}, uintProp("indices"), uintProp("material"),
-                                   uintProp("mode"), {"targets", Kind::UIntMapArray}}};
+                                   uintProp("mode"), {"targets", Kind::UIntMapArray}},
+                                  {{"KHR_draco_mesh_compression", &dracoExt}}};
     static const Schema mesh{{objectArrayProp("primitives", primitive, true, true), numberArrayProp("weights")}};
     static const Schema nodeLight{{uintProp("light", true)}};
     static const Schema node{{uintProp("camera"), uintProp("skin"), uintProp("mesh"), uintArrayProp("children"),
@@ -214,9 +229,15 @@ const Schema& gltfSchema() {
     static const Schema accessor{{uintProp("bufferView"), uintProp("byteOffset"), uintProp("componentType", true),
                                   boolProp("normalized"), uintProp("count", true), stringProp("type", true),
                                   numberArrayProp("max"), numberArrayProp("min"), objectProp("sparse", sparse)}};
+    static const Schema meshoptViewExt{{uintProp("buffer", true), uintProp("byteOffset"), uintProp("byteLength", true),
+                                        uintProp("byteStride", true), uintProp("count", true), stringProp("mode", true),
+                                        stringProp("filter")}};
     static const Schema bufferView{{uintProp("buffer", true), uintProp("byteOffset"), uintProp("byteLength", true),
-                                    uintProp("byteStride"), uintProp("target")}};
-    static const Schema buffer{{stringProp("uri"), uintProp("byteLength", true)}};
+                                    uintProp("byteStride"), uintProp("target")},
+                                   {{"EXT_meshopt_compression", &meshoptViewExt}}};
+    static const Schema meshoptBufferExt{{boolProp("fallback")}};
+    static const Schema buffer{{stringProp("uri"), uintProp("byteLength", true)},
+                               {{"EXT_meshopt_compression", &meshoptBufferExt}}};
     static const Schema image{{stringProp("uri"), stringProp("mimeType"), uintProp("bufferView")}};
     static const Schema texture{{uintProp("sampler"), uintProp("source")}};
     static const Schema sampler{{uintProp("magFilter"), uintProp("minFilter"), uintProp("wrapS"), uintProp("wrapT")}};
@@ -398,9 +419,10 @@ std::uint64_t jsonUInt(const Json& obj, const char* key, std::uint64_t fallback)
 }
 
 bool isSupportedExtension(const std::string& name) {
-    static const std::array<std::string_view, 5> kSupported = {
-        "KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume",
-        "KHR_materials_emissive_strength"};
+    static const std::array<std::string_view, 8> kSupported = {
+        "KHR_lights_punctual",         "KHR_materials_transmission", "KHR_materials_ior",
+        "KHR_materials_volume",        "KHR_materials_emissive_strength", "KHR_draco_mesh_compression",
+        "EXT_meshopt_compression",     "KHR_mesh_quantization"};
     return std::find(kSupported.begin(), kSupported.end(), name) != kSupported.end();
 }
 
@@ -425,7 +447,156 @@ std::size_t jsonNestingDepth(std::string_view text) {
     return deepest;
 }
 
-void precheckJson(const std::filesystem::path& path, bool binary, const Fail& fail) {
+// One EXT_meshopt_compression bufferView: compressed bytes in a source
+// buffer, decoded into the bufferView's own range (often of a fallback
+// buffer that has no data in the file).
+struct MeshoptView {
+    std::size_t view = 0;
+    std::size_t sourceBuffer = 0;
+    std::uint64_t sourceOffset = 0, sourceLength = 0;
+    std::uint64_t count = 0, stride = 0;
+    compression::MeshoptMode mode = compression::MeshoptMode::Attributes;
+    compression::MeshoptFilter filter = compression::MeshoptFilter::None;
+};
+
+// What the pre-check learned that the later stages need.
+struct Prechecked {
+    std::vector<MeshoptView> meshopt;
+    // Fallback buffers without data (EXT_meshopt_compression): index and the
+    // bytes their bufferViews cover. tinygltf cannot load a buffer without a
+    // uri, so they are handed to it as 1-byte placeholders and zero-filled
+    // afterwards.
+    std::vector<std::pair<std::size_t, std::uint64_t>> placeholders;
+    // Draco primitives whose indices accessor has no bufferView (the indices
+    // are in the Draco data): tinygltf rejects those, so the JSON it parses
+    // lacks their `indices`, restored afterwards. (mesh, primitive, accessor)
+    std::vector<std::array<std::size_t, 3>> hiddenIndices;
+    std::string rewrittenJson;  // non-empty: tinygltf parses this JSON instead of the file's
+};
+
+void precheckDraco(Json& doc, Prechecked& out) {
+    if (!doc.contains("meshes")) return;
+    const Json empty = Json::array();
+    const Json& accessors = doc.contains("accessors") ? doc["accessors"] : empty;
+    Json& meshes = doc["meshes"];
+    for (std::size_t m = 0; m < meshes.size(); ++m) {
+        Json& primitives = meshes[m]["primitives"];
+        for (std::size_t p = 0; p < primitives.size(); ++p) {
+            Json& prim = primitives[p];
+            const auto ext = prim.find("extensions");
+            if (ext == prim.end() || !ext->contains("KHR_draco_mesh_compression") || !prim.contains("indices")) continue;
+            const std::size_t indices = jsonUInt(prim, "indices", 0);
+            if (indices < accessors.size() && accessors[indices].contains("bufferView")) continue;
+            out.hiddenIndices.push_back({m, p, indices});
+            prim.erase("indices");
+        }
+    }
+}
+
+// meshopt's codecs store at least 2 bits per 16 decoded bytes (vertex
+// codec; the index codecs need more), so a bufferView cannot decode to more
+// than this: larger claims are malformed and are refused before any memory
+// is set aside for them.
+std::uint64_t maxMeshoptDecodedBytes(std::uint64_t compressedBytes) { return 64 * compressedBytes + 65536; }
+
+void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
+    const Json empty = Json::array();
+    const Json& buffers = doc.contains("buffers") ? doc["buffers"] : empty;
+    const Json& views = doc.contains("bufferViews") ? doc["bufferViews"] : empty;
+    std::vector<std::uint8_t> placeholder(buffers.size(), 0);
+    for (std::size_t i = 0; i < buffers.size(); ++i) {
+        const Json& b = buffers[i];
+        const auto ext = b.find("extensions");
+        if (b.contains("uri") || ext == b.end() || !ext->contains("EXT_meshopt_compression")) continue;
+        placeholder[i] = (*ext)["EXT_meshopt_compression"].value("fallback", false);
+    }
+    // Per placeholder buffer: the bytes its views cover, and what they may decode to.
+    std::vector<std::uint64_t> covered(buffers.size(), 0), decodable(buffers.size(), 0);
+    for (std::size_t i = 0; i < views.size(); ++i) {
+        const auto ext = views[i].find("extensions");
+        const bool compressed = ext != views[i].end() && ext->contains("EXT_meshopt_compression");
+        const std::size_t target = jsonUInt(views[i], "buffer", 0);  // < buffers.size(): checked before
+        if (!compressed) {
+            if (placeholder[target])
+                fail(cat("bufferViews[", i, "] is not EXT_meshopt_compression-compressed but uses fallback buffer ",
+                         target, ", which has no data"));
+            continue;
+        }
+        const Json& m = (*ext)["EXT_meshopt_compression"];
+        const std::string where = cat("bufferViews[", i, "].extensions.EXT_meshopt_compression");
+        MeshoptView v;
+        v.view = i;
+        v.sourceBuffer = jsonUInt(m, "buffer", 0);
+        v.sourceOffset = jsonUInt(m, "byteOffset", 0);
+        v.sourceLength = jsonUInt(m, "byteLength", 0);
+        v.count = jsonUInt(m, "count", 0);
+        v.stride = jsonUInt(m, "byteStride", 0);
+        if (v.sourceBuffer >= buffers.size()) fail(cat(where, ".buffer ", v.sourceBuffer, " is out of range"));
+        if (placeholder[v.sourceBuffer]) fail(cat(where, ".buffer ", v.sourceBuffer, " is a fallback buffer without data"));
+        const std::uint64_t sourceBytes = jsonUInt(buffers[v.sourceBuffer], "byteLength", 0);
+        if (v.sourceOffset > sourceBytes || v.sourceLength > sourceBytes - v.sourceOffset)
+            fail(cat(where, " (byteOffset ", v.sourceOffset, " + byteLength ", v.sourceLength, ") exceeds buffers[",
+                     v.sourceBuffer, "] (", sourceBytes, " bytes)"));
+        if (v.stride == 0 || v.count == 0) fail(cat(where, ": byteStride and count must be at least 1"));
+        const std::uint64_t viewOffset = jsonUInt(views[i], "byteOffset", 0), viewBytes = jsonUInt(views[i], "byteLength", 0);
+        if (v.count > viewBytes / v.stride)
+            fail(cat(where, ": ", v.count, " elements of ", v.stride, " bytes exceed the bufferView's ", viewBytes,
+                     " bytes"));
+        if (viewBytes > maxMeshoptDecodedBytes(v.sourceLength))
+            fail(cat(where, ": ", v.sourceLength, " compressed bytes cannot fill the bufferView's ", viewBytes,
+                     " bytes"));
+        covered[target] = std::max(covered[target], viewOffset + viewBytes);
+        decodable[target] += maxMeshoptDecodedBytes(v.sourceLength);
+        const std::string mode = m["mode"].get<std::string>(), filter = m.value("filter", std::string("NONE"));
+        if (mode == "ATTRIBUTES") v.mode = compression::MeshoptMode::Attributes;
+        else if (mode == "TRIANGLES") v.mode = compression::MeshoptMode::Triangles;
+        else if (mode == "INDICES") v.mode = compression::MeshoptMode::Indices;
+        else fail(cat(where, ": unknown mode '", mode, "'"));
+        if (filter == "NONE") v.filter = compression::MeshoptFilter::None;
+        else if (filter == "OCTAHEDRAL") v.filter = compression::MeshoptFilter::Octahedral;
+        else if (filter == "QUATERNION") v.filter = compression::MeshoptFilter::Quaternion;
+        else if (filter == "EXPONENTIAL") v.filter = compression::MeshoptFilter::Exponential;
+        else fail(cat(where, ": unknown filter '", filter, "'"));
+        out.meshopt.push_back(v);
+    }
+    for (std::size_t i = 0; i < buffers.size(); ++i) {
+        if (!placeholder[i]) continue;
+        if (covered[i] > decodable[i])
+            fail(cat("buffers[", i, "]: its EXT_meshopt_compression bufferViews cover ", covered[i],
+                     " bytes, more than their compressed data can decode to"));
+        out.placeholders.emplace_back(i, covered[i]);
+        doc["buffers"][i]["uri"] = "data:application/octet-stream;base64,AA==";
+        doc["buffers"][i]["byteLength"] = 1;
+    }
+}
+
+// The file's bytes with its JSON (chunk) replaced by `json`.
+std::string withJson(const std::filesystem::path& path, bool binary, const std::string& json, const Fail& fail) {
+    if (!binary) return json;
+    std::ifstream in(path, std::ios::binary);
+    const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!in && !in.eof()) fail("cannot read file");
+    // Layout checked by readJsonText: 20-byte header + JSON chunk, then the rest.
+    const std::size_t rest = 20 + readLe32(reinterpret_cast<const unsigned char*>(file.data()) + 12);
+    std::string chunk = json;
+    while (chunk.size() % 4 != 0) chunk += ' ';
+    const std::size_t total = 20 + chunk.size() + (file.size() - rest);
+    if (total > 0xffffffffu) fail("GLB too large");
+    std::string out;
+    auto le32 = [&](std::uint32_t v) {
+        for (int b = 0; b < 4; ++b) out += static_cast<char>((v >> (8 * b)) & 0xffu);
+    };
+    out += "glTF";
+    le32(2);
+    le32(static_cast<std::uint32_t>(total));
+    le32(static_cast<std::uint32_t>(chunk.size()));
+    le32(0x4E4F534Au);
+    out += chunk;
+    out.append(file, rest, std::string::npos);
+    return out;
+}
+
+Prechecked precheckJson(const std::filesystem::path& path, bool binary, const Fail& fail) {
     const std::string text = readJsonText(path, binary, fail);
     // Before parsing: tinygltf converts extras/extensions recursively.
     if (jsonNestingDepth(text) > kMaxJsonDepth) fail(cat("JSON nested deeper than ", kMaxJsonDepth, " levels"));
@@ -475,6 +646,37 @@ void precheckJson(const std::filesystem::path& path, bool binary, const Fail& fa
         for (std::size_t i = 0; i < it->size(); ++i)
             if (const auto bv = (*it)[i].find("bufferView"); bv != (*it)[i].end() && bv->get<double>() >= views.size())
                 fail(cat("images[", i, "].bufferView is out of range"));
+
+    Prechecked out;
+    precheckMeshopt(doc, out, fail);
+    precheckDraco(doc, out);
+    if (!out.placeholders.empty() || !out.hiddenIndices.empty())
+        out.rewrittenJson = withJson(path, binary, doc.dump(), fail);
+    return out;
+}
+
+void restoreHiddenIndices(tg::Model& model, const Prechecked& pre) {
+    for (const auto& [mesh, primitive, accessor] : pre.hiddenIndices)
+        model.meshes.at(mesh).primitives.at(primitive).indices = static_cast<int>(accessor);
+}
+
+// Gives placeholder buffers the size their views cover and decodes every
+// EXT_meshopt_compression bufferView into place (after tinygltf, before stage 3).
+void decodeMeshoptViews(tg::Model& model, const Prechecked& pre, const Fail& fail) {
+    for (const auto& [index, bytes] : pre.placeholders)
+        model.buffers.at(index).data.assign(static_cast<std::size_t>(bytes), 0);
+    for (const MeshoptView& v : pre.meshopt) {
+        const tg::BufferView& view = model.bufferViews.at(v.view);
+        std::vector<unsigned char>& target = model.buffers.at(static_cast<std::size_t>(view.buffer)).data;
+        const std::vector<unsigned char>& source = model.buffers.at(v.sourceBuffer).data;
+        if (v.sourceOffset + v.sourceLength > source.size() || view.byteOffset + v.count * v.stride > target.size())
+            fail(cat("bufferViews[", v.view, "]: EXT_meshopt_compression data exceeds its buffer"));
+        const std::string problem =
+            compression::decodeMeshopt(target.data() + view.byteOffset, source.data() + v.sourceOffset,
+                                       static_cast<std::size_t>(v.sourceLength), static_cast<std::size_t>(v.count),
+                                       static_cast<std::size_t>(v.stride), v.mode, v.filter);
+        if (!problem.empty()) fail(cat("bufferViews[", v.view, "]: EXT_meshopt_compression: ", problem));
+    }
 }
 
 // ===========================================================================
@@ -636,6 +838,8 @@ struct Staged {
     std::vector<std::optional<StagedSkin>> skins;  // by glTF skin index
     std::vector<StagedClip> clips;
     std::vector<int> nodeSlot;  // glTF node -> index into nodes, -1 if not loaded
+    std::uint32_t skippedPointPrimitives = 0;  // in the converted meshes
+    std::uint32_t skippedLinePrimitives = 0;   // lines, line loops and line strips
 };
 
 // Converted glTF mesh before per-instance variants are made.
@@ -657,6 +861,8 @@ public:
         materialSlot_.assign(m_.materials.size(), -1);
         imageSlot_.assign(m_.images.size(), -2);  // -2: not converted yet
         baseMeshes_.resize(m_.meshes.size());
+        quantized_ = std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(), "KHR_mesh_quantization") !=
+                     m_.extensionsUsed.end();
 
         validateHierarchy();
         const std::vector<int> roots = sceneRoots();
@@ -850,6 +1056,7 @@ private:
     void stageInstance(int nodeIndex, StagedNode& out) {
         const tg::Node& node = m_.nodes[static_cast<std::size_t>(nodeIndex)];
         BaseMesh& base = baseMesh(node.mesh);
+        if (base.asset.geometries.empty()) return;  // points/lines only: nothing to trace
         const bool skinned = node.skin >= 0;
         if (skinned) {
             if (!base.skinnable)
@@ -947,13 +1154,6 @@ private:
         const tg::Mesh& mesh = m_.meshes[static_cast<std::size_t>(meshIndex)];
         const std::string label = meshLabel(meshIndex);
         if (mesh.primitives.empty()) fail_(cat(label, " has no primitives"));
-        // Reject points/lines up front, even when mixed with triangles.
-        for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
-            const int mode = mesh.primitives[p].mode < 0 ? TINYGLTF_MODE_TRIANGLES : mesh.primitives[p].mode;
-            if (mode >= TINYGLTF_MODE_POINTS && mode <= TINYGLTF_MODE_LINE_STRIP)
-                fail_(cat(label, " primitive ", p, ": points/lines are not supported (triangles only)"));
-            if (mode > TINYGLTF_MODE_TRIANGLE_FAN) fail_(cat(label, " primitive ", p, ": invalid primitive mode ", mode));
-        }
         BaseMesh out;
         out.asset.name = mesh.name.empty() ? cat("mesh ", meshIndex) : mesh.name;
         out.targetCount = mesh.primitives.front().targets.size();
@@ -963,6 +1163,18 @@ private:
             const std::string where = cat(label, " primitive ", p);
             if (prim.targets.size() != out.targetCount)
                 fail_(cat(where, " has ", prim.targets.size(), " morph targets, primitive 0 has ", out.targetCount));
+            const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+            if (mode > TINYGLTF_MODE_TRIANGLE_FAN) fail_(cat(where, ": invalid primitive mode ", mode));
+            if (mode < TINYGLTF_MODE_TRIANGLES) {
+                // Points and lines: validated like triangles, then left out
+                // (a ray tracer renders triangles); counted for the warning.
+                const int pos = attribute(prim, "POSITION");
+                if (pos < 0) fail_(cat(where, " has no POSITION attribute"));
+                const std::size_t n = readPositions(pos, cat("POSITION of ", where)).size();
+                if (prim.indices >= 0) readIndices(prim.indices, cat("indices of ", where), n);
+                ++(mode == TINYGLTF_MODE_POINTS ? s_.skippedPointPrimitives : s_.skippedLinePrimitives);
+                continue;
+            }
             bool hasSkinAttributes = false;
             out.asset.geometries.push_back(convertPrimitive(prim, where, hasSkinAttributes, out.jointsNeeded));
             out.skinnable = out.skinnable && hasSkinAttributes;
@@ -981,13 +1193,93 @@ private:
         return it == attrs.end() ? -1 : it->second;
     }
 
-    std::vector<vec3> readVec3(int accessor, const std::string& what, std::size_t expectedCount) {
-        const AccessorView v = view(accessor, what, {TINYGLTF_TYPE_VEC3}, {{kFloat}}, "VEC3 float");
+    std::vector<vec3> readVec3(int accessor, const std::string& what, std::size_t expectedCount,
+                               const std::vector<Format>& formats, const char* expected) {
+        const AccessorView v = view(accessor, what, {TINYGLTF_TYPE_VEC3}, formats, expected);
         requireCount(v, what, expectedCount);
         const std::vector<float> f = readFloats(v, what);
         std::vector<vec3> out(v.count);
         for (std::size_t i = 0; i < v.count; ++i) out[i] = vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]);
         return out;
+    }
+
+    // Vertex attribute formats: glTF 2.0 core, widened by KHR_mesh_quantization
+    // when the file uses it (normalized or integer positions; integer
+    // normals and texture coordinates).
+    std::vector<vec3> readPositions(int accessor, const std::string& what) {
+        if (!quantized_) return readVec3(accessor, what, 0, {{kFloat}}, "VEC3 float");
+        return readVec3(accessor, what, 0,
+                        {{kFloat}, {kByte, false, true}, {kUByte, false, true}, {kShort, false, true},
+                         {kUShort, false, true}},
+                        "VEC3 float or (KHR_mesh_quantization) byte/short");
+    }
+    std::vector<vec3> readNormals(int accessor, const std::string& what, std::size_t n) {
+        if (!quantized_) return readVec3(accessor, what, n, {{kFloat}}, "VEC3 float");
+        return readVec3(accessor, what, n, {{kFloat}, {kByte, true}, {kShort, true}},
+                        "VEC3 float or (KHR_mesh_quantization) normalized byte/short");
+    }
+    std::vector<vec3> readPositionDeltas(int accessor, const std::string& what, std::size_t n) {
+        if (!quantized_) return readVec3(accessor, what, n, {{kFloat}}, "VEC3 float");
+        return readVec3(accessor, what, n, {{kFloat}, {kByte, false, true}, {kShort, false, true}},
+                        "VEC3 float or (KHR_mesh_quantization) byte/short");
+    }
+
+    // Index accessor, every index checked against the vertex count.
+    std::vector<std::uint32_t> readIndices(int accessor, const std::string& what, std::size_t n) {
+        const AccessorView v = view(accessor, what, {TINYGLTF_TYPE_SCALAR},
+                                    {{kUByte, false, true}, {kUShort, false, true}, {kUInt, false, true}},
+                                    "SCALAR unsigned byte/short/int");
+        std::vector<std::uint32_t> out = readUInts(v);
+        for (std::size_t i = 0; i < out.size(); ++i)
+            if (out[i] >= n)
+                fail_(cat("accessor ", v.index, " (", what, "): index ", out[i], " at position ", i,
+                          " is out of range (", n, " vertices)"));
+        return out;
+    }
+
+    // KHR_draco_mesh_compression: decodes the primitive's Draco buffer; its
+    // attributes stand in for the accessors they name (in decoded_, which
+    // view() reads) and its faces are the primitive's indices.
+    std::optional<std::vector<std::uint32_t>> decodeDraco(const tg::Primitive& prim, const std::string& where) {
+        decoded_.clear();
+        const auto it = prim.extensions.find("KHR_draco_mesh_compression");
+        if (it == prim.extensions.end()) return std::nullopt;
+        const std::string label = cat(where, " (KHR_draco_mesh_compression)");
+        const tg::Value& ext = it->second;
+        const int bufferView = ext.Get("bufferView").GetNumberAsInt();
+        const tg::Value& attrs = ext.Get("attributes");
+        std::vector<compression::DracoAttributeRequest> requests;
+        std::vector<int> accessors;
+        for (const std::string& semantic : attrs.Keys()) {
+            const int accessor = attribute(prim, semantic.c_str());
+            if (accessor < 0) continue;  // not used by the primitive: ignored
+            checkIndex(accessor, m_.accessors, "accessor", cat(label, " ", semantic));
+            const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessor)];
+            if (componentCount(acc.type) == 0 || componentSize(acc.componentType) == 0)
+                fail_(cat("accessor ", accessor, " (", semantic, " of ", where, "): invalid type or component type"));
+            const double id = attrs.Get(semantic).GetNumberAsDouble();
+            requests.push_back({static_cast<std::uint32_t>(id), acc.componentType, componentCount(acc.type)});
+            accessors.push_back(accessor);
+        }
+        std::size_t length = 0;
+        const unsigned char* bytes = bufferViewBytes(bufferView, length, label);
+        compression::DracoMesh mesh = compression::decodeDracoMesh(bytes, length, requests);
+        if (!mesh.error.empty()) fail_(cat(label, ": ", mesh.error));
+        for (std::size_t i = 0; i < accessors.size(); ++i) {
+            const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessors[i])];
+            if (acc.count != mesh.points)
+                fail_(cat(label, ": decodes ", mesh.points, " points but accessor ", accessors[i], " declares ",
+                          acc.count));
+            decoded_[accessors[i]] = std::move(mesh.attributes[i]);
+        }
+        if (prim.indices >= 0) {
+            checkIndex(prim.indices, m_.accessors, "accessor", cat("indices of ", label));
+            const std::size_t declared = m_.accessors[static_cast<std::size_t>(prim.indices)].count;
+            if (declared != mesh.indices.size())
+                fail_(cat(label, ": decodes ", mesh.indices.size(), " indices but accessor ", prim.indices,
+                          " declares ", declared));
+        }
+        return std::move(mesh.indices);
     }
 
     void requireCount(const AccessorView& v, const std::string& what, std::size_t expected) const {
@@ -999,20 +1291,25 @@ private:
                               std::uint32_t& jointsNeeded) {
         Geometry g;
         const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+        std::optional<std::vector<std::uint32_t>> dracoIndices = decodeDraco(prim, where);
 
         const int posAccessor = attribute(prim, "POSITION");
         if (posAccessor < 0) fail_(cat(where, " has no POSITION attribute"));
-        g.positions = readVec3(posAccessor, cat("POSITION of ", where), 0);
+        g.positions = readPositions(posAccessor, cat("POSITION of ", where));
         const std::size_t n = g.positions.size();
 
         const int normalAccessor = attribute(prim, "NORMAL");
-        if (normalAccessor >= 0) g.normals = readVec3(normalAccessor, cat("NORMAL of ", where), n);
+        if (normalAccessor >= 0) g.normals = readNormals(normalAccessor, cat("NORMAL of ", where), n);
 
         if (const int uvAccessor = attribute(prim, "TEXCOORD_0"); uvAccessor >= 0) {
             const std::string what = cat("TEXCOORD_0 of ", where);
-            const AccessorView v = view(uvAccessor, what, {TINYGLTF_TYPE_VEC2},
-                                        {{kFloat}, {kUByte, true}, {kUShort, true}},
-                                        "VEC2 float or normalized unsigned byte/short");
+            const AccessorView v =
+                quantized_ ? view(uvAccessor, what, {TINYGLTF_TYPE_VEC2},
+                                  {{kFloat}, {kByte, false, true}, {kUByte, false, true}, {kShort, false, true},
+                                   {kUShort, false, true}},
+                                  "VEC2 float or (KHR_mesh_quantization) byte/short")
+                           : view(uvAccessor, what, {TINYGLTF_TYPE_VEC2}, {{kFloat}, {kUByte, true}, {kUShort, true}},
+                                  "VEC2 float or normalized unsigned byte/short");
             requireCount(v, what, n);
             const std::vector<float> f = readFloats(v, what);
             g.uv0.resize(n);
@@ -1054,16 +1351,10 @@ private:
 
         // Indices: validated against the vertex count, then converted to a list.
         std::vector<std::uint32_t> source;
-        if (prim.indices >= 0) {
-            const std::string what = cat("indices of ", where);
-            const AccessorView v = view(prim.indices, what, {TINYGLTF_TYPE_SCALAR},
-                                        {{kUByte, false, true}, {kUShort, false, true}, {kUInt, false, true}},
-                                        "SCALAR unsigned byte/short/int");
-            source = readUInts(v);
-            for (std::size_t i = 0; i < source.size(); ++i)
-                if (source[i] >= n)
-                    fail_(cat("accessor ", v.index, " (", what, "): index ", source[i], " at position ", i,
-                              " is out of range (", n, " vertices)"));
+        if (dracoIndices) {
+            source = std::move(*dracoIndices);  // checked against the decoded point count
+        } else if (prim.indices >= 0) {
+            source = readIndices(prim.indices, cat("indices of ", where), n);
         } else {
             source.resize(n);
             for (std::size_t i = 0; i < n; ++i) source[i] = static_cast<std::uint32_t>(i);
@@ -1111,9 +1402,9 @@ private:
             const auto& target = prim.targets[t];
             MorphTarget mt;
             if (const int a = attribute(target, "POSITION"); a >= 0)
-                mt.positionDeltas = readVec3(a, cat("POSITION of morph target ", t, " of ", where), n);
+                mt.positionDeltas = readPositionDeltas(a, cat("POSITION of morph target ", t, " of ", where), n);
             if (const int a = attribute(target, "NORMAL"); a >= 0)
-                mt.normalDeltas = readVec3(a, cat("NORMAL of morph target ", t, " of ", where), n);
+                mt.normalDeltas = readNormals(a, cat("NORMAL of morph target ", t, " of ", where), n);
             g.morphTargets.push_back(std::move(mt));
         }
 
@@ -1123,6 +1414,7 @@ private:
         } else {
             g.material = static_cast<MaterialId>(defaultMaterial());
         }
+        decoded_.clear();
         return g;
     }
 
@@ -1141,7 +1433,7 @@ private:
     }
 
     AccessorView view(int index, const std::string& what, std::initializer_list<int> types,
-                      std::initializer_list<Format> formats, const char* expected) const {
+                      const std::vector<Format>& formats, const char* expected) const {
         checkIndex(index, m_.accessors, "accessor", what);
         const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(index)];
         const std::string label = cat("accessor ", index, " (", what, ")");
@@ -1164,7 +1456,10 @@ private:
         if (v.count == 0) fail_(cat(label, ": count must be at least 1"));
         const std::size_t elementBytes = static_cast<std::size_t>(v.components * v.componentBytes);
 
-        if (acc.bufferView >= 0) {
+        if (const auto decoded = decoded_.find(index); decoded != decoded_.end()) {
+            v.data = decoded->second.data();  // Draco: count elements, tightly packed
+            v.stride = elementBytes;
+        } else if (acc.bufferView >= 0) {
             std::size_t viewLength = 0;
             const unsigned char* bytes = bufferViewBytes(acc.bufferView, viewLength, label);
             const std::size_t declaredStride = m_.bufferViews[static_cast<std::size_t>(acc.bufferView)].byteStride;
@@ -1513,7 +1808,7 @@ private:
                 fail_(cat("accessor ", in.index, " (", inWhat, "): key times decrease at key ", i));
 
         const std::string outWhat = cat("output of ", where);
-        const std::initializer_list<Format> normalizedOrFloat = {
+        const std::vector<Format> normalizedOrFloat = {
             {kFloat}, {kByte, true}, {kUByte, true}, {kShort, true}, {kUShort, true}};
         AccessorView ov;
         switch (out.path) {
@@ -1547,6 +1842,8 @@ private:
     std::vector<int> imageSlot_;
     std::vector<std::optional<BaseMesh>> baseMeshes_;
     int defaultMaterial_ = -1;
+    bool quantized_ = false;  // the file uses KHR_mesh_quantization
+    std::map<int, std::vector<unsigned char>> decoded_;  // Draco-decoded accessors of the current primitive
 };
 
 // ===========================================================================
@@ -1630,7 +1927,7 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
     if (!std::filesystem::is_regular_file(path, ec)) fail("not a regular file");
 
     // Stage 1.
-    precheckJson(path, binary, fail);
+    const Prechecked pre = precheckJson(path, binary, fail);
 
     // Stage 2.
     tg::Model model;
@@ -1638,19 +1935,40 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
         tg::TinyGLTF loader;
         std::string err, warn;
         bool ok = false;
+        const std::string& text = pre.rewrittenJson;
+        const std::string baseDir = path.parent_path().string();
+        if (text.size() > 0xffffffffu) fail("file too large");
         try {
-            ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path.string())
-                        : loader.LoadASCIIFromFile(&model, &err, &warn, path.string());
+            if (!text.empty())
+                ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn,
+                                                          reinterpret_cast<const unsigned char*>(text.data()),
+                                                          static_cast<unsigned int>(text.size()), baseDir)
+                            : loader.LoadASCIIFromString(&model, &err, &warn, text.data(),
+                                                         static_cast<unsigned int>(text.size()), baseDir);
+            else
+                ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path.string())
+                            : loader.LoadASCIIFromFile(&model, &err, &warn, path.string());
         } catch (const std::exception& e) {
             fail(cat("glTF parser failed: ", firstLineTrimmed(e.what())));
         }
         if (!err.empty()) fail(firstLineTrimmed(err));
         if (!ok) fail("glTF parser failed without a message");
     }
+    restoreHiddenIndices(model, pre);
+    decodeMeshoptViews(model, pre, fail);
 
     // Stage 3, then 4.
     Staged staged = GltfConverter(model, fail).convert();
-    return commit(world, std::move(staged), parent);
+    const std::uint32_t points = staged.skippedPointPrimitives, lines = staged.skippedLinePrimitives;
+    std::vector<Entity> roots = commit(world, std::move(staged), parent);
+    if (points + lines > 0) {
+        LoadReport& report = world.loadReport();
+        report.skippedPointPrimitives += points;
+        report.skippedLinePrimitives += lines;
+        report.warnings.push_back(cat(path.string(), ": skipped ", points, " points and ", lines,
+                                      " lines primitive(s) (rtlab traces triangles only)"));
+    }
+    return roots;
 }
 
 }  // namespace rtlab::ecs::load

@@ -56,6 +56,17 @@ std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, cons
     return normals;
 }
 
+std::size_t degenerateTriangleCount(const MeshAsset& mesh) {
+    std::size_t n = 0;
+    for (const Geometry& g : mesh.geometries)
+        for (std::size_t t = 0; t + 2 < g.indices.size(); t += 3) {
+            const vec3& a = g.positions[g.indices[t]];
+            const vec3 n3 = glm::cross(g.positions[g.indices[t + 1]] - a, g.positions[g.indices[t + 2]] - a);
+            n += n3 == vec3(0.f);
+        }
+    return n;
+}
+
 Aabb worldBounds(const World& world) {
     Aabb bounds;
     world.each<MeshInstance>([&](Entity e, const MeshInstance& inst) {

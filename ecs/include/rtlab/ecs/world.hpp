@@ -28,6 +28,14 @@ struct SceneSettings {
     vec3 backgroundRadiance{0.f};     // radiance of rays that leave the scene
 };
 
+// What loading left out of the scene: filled by the loaders, printed by
+// `rtlab info` and the CLI's warnings, recorded in render's stats.json.
+struct LoadReport {
+    std::uint32_t skippedPointPrimitives = 0;  // glTF points primitives (rtlab traces triangles)
+    std::uint32_t skippedLinePrimitives = 0;   // glTF lines, line loops and line strips
+    std::vector<std::string> warnings;         // one line each, naming the file
+};
+
 class World {
 public:
     World();
@@ -114,6 +122,8 @@ public:
 
     SceneSettings& settings() { return settings_; }
     const SceneSettings& settings() const { return settings_; }
+    LoadReport& loadReport() { return loadReport_; }
+    const LoadReport& loadReport() const { return loadReport_; }
     Entity activeCamera() const { return activeCamera_; }
     void setActiveCamera(Entity e) { activeCamera_ = e; }
 
@@ -181,6 +191,7 @@ private:
     std::vector<AnimationClip> animations_;
     std::vector<std::shared_ptr<const VolumeGrid>> volumeGrids_;
     SceneSettings settings_;
+    LoadReport loadReport_;
     Entity activeCamera_;
 
     float time_ = 0.f;

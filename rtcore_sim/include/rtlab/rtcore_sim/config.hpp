@@ -38,6 +38,9 @@ struct ParamInfo {
     double min = 0.0;  // inclusive range (Unsigned, Real)
     double max = 0.0;
     std::vector<nlohmann::json> allowed;  // when non-empty, the only accepted values
+    // Choice of a registry that can grow (scheduling policies registered
+    // from outside the library): read when a value is checked, instead of `allowed`.
+    std::vector<std::string> (*allowedNow)() = nullptr;
 };
 
 // Checks `value` against `info` and returns it in canonical form; throws
@@ -59,35 +62,34 @@ class ParamTable {
 public:
     ParamTable& addUnsigned(std::string name, std::uint32_t Params::*member, std::string description, std::uint32_t min,
                             std::uint32_t max) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Unsigned, {}, double(min), double(max), {}};
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Unsigned, {}, double(min), double(max), {}, nullptr};
         return add(std::move(info), member);
     }
     ParamTable& addUnsignedOneOf(std::string name, std::uint32_t Params::*member, std::string description,
                                  const std::vector<std::uint32_t>& allowed) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Unsigned, {}, 0.0, 0.0, {}};
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Unsigned, {}, 0.0, 0.0, {}, nullptr};
         for (std::uint32_t v : allowed) info.allowed.emplace_back(v);
         return add(std::move(info), member);
     }
     ParamTable& addReal(std::string name, float Params::*member, std::string description, float min, float max) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Real, {}, double(min), double(max), {}};
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Real, {}, double(min), double(max), {}, nullptr};
         return add(std::move(info), member);
     }
-    // A string chosen from a fixed list (e.g. a registry's names).
-    ParamTable& addStringChoice(std::string name, std::string Params::*member, std::string description,
-                                const std::vector<std::string>& allowed) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Choice, {}, 0.0, 0.0, {}};
-        for (const std::string& a : allowed) info.allowed.emplace_back(a);
+    // A string chosen from a registry's current names (which may grow).
+    ParamTable& addRegistryChoice(std::string name, std::string Params::*member, std::string description,
+                                  std::vector<std::string> (*names)()) {
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Choice, {}, 0.0, 0.0, {}, names};
         return add(std::move(info), member);
     }
     ParamTable& addBoolean(std::string name, bool Params::*member, std::string description) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Boolean, {}, 0.0, 0.0, {}};
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Boolean, {}, 0.0, 0.0, {}, nullptr};
         return add(std::move(info), member);
     }
     template <class Enum>
     ParamTable& addChoice(std::string name, Enum Params::*member, std::string description,
                           std::vector<std::pair<std::string, Enum>> choices) {
         ParamField<Params> field;
-        field.info = ParamInfo{std::move(name), std::move(description), ParamKind::Choice, {}, 0.0, 0.0, {}};
+        field.info = ParamInfo{std::move(name), std::move(description), ParamKind::Choice, {}, 0.0, 0.0, {}, nullptr};
         for (const auto& [label, value] : choices) field.info.allowed.emplace_back(label);
         field.read = [member, choices](const Params& p) -> nlohmann::json {
             for (const auto& [label, value] : choices)

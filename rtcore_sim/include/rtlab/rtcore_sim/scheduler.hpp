@@ -3,14 +3,16 @@
 // "Scheduler"). Each cycle the scheduler picks up to scheduler.issueWidth
 // ready rays and issues their next traversal step; a policy decides which.
 //
-// Adding a policy is one new file in rtcore_sim/src/policies/: it defines
+// Adding a built-in policy is one new file in rtcore_sim/src/policies/: it defines
 //
 //   const SchedulerPolicyEntry& rtcoreSimPolicy_<file stem>();
 //
 // returning its configuration name, a one-line description and a factory.
 // rtcore_sim/CMakeLists.txt lists the files of that folder (sorted) into the
 // registry at configure time, so the name is accepted by scheduler.policy
-// once cmake has been re-run.
+// once cmake has been re-run. A program that links the installed library
+// registers its own policies at run time instead (registerSchedulerPolicy;
+// examples/custom_scheduler).
 #include <rtlab/rtcore_sim/config.hpp>
 
 #include <cstdint>
@@ -49,9 +51,17 @@ struct SchedulerPolicyEntry {
     std::unique_ptr<SchedulerPolicy> (*create)(const SchedulerParams& params) = nullptr;
 };
 
-// Every registered policy, sorted by file name.
-const std::vector<const SchedulerPolicyEntry*>& schedulerPolicies();
+// Every registered policy: the built-in ones sorted by file name, then the
+// ones added by registerSchedulerPolicy in registration order.
+std::vector<const SchedulerPolicyEntry*> schedulerPolicies();
 std::vector<std::string> schedulerPolicyNames();
+// Adds a policy from outside the library (a user's program, a test): its
+// name becomes valid for scheduler.policy (RtCoreConfig JSON, set(),
+// --rtcore-set) and for makeSchedulerPolicy. `entry` is not copied and must
+// outlive every model that uses it (a function-local static is the usual
+// home). Throws std::invalid_argument when the name is empty or taken or
+// `create` is null. Thread-safe; register before building models that use it.
+void registerSchedulerPolicy(const SchedulerPolicyEntry& entry);
 // Throws InputError naming the known policies when `name` is not registered.
 std::unique_ptr<SchedulerPolicy> makeSchedulerPolicy(const SchedulerParams& params);
 

@@ -39,5 +39,9 @@ void addDefaultCameraAndLight(World& world);
 std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, const std::vector<std::uint32_t>& indices);
 // World-space bounds of every mesh instance.
 Aabb worldBounds(const World& world);
+// Triangles of zero area (a repeated index, coincident or collinear
+// vertices): loaded as they are, never hit by a ray. Draco's encoder drops
+// them, so a Draco file has that many triangles fewer than its source.
+std::size_t degenerateTriangleCount(const MeshAsset& mesh);
 
 }  // namespace rtlab::ecs::load
