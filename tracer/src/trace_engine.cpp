@@ -80,9 +80,14 @@ struct TraversalContext {
     alignas(32) float worldDirection[3][kMaxLanes];  // zero for lanes without a valid ray
 
     struct InstanceRays {
-        WatertightRayPacket packet;
+        WatertightRayPacket packet;  // not set up for a single ray (see singleRay)
+        WatertightRay single;        // lane 0 of a single-ray trace
         std::array<vec3, kMaxLanes> objectDirection;
     };
+    // A one-ray trace (rtcIntersect1/rtcOccluded1: callbacks see N == 1 and
+    // lane 0 only): its object ray is set up alone, in scalar form, instead
+    // of as an 8-lane packet.
+    bool singleRay = false;
     static constexpr std::uint32_t kCachedInstances = 8;
     // Which instance each entry holds: the tags in one cache line, so that a
     // context starts (and a lookup hits) without touching the entries.
@@ -110,12 +115,23 @@ struct TraversalContext {
         const std::uint32_t slot = instanceIndex % kCachedInstances;
         InstanceRays& e = instanceRays[slot];
         if (cachedInstance[slot] == instanceIndex) return e;
+        cachedInstance[slot] = instanceIndex;
+        const glm::dmat4& objectFromWorld = accel->instanceFacts(instanceIndex).objectFromWorld;
+        if (singleRay) {
+            // The same bits as lane 0 of the packet form (instance_transform.hpp,
+            // makeWatertightRay = WatertightRayPacket::setRays per lane).
+            const ObjectSpaceRay r =
+                toObjectSpace(objectFromWorld, vec3(worldOrigin[0][0], worldOrigin[1][0], worldOrigin[2][0]),
+                              vec3(worldDirection[0][0], worldDirection[1][0], worldDirection[2][0]));
+            e.objectDirection[0] = r.direction;
+            e.single = makeWatertightRay(r.origin, r.direction);
+            return e;
+        }
         // Lanes without a ray have a zero direction and stay invalid.
         alignas(32) float o[3][kMaxLanes], d[3][kMaxLanes];
-        objectSpaceRays8(accel->instanceFacts(instanceIndex).objectFromWorld, worldOrigin, worldDirection, o, d);
+        objectSpaceRays8(objectFromWorld, worldOrigin, worldDirection, o, d);
         for (std::uint32_t lane = 0; lane < kMaxLanes; ++lane) e.objectDirection[lane] = vec3(d[0][lane], d[1][lane], d[2][lane]);
         e.packet.setRays(o[0], o[1], o[2], d[0], d[1], d[2]);
-        cachedInstance[slot] = instanceIndex;
         return e;
     }
 };
@@ -486,7 +502,7 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
     // Step: a packet of several rays — 8 rays per SIMD step, one triangle at a
     // time (rtlab's packets keep lane == position, as they are submitted).
     std::uint32_t callMask = 0;  // valid lanes of an 8-wide call
-    if (a->N == WatertightRayPacket::kLanes) {
+    if (a->N == WatertightRayPacket::kLanes && !(traversal && traversal->singleRay)) {
         bool lanesInPlace = true;
         callMask = packetLanes(a->valid, traversal ? &RTCRayN_id(rayN, a->N, 0) : nullptr, lanesInPlace);
         // Fewer rays than triangles: the per-ray form below needs fewer SIMD tests.
@@ -521,7 +537,7 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
         if (a->N == WatertightRayPacket::kLanes ? !((callMask >> i) & 1u) : a->valid[i] == 0) continue;
         const std::uint32_t lane = laneOf(i);
         const WatertightRay ray =
-            instanceRays ? instanceRays->packet.ray(static_cast<int>(lane))
+            instanceRays ? (traversal->singleRay ? instanceRays->single : instanceRays->packet.ray(static_cast<int>(lane)))
                          : makeWatertightRay(
                                vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i),
                                     RTCRayN_org_z(rayN, a->N, i)),
@@ -563,8 +579,8 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     // A single ray is a one-lane trace; no packet overhead for Embree.
     PipelineContext ctx(*this, args, depth, counters, &ray, payloads, false);
     const bool valid = isValidRay(ray);
+    ctx.singleRay = true;
     ctx.setWorldRay(0, ray, valid);
-    for (std::uint32_t lane = 1; lane < kMaxLanes; ++lane) ctx.setWorldRay(lane, ray, false);
     const std::uint32_t type = args.rayContribution & 0xf;
     if (!valid || !accel_.tlas()) {
         // DXR: such rays are undefined; we count them as misses.
@@ -656,8 +672,8 @@ QueryHit queryHitOf(const RTCRayHit8& rh, int i) {
 
 TraversalContext singleRayContext(const AccelManager& accel, const RayDesc& ray, bool valid) {
     TraversalContext ctx(accel, queryMarkerFor(accel), false);
+    ctx.singleRay = true;
     ctx.setWorldRay(0, ray, valid);
-    for (std::uint32_t lane = 1; lane < kMaxLanes; ++lane) ctx.setWorldRay(lane, ray, false);
     return ctx;
 }
 
