@@ -164,7 +164,13 @@ TEST(ScalableScenes, ForestInstancesStandOnTheGround) {
         unique += m.triangleCount();
         EXPECT_EQ(load::degenerateTriangleCount(m), 0u) << m.name;
     }
-    EXPECT_GT(instancedTriangles(world), 50 * unique);
+    EXPECT_GT(instancedTriangles(world), unique);
+    // The tree is a cone tree of a few thousand triangles; bush and rock are
+    // subdivided icospheres (20 x 4^3).
+    EXPECT_GT(world.mesh(1).triangleCount(), 2000u);
+    EXPECT_LT(world.mesh(1).triangleCount(), 6000u);
+    EXPECT_EQ(world.mesh(3).triangleCount(), 1280u);
+    EXPECT_EQ(world.mesh(4).triangleCount(), 1280u);
     // Each tree's origin lies on the ground triangle beneath it, found here by
     // brute force over the ground mesh (the loader interpolates its grid).
     const Geometry& ground = world.mesh(0).geometries[0];

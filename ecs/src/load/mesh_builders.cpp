@@ -129,7 +129,18 @@ Geometry makeLathe(const std::vector<vec2>& profile, int segments, MaterialId ma
             if (!upperPoint) g.indices.insert(g.indices.end(), {a, c, d});
         }
     }
+    // Step: normals. Copies of one point (the seam, a zero-radius ring) share
+    // the average of their normals, so displacing along them opens no crack.
     g.normals = generateVertexNormals(g.positions, g.indices);
+    for (std::size_t ring = 0; ring < profile.size(); ++ring) {
+        const int last = profile[ring].x == 0.f ? segments : 0;  // copies: 0..last and segments
+        vec3 sum(0.f);
+        for (int s = 0; s <= last; ++s) sum += g.normals[at(ring, s)];
+        if (last != segments) sum += g.normals[at(ring, segments)];
+        const vec3 shared = glm::dot(sum, sum) > 0.f ? glm::normalize(sum) : vec3(0.f, 1.f, 0.f);
+        for (int s = 0; s <= last; ++s) g.normals[at(ring, s)] = shared;
+        g.normals[at(ring, segments)] = shared;
+    }
     return g;
 }
 
