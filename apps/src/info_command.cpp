@@ -39,6 +39,13 @@ int runInfo(const InfoOptions& o) {
             if (g.deformable()) { ++deformable; break; }
 
     std::printf("scene: %s\n", o.scene.c_str());
+    const ecs::SceneSettings& settings = world.settings();
+    if (!settings.parameters.empty()) {
+        std::printf("parameters:");
+        for (const auto& [key, value] : settings.parameters) std::printf(" %s=%u", key.c_str(), value);
+        std::printf("\n");
+    }
+    if (!settings.generated.empty()) std::printf("generated: %s\n", settings.generated.c_str());
     std::printf("entities: %u\n", world.entityCount());
     std::printf("meshes: %zu (%zu deformable)\n", world.meshes().size(), deformable);
     std::printf("instances: %zu\n", world.count<ecs::MeshInstance>());

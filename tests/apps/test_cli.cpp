@@ -1,4 +1,6 @@
 // End-to-end: the rtlab executable's contract (DESIGN.md command line).
+#include "cli_test_util.hpp"
+
 #include <rtlab/core/image.hpp>
 
 #include <gtest/gtest.h>
@@ -15,42 +17,11 @@
 #include <sys/wait.h>
 
 namespace fs = std::filesystem;
+using namespace rtlab::test;
 
 namespace {
 
-struct CliRun {
-    int exitCode = -1;
-    std::string out;  // stdout + stderr
-};
-
-CliRun runCli(const std::string& args) {
-    CliRun r;
-    const std::string cmd = std::string(RTLAB_CLI) + " " + args + " 2>&1";
-    FILE* pipe = popen(cmd.c_str(), "r");
-    if (!pipe) return r;
-    std::array<char, 4096> buf{};
-    while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
-    const int status = pclose(pipe);
-    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
-
-fs::path freshDir(const std::string& name) {
-    const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + name);
-    fs::remove_all(d);
-    return d;
-}
-
 const fs::path kAssimp = "/usr/share/assimp/models/glTF2";
-
-// DIR/stats.json without its "timing" entries (everything else is deterministic).
-nlohmann::json statsWithoutTiming(const fs::path& dir) {
-    std::ifstream in(dir / "stats.json");
-    nlohmann::json j = nlohmann::json::parse(in);
-    j.erase("timing");
-    for (auto& f : j["frames"]) f.erase("timing");
-    return j;
-}
 
 }  // namespace
 
@@ -88,14 +59,9 @@ TEST(Cli, RenderShowcaseThreeFramesWritesOutputsAndUpdateCounts) {
 }
 
 TEST(Cli, OneAndTwoThreadsAreBitIdentical) {
-    const fs::path a = freshDir("t1"), b = freshDir("t2");
-    ASSERT_EQ(runCli("render --scene builtin:showcase --frames 2 --width 80 --height 45 --threads 1 --out " + a.string()).exitCode, 0);
-    ASSERT_EQ(runCli("render --scene builtin:showcase --frames 2 --width 80 --height 45 --threads 2 --out " + b.string()).exitCode, 0);
-    const CliRun cmp = runCli("compare " + (a / "frame_0001.exr").string() + " " + (b / "frame_0001.exr").string());
-    EXPECT_EQ(cmp.exitCode, 0);
-    EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
-    // Stats match too, apart from the timing entries.
-    EXPECT_EQ(statsWithoutTiming(a), statsWithoutTiming(b));
+    // The EXR of the second frame and the stats (apart from timing) match.
+    expectOneAndTwoThreadsIdentical("showcase", "render --scene builtin:showcase --frames 2 --width 80 --height 45",
+                                    "frame_0001.exr");
 }
 
 TEST(Cli, CompareReportsDifferences) {
@@ -343,13 +309,9 @@ TEST(Cli, RtcoreRenderVerifiesAndMatchesEmbree) {
 }
 
 TEST(Cli, RtcoreOneAndTwoThreadsAreBitIdentical) {
-    const fs::path a = freshDir("rt_t1"), b = freshDir("rt_t2");
-    const std::string common = "render --scene builtin:showcase --frames 2 --width 48 --height 32 --backend rtcore ";
-    ASSERT_EQ(runCli(common + "--threads 1 --out " + a.string()).exitCode, 0);
-    ASSERT_EQ(runCli(common + "--threads 2 --out " + b.string()).exitCode, 0);
-    EXPECT_EQ(statsWithoutTiming(a), statsWithoutTiming(b));
-    const CliRun cmp = runCli("compare " + (a / "frame_0001_rtcore.exr").string() + " " + (b / "frame_0001_rtcore.exr").string());
-    EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << cmp.out;
+    expectOneAndTwoThreadsIdentical("rtcore",
+                                    "render --scene builtin:showcase --frames 2 --width 48 --height 32 --backend rtcore",
+                                    "frame_0001_rtcore.exr");
 }
 
 TEST(Cli, PlanPrintsThePassesAndWhy) {

@@ -1,11 +1,19 @@
 // Built-in scenes. `showcase` exercises every effect; `cornell` is diffuse
-// only with one area light (the scene that needs few passes).
+// only with one area light (the scene that needs few passes). The scalable
+// scenes (terrain, forest, hairball) live in scalable_scenes.cpp; this file
+// parses every builtin source string, "NAME" or "NAME?key=value&key=value".
+#include "builtin_common.hpp"
+
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/mesh_builders.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 
+#include <algorithm>
+#include <charconv>
+#include <limits>
+
 namespace rtlab::ecs::load {
-namespace {
+namespace builtin {
 
 Material diffuse(const std::string& name, const vec3& albedo) {
     Material m;
@@ -15,8 +23,7 @@ Material diffuse(const std::string& name, const vec3& albedo) {
     return m;
 }
 
-Entity place(World& world, const std::string& name, MeshId mesh, const vec3& t, const quat& r = quat(1, 0, 0, 0),
-             const vec3& s = vec3(1.f)) {
+Entity place(World& world, const std::string& name, MeshId mesh, const vec3& t, const quat& r, const vec3& s) {
     const Entity e = world.create(name);
     world.emplace(e, LocalTransform{t, r, s});
     world.emplace(e, MeshInstance{mesh});
@@ -24,20 +31,26 @@ Entity place(World& world, const std::string& name, MeshId mesh, const vec3& t, 
 }
 
 Entity addLight(World& world, const std::string& name, const Light& light, const vec3& position,
-                const vec3& direction = vec3(0.f, -1.f, 0.f)) {
+                const vec3& direction) {
     const Entity e = world.create(name);
     world.emplace(e, LocalTransform{position, orientationLookingAlong(direction), vec3(1.f)});
     world.emplace(e, light);
     return e;
 }
 
-Entity addCamera(World& world, const vec3& position, const vec3& target, float yfov) {
+Entity addCamera(World& world, const vec3& position, const vec3& target, float yfov, float zfar) {
     const Entity e = world.create("camera");
     world.emplace(e, LocalTransform{position, orientationLookingAlong(target - position), vec3(1.f)});
-    world.emplace(e, Camera{yfov, 0.01f, 100.f, 0.f});
+    world.emplace(e, Camera{yfov, 0.01f, zfar, 0.f});
     world.setActiveCamera(e);
     return e;
 }
+
+}  // namespace builtin
+
+namespace {
+
+using namespace builtin;
 
 // A closed box seen from inside: the room's walls face inwards.
 Geometry makeRoomShell(const vec3& size, MaterialId material) {
@@ -201,17 +214,112 @@ void buildCornell(World& world) {
     addCamera(world, vec3(0.f, 1.f, 3.9f), vec3(0.f, 1.f, 0.f), 0.69f);
 }
 
+struct ParameterSpec {
+    const char* key;
+    std::uint32_t defaultValue, min, max;
+};
+
+struct BuiltinScene {
+    const char* name;
+    void (*build)(World&, const Parameters&);
+    std::vector<ParameterSpec> parameters;
+};
+
+const std::vector<BuiltinScene>& builtinScenes() {
+    constexpr std::uint32_t kMaxSeed = std::numeric_limits<std::uint32_t>::max();
+    static const std::vector<BuiltinScene> scenes = {
+        {"showcase", [](World& w, const Parameters&) { buildShowcase(w); }, {}},
+        {"cornell", [](World& w, const Parameters&) { buildCornell(w); }, {}},
+        {"terrain", buildTerrain, {{"triangles", 100000, 1000, 10000000}, {"seed", 0, 0, kMaxSeed}}},
+        {"forest", buildForest, {{"instances", 1000, 1, 1000000}, {"seed", 0, 0, kMaxSeed}}},
+        {"hairball", buildHairball, {{"triangles", 100000, 1000, 10000000}, {"seed", 0, 0, kMaxSeed}}},
+    };
+    return scenes;
+}
+
+std::string joined(const std::vector<std::string>& items) {
+    std::string s;
+    for (const std::string& item : items) s += (s.empty() ? "" : ", ") + item;
+    return s;
+}
+
+// A non-negative integer: decimal digits, optionally with a decimal exponent
+// ("1e6"). Returns false on anything else or on overflow past 2^32 - 1.
+bool parseInteger(const std::string& text, std::uint64_t& value) {
+    const std::size_t e = text.find_first_of("eE");
+    const std::string mantissa = text.substr(0, e);
+    const auto digitsOnly = [](const std::string& t) {
+        return !t.empty() && t.size() <= 10 && t.find_first_not_of("0123456789") == std::string::npos;
+    };
+    if (!digitsOnly(mantissa)) return false;
+    std::from_chars(mantissa.data(), mantissa.data() + mantissa.size(), value);
+    if (e != std::string::npos) {
+        const std::string exponent = text.substr(e + 1);
+        if (!digitsOnly(exponent) || exponent.size() > 2) return false;
+        for (int i = std::stoi(exponent); i > 0 && value != 0; --i)
+            if ((value *= 10) > std::numeric_limits<std::uint32_t>::max()) return false;
+    }
+    return value <= std::numeric_limits<std::uint32_t>::max();
+}
+
+// "key=value&key=value" checked against the scene's accepted parameters.
+Parameters parseParameters(const std::string& source, const BuiltinScene& scene, const std::string& query) {
+    std::vector<std::string> accepted;
+    for (const ParameterSpec& spec : scene.parameters) accepted.push_back(spec.key);
+    const std::string acceptedText = accepted.empty() ? "builtin:" + std::string(scene.name) + " takes no parameters"
+                                                      : "accepted: " + joined(accepted);
+    Parameters values;
+    std::size_t begin = 0;
+    while (begin <= query.size()) {
+        const std::size_t end = std::min(query.find('&', begin), query.size());
+        const std::string item = query.substr(begin, end - begin);
+        begin = end + 1;
+        const std::size_t eq = item.find('=');
+        if (eq == std::string::npos || eq == 0)
+            throw InputError(source, "expected key=value, got '" + item + "' (" + acceptedText + ")");
+        const std::string key = item.substr(0, eq), text = item.substr(eq + 1);
+        const auto spec = std::find_if(scene.parameters.begin(), scene.parameters.end(),
+                                       [&](const ParameterSpec& p) { return key == p.key; });
+        if (spec == scene.parameters.end())
+            throw InputError(source, "unknown parameter '" + key + "' (" + acceptedText + ")");
+        if (values.count(key)) throw InputError(source, "parameter '" + key + "' given twice");
+        const std::string range = std::to_string(spec->min) + " to " + std::to_string(spec->max);
+        std::uint64_t value = 0;
+        if (!parseInteger(text, value))
+            throw InputError(source, "parameter '" + key + "' has value '" + text + "', expected an integer from " +
+                                         range);
+        if (value < spec->min || value > spec->max)
+            throw InputError(source, "parameter '" + key + "' is " + std::to_string(value) + ", out of range (" +
+                                         range + ")");
+        values[key] = static_cast<std::uint32_t>(value);
+    }
+    return values;
+}
+
 }  // namespace
 
-std::vector<std::string> builtinSceneNames() { return {"showcase", "cornell"}; }
+std::vector<std::string> builtinSceneNames() {
+    std::vector<std::string> names;
+    for (const BuiltinScene& scene : builtinScenes()) names.push_back(scene.name);
+    return names;
+}
 
-void loadBuiltinScene(World& world, const std::string& name) {
-    if (name == "showcase")
-        buildShowcase(world);
-    else if (name == "cornell")
-        buildCornell(world);
-    else
-        throw InputError("builtin:" + name, "unknown builtin scene (available: showcase, cornell)");
+void loadBuiltinScene(World& world, const std::string& nameAndParameters) {
+    const std::string source = "builtin:" + nameAndParameters;
+    const std::size_t question = nameAndParameters.find('?');
+    const std::string name = nameAndParameters.substr(0, question);
+    const auto scene = std::find_if(builtinScenes().begin(), builtinScenes().end(),
+                                    [&](const BuiltinScene& s) { return name == s.name; });
+    if (scene == builtinScenes().end())
+        throw InputError(source, "unknown builtin scene (available: " + joined(builtinSceneNames()) + ")");
+    Parameters values;
+    if (question != std::string::npos) values = parseParameters(source, *scene, nameAndParameters.substr(question + 1));
+    world.settings().parameters.clear();
+    for (const ParameterSpec& spec : scene->parameters) {
+        values.emplace(spec.key, spec.defaultValue);  // keeps a given value
+        world.settings().parameters.emplace_back(spec.key, values.at(spec.key));
+    }
+    scene->build(world, values);
 }
 
 }  // namespace rtlab::ecs::load

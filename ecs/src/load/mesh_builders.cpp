@@ -1,5 +1,7 @@
 #include <rtlab/ecs/load/mesh_builders.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
 
+#include <algorithm>
 #include <map>
 #include <utility>
 
@@ -69,6 +71,11 @@ Geometry makeIcosphere(float radius, int levels, MaterialId material) {
 Geometry makeGrid(float size, int n, MaterialId material) {
     Geometry g;
     g.material = material;
+    const std::size_t vertices = static_cast<std::size_t>(n + 1) * static_cast<std::size_t>(n + 1);
+    g.positions.reserve(vertices);
+    g.normals.reserve(vertices);
+    g.uv0.reserve(vertices);
+    g.indices.reserve(6 * static_cast<std::size_t>(n) * static_cast<std::size_t>(n));
     for (int j = 0; j <= n; ++j)
         for (int i = 0; i <= n; ++i) {
             const vec2 uv(static_cast<float>(i) / n, static_cast<float>(j) / n);
@@ -94,6 +101,46 @@ Geometry makeQuad(float width, float height, MaterialId material) {
         g.uv0.emplace_back(c.x, 1.f - c.y);
     }
     g.indices = {0, 1, 2, 0, 2, 3};
+    return g;
+}
+
+Geometry makeLathe(const std::vector<vec2>& profile, int segments, MaterialId material) {
+    Geometry g;
+    g.material = material;
+    const auto at = [segments](std::size_t ring, int s) {
+        return static_cast<std::uint32_t>(ring * static_cast<std::size_t>(segments + 1) + static_cast<std::size_t>(s));
+    };
+    // Step: one ring of segments + 1 vertices per profile point (the seam is
+    // duplicated so u runs 0..1).
+    for (std::size_t ring = 0; ring < profile.size(); ++ring)
+        for (int s = 0; s <= segments; ++s) {
+            const float phi = 2.f * kPi * static_cast<float>(s) / static_cast<float>(segments);
+            g.positions.emplace_back(profile[ring].x * std::cos(phi), profile[ring].y, -profile[ring].x * std::sin(phi));
+            g.uv0.emplace_back(static_cast<float>(s) / static_cast<float>(segments),
+                               static_cast<float>(ring) / static_cast<float>(std::max<std::size_t>(profile.size() - 1, 1)));
+        }
+    // Step: quads between consecutive rings, counter-clockwise seen from outside.
+    for (std::size_t ring = 0; ring + 1 < profile.size(); ++ring) {
+        const bool lowerPoint = profile[ring].x == 0.f, upperPoint = profile[ring + 1].x == 0.f;
+        if (lowerPoint && upperPoint) continue;
+        for (int s = 0; s < segments; ++s) {
+            const std::uint32_t a = at(ring, s), b = at(ring, s + 1), c = at(ring + 1, s + 1), d = at(ring + 1, s);
+            if (!lowerPoint) g.indices.insert(g.indices.end(), {a, b, c});
+            if (!upperPoint) g.indices.insert(g.indices.end(), {a, c, d});
+        }
+    }
+    // Step: normals. Copies of one point (the seam, a zero-radius ring) share
+    // the average of their normals, so displacing along them opens no crack.
+    g.normals = generateVertexNormals(g.positions, g.indices);
+    for (std::size_t ring = 0; ring < profile.size(); ++ring) {
+        const int last = profile[ring].x == 0.f ? segments : 0;  // copies: 0..last and segments
+        vec3 sum(0.f);
+        for (int s = 0; s <= last; ++s) sum += g.normals[at(ring, s)];
+        if (last != segments) sum += g.normals[at(ring, segments)];
+        const vec3 shared = glm::dot(sum, sum) > 0.f ? glm::normalize(sum) : vec3(0.f, 1.f, 0.f);
+        for (int s = 0; s <= last; ++s) g.normals[at(ring, s)] = shared;
+        g.normals[at(ring, segments)] = shared;
+    }
     return g;
 }
 

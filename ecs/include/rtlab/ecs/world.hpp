@@ -17,6 +17,7 @@
 #include <string>
 #include <tuple>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace rtlab::ecs {
@@ -26,6 +27,11 @@ struct SceneSettings {
     std::string name;
     float frameSeconds = 1.f / 24.f;  // time step between rendered frames
     vec3 backgroundRadiance{0.f};     // radiance of rays that leave the scene
+    // A parametric builtin scene's parameters as used (defaults filled in),
+    // in the order the scene declares them, and one line on what it generated
+    // (e.g. the grid chosen for a requested triangle count). Printed by `rtlab info`.
+    std::vector<std::pair<std::string, std::uint32_t>> parameters;
+    std::string generated;
 };
 
 // What loading left out of the scene: filled by the loaders, printed by

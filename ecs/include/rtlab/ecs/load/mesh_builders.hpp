@@ -17,6 +17,12 @@ Geometry makeGrid(float size, int n, MaterialId material);
 // Quad in the XY plane facing +Z, width x height.
 Geometry makeQuad(float width, float height, MaterialId material);
 
+// Surface of revolution about +Y: the polyline `profile` of (radius, y)
+// points swept through `segments` angular steps. Bands whose two rings both
+// have radius 0 are skipped, a band with one zero-radius ring becomes a fan
+// (no degenerate triangles); normals are area-weighted vertex normals.
+Geometry makeLathe(const std::vector<vec2>& profile, int segments, MaterialId material);
+
 MeshAsset makeMesh(std::string name, Geometry g);
 
 }  // namespace rtlab::ecs::load

@@ -26,8 +26,13 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
 // Scene description JSON (docs/scene-format.md).
 void loadSceneJson(World& world, const std::filesystem::path& path);
 
-// Built-in scenes: "showcase" (default; exercises every effect) and "cornell".
-void loadBuiltinScene(World& world, const std::string& name);
+// Built-in scenes: "showcase" (default; exercises every effect), "cornell",
+// and the scalable "terrain?triangles=N", "forest?instances=M" and
+// "hairball?triangles=N" (each also takes "seed"). `nameAndParameters` is the
+// source after "builtin:", "NAME" or "NAME?key=value&key=value"; unknown names
+// or parameters and bad or out-of-range values throw InputError. The
+// parameters used are recorded in world.settings().parameters.
+void loadBuiltinScene(World& world, const std::string& nameAndParameters);
 std::vector<std::string> builtinSceneNames();
 
 // Adds a camera looking at the scene bounds from +Z when the world has no

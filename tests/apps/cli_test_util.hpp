@@ -1,0 +1,65 @@
+#pragma once
+// Helpers for the end-to-end tests of the rtlab executable (RTLAB_CLI).
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace rtlab::test {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+    int exitCode = -1;
+    std::string out;  // stdout + stderr
+};
+
+inline CliRun runCli(const std::string& args) {
+    CliRun r;
+    const std::string cmd = std::string(RTLAB_CLI) + " " + args + " 2>&1";
+    FILE* pipe = popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    std::array<char, 4096> buf{};
+    while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
+    const int status = pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+}
+
+inline fs::path freshDir(const std::string& name) {
+    const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + name);
+    fs::remove_all(d);
+    return d;
+}
+
+// DIR/stats.json without its "timing" entries (everything else is deterministic).
+inline nlohmann::json statsWithoutTiming(const fs::path& dir) {
+    std::ifstream in(dir / "stats.json");
+    nlohmann::json j = nlohmann::json::parse(in);
+    j.erase("timing");
+    for (auto& f : j["frames"]) f.erase("timing");
+    return j;
+}
+
+// Renders `args` with --threads 1 and --threads 2 into two fresh directories
+// (named after `name`) and expects bit-identical frame_0000.exr and equal
+// stats apart from timing.
+inline void expectOneAndTwoThreadsIdentical(const std::string& name, const std::string& args,
+                                            const std::string& frame = "frame_0000.exr") {
+    const fs::path a = freshDir(name + "_t1"), b = freshDir(name + "_t2");
+    const CliRun one = runCli(args + " --threads 1 --out " + a.string());
+    ASSERT_EQ(one.exitCode, 0) << args << "\n" << one.out;
+    const CliRun two = runCli(args + " --threads 2 --out " + b.string());
+    ASSERT_EQ(two.exitCode, 0) << args << "\n" << two.out;
+    const CliRun cmp = runCli("compare " + (a / frame).string() + " " + (b / frame).string());
+    EXPECT_EQ(cmp.exitCode, 0) << cmp.out;
+    EXPECT_NE(cmp.out.find("identical: true"), std::string::npos) << args << "\n" << cmp.out;
+    EXPECT_EQ(statsWithoutTiming(a), statsWithoutTiming(b)) << args;
+}
+
+}  // namespace rtlab::test
