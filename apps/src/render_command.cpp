@@ -9,6 +9,7 @@
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/config.hpp>
+#include <rtlab/rtcore_sim/layout.hpp>
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
@@ -312,7 +313,25 @@ int runRender(const RenderOptions& o) {
             }
             fj["rtcore"] = std::move(r);
         }
-        // Timings vary run to run; everything outside "timing" is deterministic.
+        // Acceleration-structure memory per unique triangle: the model's BVH
+        // layout and rtlab's watertight clusters are deterministic; what
+        // Embree holds depends on its build threads ("measured" below).
+        std::uint64_t uniqueTriangles = 0;
+        for (const ecs::MeshAsset& mesh : *scene.meshes)
+            for (const ecs::Geometry& g : mesh.geometries) uniqueTriangles += g.triangleCount();
+        auto perTriangle = [&](double bytes) { return uniqueTriangles ? bytes / double(uniqueTriangles) : 0.0; };
+        fj["accelMemory"] = {{"uniqueTriangles", uniqueTriangles},
+                             {"watertightClusterBytes", accel.clusterBytes()},
+                             {"watertightClusterBytesPerTriangle", perTriangle(double(accel.clusterBytes()))}};
+        if (rtcore) {
+            rtcore_sim::MemoryLayout layout;
+            layout.build(rtcore->model());
+            fj["accelMemory"]["rtcoreModelBytes"] = layout.totalBytes();
+            fj["accelMemory"]["rtcoreModelBytesPerTriangle"] = perTriangle(double(layout.totalBytes()));
+        }
+        fj["measured"] = {{"embreeBytes", accel.embreeBytes()},
+                          {"embreeBytesPerTriangle", perTriangle(double(accel.embreeBytes()))}};
+        // Timings vary run to run; everything outside "timing" and "measured" is deterministic.
         fj["timing"] = {{"accelBuildMs", accelStats.buildMs}, {"renderMs", renderMs}, {"denoiseMs", denoiseMs}};
         for (std::size_t p = 0; p < shaders::kPassCount; ++p)
             if (plan.passes[p].planned)

@@ -37,12 +37,16 @@ inline fs::path freshDir(const std::string& name) {
     return d;
 }
 
-// DIR/stats.json without its "timing" entries (everything else is deterministic).
+// DIR/stats.json without its "timing" and "measured" entries (everything
+// else is deterministic).
 inline nlohmann::json statsWithoutTiming(const fs::path& dir) {
     std::ifstream in(dir / "stats.json");
     nlohmann::json j = nlohmann::json::parse(in);
     j.erase("timing");
-    for (auto& f : j["frames"]) f.erase("timing");
+    for (auto& f : j["frames"]) {
+        f.erase("timing");
+        f.erase("measured");
+    }
     return j;
 }
 

@@ -83,3 +83,24 @@ TEST(CliScalableScenes, GbufferFramesAreBitIdenticalOnOneAndTwoThreads) {
         EXPECT_GT(stats["frames"][0]["rays"]["primary"]["hits"].get<long long>(), 0);
     }
 }
+
+// stats.json reports the acceleration structures' memory per unique triangle:
+// rtlab's clusters and the model's layout (deterministic) and Embree's bytes
+// (measured). Cluster bytes lie between one and four triangles per cluster.
+TEST(CliScalableScenes, StatsReportAccelerationStructureBytesPerTriangle) {
+    const fs::path dir = freshDir("accel_memory");
+    const CliRun r = runCli("render --scene 'builtin:terrain?triangles=4000' --backend rtcore --effects gbuffer "
+                            "--denoise none --width 16 --height 12 --out " + dir.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    std::ifstream in(dir / "stats.json");
+    const nlohmann::json frame = nlohmann::json::parse(in)["frames"][0];
+    const nlohmann::json& m = frame["accelMemory"];
+    const double triangles = m["uniqueTriangles"].get<double>();
+    EXPECT_NEAR(triangles, 4000.0, 200.0);
+    const double clusterBytes = m["watertightClusterBytes"].get<double>();
+    EXPECT_GE(clusterBytes, triangles / 4.0 * 176.0);
+    EXPECT_LE(clusterBytes, triangles * 176.0);
+    EXPECT_DOUBLE_EQ(m["watertightClusterBytesPerTriangle"].get<double>(), clusterBytes / triangles);
+    EXPECT_GT(m["rtcoreModelBytes"].get<double>(), 0.0);
+    EXPECT_GT(frame["measured"]["embreeBytes"].get<double>(), 0.0);
+}

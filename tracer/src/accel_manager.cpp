@@ -203,6 +203,13 @@ EmbreeDevice::EmbreeDevice(int threads) {
     device_ = rtcNewDevice(config.c_str());
     if (!device_) throw std::runtime_error("cannot create Embree device");
     rtcSetDeviceErrorFunction(device_, embreeErrorHandler, nullptr);
+    rtcSetDeviceMemoryMonitorFunction(
+        device_,
+        [](void* user, ssize_t bytes, bool) {
+            static_cast<std::atomic<std::int64_t>*>(user)->fetch_add(bytes, std::memory_order_relaxed);
+            return true;
+        },
+        &bytes_);
 }
 
 EmbreeDevice::~EmbreeDevice() { rtcReleaseDevice(device_); }
@@ -230,6 +237,15 @@ struct AccelManager::Blas {
 };
 
 AccelManager::AccelManager(AccelOptions options) : options_(options), device_(options.threads) {}
+
+std::uint64_t AccelManager::clusterBytes() const {
+    std::uint64_t bytes = 0;
+    for (const auto& blas : blases_)
+        if (blas)
+            for (const auto& w : blas->watertight)
+                if (w) bytes += w->clusters.size() * sizeof(TriangleCluster);
+    return bytes;
+}
 
 AccelManager::~AccelManager() {
     if (tlas_) rtcReleaseScene(tlas_);

@@ -10,6 +10,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -87,9 +88,15 @@ public:
     EmbreeDevice(const EmbreeDevice&) = delete;
     EmbreeDevice& operator=(const EmbreeDevice&) = delete;
     RTCDevice get() const { return device_; }
+    // Bytes the device holds now (Embree's memory monitor: BVHs, scenes,
+    // geometry buffers). Embree's builders allocate per build thread, so
+    // the figure depends on the thread count: a measurement, not a
+    // deterministic statistic.
+    std::int64_t bytesInUse() const { return bytes_.load(std::memory_order_relaxed); }
 
 private:
     RTCDevice device_ = nullptr;
+    std::atomic<std::int64_t> bytes_{0};
 };
 
 class AccelManager {
@@ -104,6 +111,11 @@ public:
 
     RTCScene tlas() const { return tlas_; }
     RTCDevice device() const { return device_.get(); }
+    // Memory of the acceleration structures: what Embree holds
+    // (EmbreeDevice::bytesInUse, thread-count dependent) and rtlab's own
+    // watertight triangle clusters (deterministic).
+    std::int64_t embreeBytes() const { return device_.bytesInUse(); }
+    std::uint64_t clusterBytes() const;
     // TLAS instance id (Embree instID) -> the snapshot instance it came from.
     const ecs::InstanceSnapshot& instance(std::uint32_t instId) const { return instances_.at(instId); }
     std::size_t instanceCount() const { return instances_.size(); }
