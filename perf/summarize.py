@@ -2,10 +2,11 @@
 """Turns the Google Benchmark JSON files of one `make bench` run into the
 ratios the issues ask for, written to OUT_DIR/summary.json and printed.
 Where a benchmark ran several repetitions, its fastest one counts."""
-import json, pathlib, re, sys
+import json, math, pathlib, re, sys
 
 out = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench")
 times, rates, model = {}, {}, {}
+terrain_scaling = []  # perf/scalable_scenes.cpp: one entry per terrain size
 denoise_times = {}  # (benchmark, args...) -> ms, from perf/denoise_speed.cpp
 for f in sorted(out.glob("*.json")):
     if f.name == "summary.json":
@@ -22,6 +23,9 @@ for f in sorted(out.glob("*.json")):
             m = re.match(r"(BM_Denoise\w+)((?:/\d+)*)", b["name"])
             scale = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b.get("time_unit", "ns")]
             denoise_times[(m.group(1),) + tuple(int(a) for a in m.group(2).split("/")[1:])] = b["real_time"] * scale
+        if b["name"].startswith("BM_TerrainAccelScaling/"):
+            terrain_scaling.append({k: b[k] for k in ("uniqueTriangles", "buildMs", "embreeBytes", "clusterBytes",
+                                                       "bytesPerTriangle") if k in b})
         if b["name"].startswith("BM_RtCoreTimingModel/"):
             model[b.get("label", b["name"])] = {k: b[k] for k in ("cyclesPerRay", "meanLatency", "nodeVisitsPerRay",
                                                                   "triangleTestsPerRay", "cacheHitRate", "simdEfficiency") if k in b}
@@ -122,7 +126,28 @@ if denoise_times:
     denoise = {"resolution": "1920x1080", "stages_ms": stages, "stacks_ms": stacks, "rmw_reference_ms": rmw,
                "atrous_vs_rmw": ratios}
 
-(out / "summary.json").write_text(json.dumps({**summary, "rtcore_model_showcase": model, "denoise": denoise}, indent=2) + "\n")
+def loglog_slope(points):
+    """Least-squares slope of log(y) over log(x): 1 = linear in N."""
+    pts = [(math.log(x), math.log(y)) for x, y in points if x > 0 and y > 0]
+    if len(pts) < 2:
+        return None
+    mx = sum(p[0] for p in pts) / len(pts)
+    my = sum(p[1] for p in pts) / len(pts)
+    sxx = sum((p[0] - mx) ** 2 for p in pts)
+    return sum((p[0] - mx) * (p[1] - my) for p in pts) / sxx if sxx else None
+
+scaling = None
+if terrain_scaling:
+    terrain_scaling.sort(key=lambda e: e.get("uniqueTriangles", 0))
+    scaling = {
+        "sizes": terrain_scaling,
+        "build_ms_loglog_slope": loglog_slope([(e["uniqueTriangles"], e["buildMs"]) for e in terrain_scaling]),
+        "memory_bytes_loglog_slope": loglog_slope(
+            [(e["uniqueTriangles"], e["embreeBytes"] + e["clusterBytes"]) for e in terrain_scaling]),
+    }
+
+(out / "summary.json").write_text(json.dumps({**summary, "rtcore_model_showcase": model, "denoise": denoise,
+                                              "terrain_accel_scaling": scaling}, indent=2) + "\n")
 for k, v in summary.items():
     print(f"{k}: {v:.4f}" if v is not None else f"{k}: (missing)")
 for label, figures in model.items():
@@ -140,3 +165,9 @@ else:
             print(f"  {name} {key}: " + " / ".join(fmt(by_threads[f'{t}t'], '.2f') for t in THREADS))
     for key in denoise["atrous_vs_rmw"]["1t"]:
         print(f"denoise {key}: " + ", ".join(f"{t}t " + fmt(denoise['atrous_vs_rmw'][f'{t}t'][key], '.2f') for t in THREADS))
+if scaling:
+    print("terrain acceleration structures, 1e4..4e6 triangles (perf/scalable_scenes.cpp):")
+    for e in scaling["sizes"]:
+        print(f"  {int(e['uniqueTriangles'])} triangles: build {e['buildMs']:.1f} ms, "
+              f"{e['bytesPerTriangle']:.1f} bytes/triangle (Embree {int(e['embreeBytes'])}, clusters {int(e['clusterBytes'])})")
+    print(f"  log-log slope: build time {scaling['build_ms_loglog_slope']:.3f}, memory {scaling['memory_bytes_loglog_slope']:.3f}")
