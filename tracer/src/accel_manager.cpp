@@ -78,42 +78,84 @@ double clusterCost(const ecs::Geometry& g, const std::vector<std::uint32_t>& ord
     return rootArea > 0.0 ? sum / rootArea : 0.0;
 }
 
-// Clusters of up to kClusterTriangles triangles, consecutive along the
-// Morton curve `order`; a cluster also ends where the next triangle would
-// make its box larger (in surface area) than the sum of its triangles'
-// boxes, so that large triangles (walls, floors) are not lumped into one
-// box that every ray enters. Triangles with a non-finite vertex are left out
-// (Embree and the RT-core model skip them too).
+// Clusters of up to kClusterTriangles triangles, grown along the Morton
+// curve `order`: a cluster starts at the first unassigned triangle and takes,
+// among the next kClusterLookAhead unassigned ones, the triangle that grows
+// its box least, as long as the box's surface area stays within
+// kClusterTightness of the sum of its triangles' boxes' areas, so that large
+// triangles (walls, floors) are not lumped into one box that every ray
+// enters. The look-ahead finds the neighbours a Z-curve puts a few places
+// away. Measured on the showcase (docs/acceleration-structures.md): the old
+// rule (next triangle in Morton order only, tightness 1) made clusters of 1.6
+// triangles and traced bounce rays at 0.76 of native Embree; look-ahead with
+// tightness 1 made fuller but looser clusters (bounce 0.82, primary 0.72);
+// look-ahead 16 with tightness 0.6 gave 0.86 primary and 0.89 bounce.
+// Triangles with a non-finite vertex are left out (Embree and the RT-core
+// model skip them too).
+constexpr std::size_t kClusterLookAhead = 16;
+constexpr float kClusterTightness = 0.6f;
+
 void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std::vector<std::uint32_t>& order) {
     data.clusters.clear();
     data.clusters.reserve((order.size() + kClusterTriangles - 1) / kClusterTriangles);
-    Aabb clusterBox;
-    double memberArea = 0.0;
+    // Step: the finite triangles in Morton order, with their boxes.
+    std::vector<std::uint32_t> pending;
+    std::vector<Aabb> boxes;
+    pending.reserve(order.size());
+    boxes.reserve(order.size());
     for (const std::uint32_t t : order) {
         const vec3& p0 = g.positions[g.indices[3 * t]];
         const vec3& p1 = g.positions[g.indices[3 * t + 1]];
         const vec3& p2 = g.positions[g.indices[3 * t + 2]];
         if (!isFinite(p0) || !isFinite(p1) || !isFinite(p2)) continue;
-        Aabb triBox;
-        triBox.extend(p0);
-        triBox.extend(p1);
-        triBox.extend(p2);
-        Aabb merged = clusterBox;
-        merged.extend(triBox);
-        const bool full = !data.clusters.empty() && data.clusters.back().count == kClusterTriangles;
-        const bool spreads = !data.clusters.empty() && merged.surfaceArea() > memberArea + triBox.surfaceArea();
-        if (data.clusters.empty() || full || spreads) {
-            data.clusters.emplace_back();
-            clusterBox = triBox;
-            memberArea = triBox.surfaceArea();
-        } else {
-            clusterBox = merged;
-            memberArea += triBox.surfaceArea();
-        }
-        TriangleCluster& c = data.clusters.back();
+        Aabb box;
+        box.extend(p0);
+        box.extend(p1);
+        box.extend(p2);
+        pending.push_back(t);
+        boxes.push_back(box);
+    }
+    std::vector<std::uint8_t> assigned(pending.size(), 0);
+    auto add = [&](TriangleCluster& c, std::size_t k) {
+        const std::uint32_t t = pending[k];
         c.primitive[c.count] = t;
-        c.set(static_cast<int>(c.count), p0, p1, p2);
+        c.set(static_cast<int>(c.count), g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]],
+              g.positions[g.indices[3 * t + 2]]);
         ++c.count;
+        assigned[k] = 1;
+    };
+    std::size_t head = 0;
+    while (true) {
+        while (head < pending.size() && assigned[head]) ++head;
+        if (head == pending.size()) break;
+        // Step: a new cluster from the first unassigned triangle.
+        TriangleCluster& c = data.clusters.emplace_back();
+        Aabb clusterBox = boxes[head];
+        double memberArea = clusterBox.surfaceArea();
+        add(c, head);
+        // Step: the next unassigned triangles within the look-ahead.
+        std::size_t candidates[kClusterLookAhead];
+        std::size_t candidateCount = 0;
+        for (std::size_t k = head + 1; k < pending.size() && candidateCount < kClusterLookAhead; ++k)
+            if (!assigned[k]) candidates[candidateCount++] = k;
+        // Step: grow by the candidate that enlarges the box least, while the rule holds.
+        while (c.count < static_cast<std::uint32_t>(kClusterTriangles)) {
+            std::size_t best = pending.size();
+            float bestArea = 0.f;
+            for (std::size_t n = 0; n < candidateCount; ++n) {
+                const std::size_t k = candidates[n];
+                if (assigned[k]) continue;
+                Aabb merged = clusterBox;
+                merged.extend(boxes[k]);
+                const float area = merged.surfaceArea();
+                if (area > kClusterTightness * (memberArea + boxes[k].surfaceArea())) continue;
+                if (best == pending.size() || area < bestArea) best = k, bestArea = area;
+            }
+            if (best == pending.size()) break;
+            clusterBox.extend(boxes[best]);
+            memberArea += boxes[best].surfaceArea();
+            add(c, best);
+        }
     }
 }
 
