@@ -81,20 +81,21 @@ double clusterCost(const ecs::Geometry& g, const std::vector<std::uint32_t>& ord
 // Clusters of up to kClusterTriangles triangles, grown along the Morton
 // curve `order`: a cluster starts at the first unassigned triangle and takes,
 // among the next kClusterLookAhead unassigned ones, the triangle that grows
-// its box least, as long as the box's surface area stays within
-// kClusterTightness of the sum of its triangles' boxes' areas, so that large
-// triangles (walls, floors) are not lumped into one box that every ray
-// enters. The look-ahead finds the neighbours a Z-curve puts a few places
-// away. Measured on the showcase (docs/acceleration-structures.md): the old
-// rule (next triangle in Morton order only, tightness 1) made clusters of 1.6
-// triangles and traced bounce rays at 0.76 of native Embree; look-ahead with
-// tightness 1 made fuller but looser clusters (bounce 0.82, primary 0.72);
-// look-ahead 16 with tightness 0.5 gave 0.84-0.86 primary and 0.86-0.88
-// bounce in two runs (0.4 and 0.6 were no better, within the noise).
+// its box least, while an SAH-style cost says merging pays: rays entering
+// the merged box pay one callback (kCallbackCost triangle tests) and one
+// triangle more, rays entering the two boxes apart pay a callback each and
+// their own triangles. So large triangles (walls, floors) are not lumped
+// into one box that every ray enters, and the look-ahead finds the
+// neighbours a Z-curve puts a few places away. Measured (make bench,
+// docs/acceleration-structures.md): the old rule (next Morton triangle only,
+// while the box's area stays below the sum of the triangles' boxes' areas)
+// made clusters of 1.6 triangles on the showcase and traced its bounce rays
+// at 0.76 of native Embree; this one at 0.83-0.93 over several runs, with
+// about 167 bytes per terrain triangle (Embree's BVH plus the clusters).
 // Triangles with a non-finite vertex are left out (Embree and the RT-core
 // model skip them too).
 constexpr std::size_t kClusterLookAhead = 16;
-constexpr float kClusterTightness = 0.5f;
+constexpr float kCallbackCost = 8.f;  // an Embree callback, in triangle tests
 
 void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std::vector<std::uint32_t>& order) {
     data.clusters.clear();
@@ -132,7 +133,7 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
         // Step: a new cluster from the first unassigned triangle.
         TriangleCluster& c = data.clusters.emplace_back();
         Aabb clusterBox = boxes[head];
-        double memberArea = clusterBox.surfaceArea();
+        float clusterArea = clusterBox.surfaceArea();
         add(c, head);
         // Step: the next unassigned triangles within the look-ahead.
         std::size_t candidates[kClusterLookAhead];
@@ -149,12 +150,18 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
                 Aabb merged = clusterBox;
                 merged.extend(boxes[k]);
                 const float area = merged.surfaceArea();
-                if (area > kClusterTightness * (memberArea + boxes[k].surfaceArea())) continue;
+                // The SAH-style rule: rays entering the merged box pay one
+                // callback and one more triangle; kept apart, the rays entering
+                // each box pay a callback and their own triangles.
+                const float members = static_cast<float>(c.count);
+                const float mergedCost = area * (kCallbackCost + members + 1.f);
+                const float apartCost = clusterArea * (kCallbackCost + members) + boxes[k].surfaceArea() * (kCallbackCost + 1.f);
+                if (mergedCost > apartCost) continue;
                 if (best == pending.size() || area < bestArea) best = k, bestArea = area;
             }
             if (best == pending.size()) break;
             clusterBox.extend(boxes[best]);
-            memberArea += boxes[best].surfaceArea();
+            clusterArea = clusterBox.surfaceArea();
             add(c, best);
         }
     }
