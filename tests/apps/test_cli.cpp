@@ -60,8 +60,12 @@ TEST(Cli, RenderShowcaseThreeFramesWritesOutputsAndUpdateCounts) {
 
 TEST(Cli, OneAndTwoThreadsAreBitIdentical) {
     // The EXR of the second frame and the stats (apart from timing) match.
-    expectOneAndTwoThreadsIdentical("showcase", "render --scene builtin:showcase --frames 2 --width 80 --height 45",
-                                    "frame_0001.exr");
+    const ThreadCountRuns r = renderWithOneAndTwoThreads(
+        "showcase", "render --scene builtin:showcase --frames 2 --width 80 --height 45", "frame_0001.exr");
+    ASSERT_TRUE(r.rendered()) << r.one.out << r.two.out;
+    EXPECT_TRUE(r.framesIdentical()) << r.compare.out;
+    EXPECT_EQ(r.statsOne, r.statsTwo);
+    EXPECT_GT(r.statsOne["frames"][1]["rays"]["primary"]["traced"].get<int>(), 0);
 }
 
 TEST(Cli, CompareReportsDifferences) {
@@ -309,9 +313,14 @@ TEST(Cli, RtcoreRenderVerifiesAndMatchesEmbree) {
 }
 
 TEST(Cli, RtcoreOneAndTwoThreadsAreBitIdentical) {
-    expectOneAndTwoThreadsIdentical("rtcore",
-                                    "render --scene builtin:showcase --frames 2 --width 48 --height 32 --backend rtcore",
-                                    "frame_0001_rtcore.exr");
+    const ThreadCountRuns r = renderWithOneAndTwoThreads(
+        "rtcore", "render --scene builtin:showcase --frames 2 --width 48 --height 32 --backend rtcore",
+        "frame_0001_rtcore.exr");
+    ASSERT_TRUE(r.rendered()) << r.one.out << r.two.out;
+    EXPECT_TRUE(r.framesIdentical()) << r.compare.out;
+    // The cycle counts and the whole stats tree, not just the image.
+    EXPECT_EQ(r.statsOne, r.statsTwo);
+    EXPECT_TRUE(r.statsOne["frames"][1].contains("rtcore"));
 }
 
 TEST(Cli, PlanPrintsThePassesAndWhy) {

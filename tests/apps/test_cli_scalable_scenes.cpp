@@ -76,11 +76,13 @@ TEST(CliScalableScenes, GbufferFramesAreBitIdenticalOnOneAndTwoThreads) {
     for (const std::string scene :
          {"builtin:terrain?triangles=4000&seed=3", "builtin:forest?instances=60", "builtin:hairball?triangles=3000"}) {
         SCOPED_TRACE(scene);
-        expectOneAndTwoThreadsIdentical("scalable", "render --scene '" + scene +
-                                                        "' --effects gbuffer --width 32 --height 24");
+        const ThreadCountRuns r =
+            renderWithOneAndTwoThreads("scalable", "render --scene '" + scene + "' --effects gbuffer --width 32 --height 24");
+        ASSERT_TRUE(r.rendered()) << r.one.out << r.two.out;
+        EXPECT_TRUE(r.framesIdentical()) << r.compare.out;
+        EXPECT_EQ(r.statsOne, r.statsTwo);
         // The camera sees the content: primary rays hit something.
-        const nlohmann::json stats = statsWithoutTiming(fs::temp_directory_path() / "rtlab_cli_scalable_t1");
-        EXPECT_GT(stats["frames"][0]["rays"]["primary"]["hits"].get<long long>(), 0);
+        EXPECT_GT(r.statsOne["frames"][0]["rays"]["primary"]["hits"].get<long long>(), 0);
     }
 }
 
