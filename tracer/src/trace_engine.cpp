@@ -100,14 +100,15 @@ struct TraversalContext {
         embree.filter = marker;
         embree.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
     }
-    // Lane `lane`'s world ray (a zero direction where there is no valid ray:
-    // the watertight test then never hits in that lane).
-    void setWorldRay(std::uint32_t lane, const RayDesc& r, bool valid) {
+    // A one-ray trace of `r` (a zero direction where the ray is not valid:
+    // the watertight test then never hits). Packets are set by setEmbreePacket.
+    void setSingleRay(const RayDesc& r, bool valid) {
+        singleRay = true;
         const vec3 d = valid ? r.direction : vec3(0.f);
         const vec3 o = valid ? r.origin : vec3(0.f);
         for (int k = 0; k < 3; ++k) {
-            worldOrigin[k][lane] = o[k];
-            worldDirection[k][lane] = d[k];
+            worldOrigin[k][0] = o[k];
+            worldDirection[k][0] = d[k];
         }
     }
 
@@ -479,10 +480,10 @@ std::uint32_t packetLanes(const int* valid, const unsigned* ids, bool& lanesInPl
 }
 
 // Watertight triangles (AccelOptions::watertight): one user primitive is a
-// cluster of up to 8 triangles (watertight_triangle.hpp). An 8-ray packet is
-// tested one triangle at a time, 8 rays per SIMD step (as Embree's own hybrid
-// triangle intersectors); a single ray is tested against all 8 triangles at
-// once. Inside an rtlab trace (pipeline or query) the object-space rays come
+// cluster of up to kClusterTriangles triangles (watertight_triangle.hpp). An
+// 8-ray packet is tested one triangle at a time, 8 rays per SIMD step (as
+// Embree's own hybrid triangle intersectors); a single ray, or a call with
+// fewer rays than the cluster has triangles, against all of them at once. Inside an rtlab trace (pipeline or query) the object-space rays come
 // from the context, computed once per instance from the world rays with the
 // shared instance transform (instance_transform.hpp; the same inputs as the
 // RT-core model, so t and barycentrics are bit-identical), and candidates go
@@ -502,11 +503,14 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
     // Step: a packet of several rays — 8 rays per SIMD step, one triangle at a
     // time (rtlab's packets keep lane == position, as they are submitted).
     std::uint32_t callMask = 0;  // valid lanes of an 8-wide call
-    if (a->N == WatertightRayPacket::kLanes && !(traversal && traversal->singleRay)) {
+    if (a->N == WatertightRayPacket::kLanes) {
         bool lanesInPlace = true;
         callMask = packetLanes(a->valid, traversal ? &RTCRayN_id(rayN, a->N, 0) : nullptr, lanesInPlace);
-        // Fewer rays than triangles: the per-ray form below needs fewer SIMD tests.
-        if (laneCount8(callMask) + 1u > cluster.count && (callMask & (callMask - 1u)) != 0 && lanesInPlace) {
+        // Fewer rays than triangles: the per-ray form below needs fewer SIMD
+        // tests (and a single-ray context has no packet set up).
+        const bool packetSetUp = !(traversal && traversal->singleRay);
+        if (packetSetUp && laneCount8(callMask) + 1u > cluster.count && (callMask & (callMask - 1u)) != 0 &&
+            lanesInPlace) {
             WatertightRayPacket local;
             WatertightRayPacket& packet = instanceRays ? instanceRays->packet : local;
             if (!instanceRays)
@@ -531,7 +535,7 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
         }
     }
 
-    // Step: one ray at a time — all 8 triangles of the cluster per SIMD step.
+    // Step: one ray at a time — every triangle of the cluster in one SIMD step.
     ClusterHits hits;
     for (unsigned i = 0; i < a->N; ++i) {
         if (a->N == WatertightRayPacket::kLanes ? !((callMask >> i) & 1u) : a->valid[i] == 0) continue;
@@ -579,8 +583,7 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
     // A single ray is a one-lane trace; no packet overhead for Embree.
     PipelineContext ctx(*this, args, depth, counters, &ray, payloads, false);
     const bool valid = isValidRay(ray);
-    ctx.singleRay = true;
-    ctx.setWorldRay(0, ray, valid);
+    ctx.setSingleRay(ray, valid);
     const std::uint32_t type = args.rayContribution & 0xf;
     if (!valid || !accel_.tlas()) {
         // DXR: such rays are undefined; we count them as misses.
@@ -670,12 +673,6 @@ QueryHit queryHitOf(const RTCRayHit8& rh, int i) {
     return h;
 }
 
-TraversalContext singleRayContext(const AccelManager& accel, const RayDesc& ray, bool valid) {
-    TraversalContext ctx(accel, queryMarkerFor(accel), false);
-    ctx.singleRay = true;
-    ctx.setWorldRay(0, ray, valid);
-    return ctx;
-}
 
 }  // namespace
 
@@ -702,7 +699,8 @@ void queryAny8(const AccelManager& accel, const RayDesc* rays, const bool* activ
 QueryHit queryClosest(const AccelManager& accel, const RayDesc& ray, std::uint32_t instanceMask) {
     const bool valid = isValidRay(ray);
     if (!valid || !accel.tlas()) return {};
-    TraversalContext ctx = singleRayContext(accel, ray, valid);
+    TraversalContext ctx(accel, queryMarkerFor(accel), false);
+    ctx.setSingleRay(ray, valid);
     RTCRayHit rh = embreeRay(ray, instanceMask);
     rtcIntersect1(accel.tlas(), &ctx.embree, &rh);
     QueryHit h;
@@ -720,7 +718,8 @@ QueryHit queryClosest(const AccelManager& accel, const RayDesc& ray, std::uint32
 bool queryAny(const AccelManager& accel, const RayDesc& ray, std::uint32_t instanceMask) {
     const bool valid = isValidRay(ray);
     if (!valid || !accel.tlas()) return false;
-    TraversalContext ctx = singleRayContext(accel, ray, valid);
+    TraversalContext ctx(accel, queryMarkerFor(accel), false);
+    ctx.setSingleRay(ray, valid);
     RTCRayHit rh = embreeRay(ray, instanceMask);
     rtcOccluded1(accel.tlas(), &ctx.embree, &rh.ray);
     return rh.ray.tfar < 0.f;

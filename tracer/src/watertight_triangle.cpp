@@ -72,39 +72,6 @@ void TriangleCluster::set(int slot, const vec3& p0, const vec3& p1, const vec3& 
 
 namespace {
 
-// Slots [first, first + N) of the cluster: intersectTriangleWatertight lane by lane.
-template <int N>
-RTLAB_SIMD_INLINE void intersectSlots(const WatertightRay& r, const TriangleCluster& c, int first, float tMin,
-                                      float tMax, ClusterHits& out) {
-    using V = simd::vfloat<N>;
-    using VI = simd::vint<N>;
-    const V okx = simd::splat<N>(r.ox), oky = simd::splat<N>(r.oy), okz = simd::splat<N>(r.oz);
-    const V sx = simd::splat<N>(r.sx), sy = simd::splat<N>(r.sy), sz = simd::splat<N>(r.sz);
-    auto coordinate = [&](int k, int axis) { return simd::loadu<N>(&c.v[k][axis][first]); };
-    const V akx = coordinate(0, r.kx) - okx, aky = coordinate(0, r.ky) - oky, akz = coordinate(0, r.kz) - okz;
-    const V bkx = coordinate(1, r.kx) - okx, bky = coordinate(1, r.ky) - oky, bkz = coordinate(1, r.kz) - okz;
-    const V ckx = coordinate(2, r.kx) - okx, cky = coordinate(2, r.ky) - oky, ckz = coordinate(2, r.kz) - okz;
-    const V ax = akx - sx * akz, ay = aky - sy * akz;
-    const V bx = bkx - sx * bkz, by = bky - sy * bkz;
-    const V cx = ckx - sx * ckz, cy = cky - sy * ckz;
-    const V u = cx * by - cy * bx;
-    const V v = ax * cy - ay * cx;
-    const V w = bx * ay - by * ax;
-    const V zero = simd::splat<N>(0.f);
-    const V det = u + v + w;
-    const VI inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
-    // Step: early-out on an empty mask, before any division.
-    if (simd::signMask<N>(inside) == 0) return;
-    const V az = sz * akz, bz = sz * bkz, cz = sz * ckz;
-    const V t = (u * az + v * bz + w * cz) / det;
-    const std::uint32_t mask = simd::signMask<N>(inside & (t > simd::splat<N>(tMin)) & (t < simd::splat<N>(tMax)));
-    if (mask == 0) return;
-    out.mask |= mask << first;
-    simd::storeu<N>(&out.t[first], t);
-    simd::storeu<N>(&out.b1[first], v / det);
-    simd::storeu<N>(&out.b2[first], w / det);
-}
-
 // Lanes [first, first + N) of the packet against one triangle.
 template <int N>
 RTLAB_SIMD_INLINE std::uint32_t intersectPacketLanes(const WatertightRayPacket& p, int first, const TriangleCluster& c,
@@ -271,7 +238,34 @@ void intersectClusterWatertight(const WatertightRay& r, const TriangleCluster& c
                                 ClusterHits& out) {
     out.mask = 0;
     if (!r.valid) return;
-    intersectSlots<kClusterTriangles>(r, c, 0, tMin, tMax, out);
+    // Every slot in one SIMD step: intersectTriangleWatertight lane by lane.
+    constexpr int N = kClusterTriangles;
+    using V = simd::vfloat<N>;
+    using VI = simd::vint<N>;
+    const V okx = simd::splat<N>(r.ox), oky = simd::splat<N>(r.oy), okz = simd::splat<N>(r.oz);
+    const V sx = simd::splat<N>(r.sx), sy = simd::splat<N>(r.sy), sz = simd::splat<N>(r.sz);
+    auto coordinate = [&](int k, int axis) { return simd::loadu<N>(c.v[k][axis]); };
+    const V akx = coordinate(0, r.kx) - okx, aky = coordinate(0, r.ky) - oky, akz = coordinate(0, r.kz) - okz;
+    const V bkx = coordinate(1, r.kx) - okx, bky = coordinate(1, r.ky) - oky, bkz = coordinate(1, r.kz) - okz;
+    const V ckx = coordinate(2, r.kx) - okx, cky = coordinate(2, r.ky) - oky, ckz = coordinate(2, r.kz) - okz;
+    const V ax = akx - sx * akz, ay = aky - sy * akz;
+    const V bx = bkx - sx * bkz, by = bky - sy * bkz;
+    const V cx = ckx - sx * ckz, cy = cky - sy * ckz;
+    const V u = cx * by - cy * bx;
+    const V v = ax * cy - ay * cx;
+    const V w = bx * ay - by * ax;
+    const V zero = simd::splat<N>(0.f);
+    const V det = u + v + w;
+    const VI inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
+    // Step: early-out on an empty mask, before any division.
+    if (simd::signMask<N>(inside) == 0) return;
+    const V az = sz * akz, bz = sz * bkz, cz = sz * ckz;
+    const V t = (u * az + v * bz + w * cz) / det;
+    out.mask = simd::signMask<N>(inside & (t > simd::splat<N>(tMin)) & (t < simd::splat<N>(tMax)));
+    if (out.mask == 0) return;
+    simd::storeu<N>(out.t, t);
+    simd::storeu<N>(out.b1, v / det);
+    simd::storeu<N>(out.b2, w / det);
 }
 
 }  // namespace rtlab::tracer

@@ -10,7 +10,7 @@
 // vertex cannot slip between the triangles. Zero edge values count as inside
 // (both neighbours may report the hit; hit_order.hpp picks one).
 //
-// Two forms with identical arithmetic, so that they give the same bits:
+// Three forms with identical arithmetic, so that they give the same bits:
 //   intersectTriangleWatertight   one triangle (the RT-core model's triangle unit)
 //   intersectClusterWatertight    up to 4 triangles in structure-of-arrays form,
 //                                 one 4-wide SIMD step (Embree's watertight
@@ -55,10 +55,10 @@ inline std::optional<TriangleHit> intersectTriangleWatertight(const vec3& origin
 // Up to kClusterTriangles triangles of one geometry, vertex coordinates in
 // structure-of-arrays form: v[vertex][axis][slot]. Unused slots hold a
 // degenerate triangle (all vertices equal), which never hits. Four slots:
-// clusters end early where their box would outgrow their triangles (1.6
-// triangles on average on the showcase), and a 176-byte cluster keeps the
+// clusters end where merging stops paying (buildClusters in
+// accel_manager.cpp; 1 to 4 triangles), and a 176-byte cluster keeps the
 // working set near Embree's own triangle leaves (an 8-slot one took 352
-// bytes for the same triangles and missed the cache on most callbacks).
+// bytes for the same triangles).
 inline constexpr int kClusterTriangles = 4;
 struct alignas(16) TriangleCluster {
     std::uint32_t count = 0;  // first: shares a cache line with the vertices
