@@ -33,6 +33,7 @@ struct RenderOptions {
     float reflectionRoughness = 0.3f;       // --reflection-roughness: reflections where roughness <= this
     float aoRadius = 1.0f;                  // --ao-radius (world units)
     int maxTranslucencyDepth = 8;           // --max-translucency-depth
+    int maxDepth = 4;                       // --max-depth: path-tracer bounces (--effects pathtrace)
 };
 void addRenderCommand(CLI::App& app, RenderOptions& options);
 // --reflection-roughness and --ao-radius, shared by render and converge.

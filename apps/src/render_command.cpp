@@ -52,7 +52,8 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--seed", o.seed, "Random seed")->capture_default_str();
     cmd->add_option("--effects", o.effects, "auto (what the scene needs; see rtlab plan) or a comma-separated list "
-                                            "narrowing it: alpha,shadows,reflections,ao,gi,translucency,volumes "
+                                            "narrowing it: alpha,shadows,reflections,ao,gi,translucency,volumes; "
+                                            "pathtrace (multi-bounce paths, a ray workload) only when listed "
                                             "(gbuffer alone: primary rays only)")
         ->capture_default_str();
     cmd->add_option("--gi", o.gi, "Diffuse GI technique")->check(CLI::IsMember({"path", "ddgi"}))->capture_default_str();
@@ -60,6 +61,9 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
     cmd->add_option("--max-translucency-depth", o.maxTranslucencyDepth,
                     "Refraction/reflection events along a translucent path")
         ->check(CLI::Range(1, 64))
+        ->capture_default_str();
+    cmd->add_option("--max-depth", o.maxDepth, "Path-tracer bounces after the primary hit (--effects pathtrace)")
+        ->check(CLI::Range(0, 64))
         ->capture_default_str();
     cmd->add_option("--denoise", o.denoise,
                     "auto (every effect's signal), none, or a comma-separated list of shadows,reflections,ao,gi,"
@@ -198,6 +202,7 @@ int runRender(const RenderOptions& o) {
     stats["settings"]["reflectionRoughness"] = o.reflectionRoughness;
     stats["settings"]["aoRadius"] = o.aoRadius;
     stats["settings"]["maxTranslucencyDepth"] = o.maxTranslucencyDepth;
+    stats["settings"]["maxDepth"] = o.maxDepth;
     stats["settings"]["denoise"] = o.denoise;
     if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
     shaders::FrameHistory history;
@@ -228,6 +233,7 @@ int runRender(const RenderOptions& o) {
         settings.seed = o.seed;
         settings.aoRadius = o.aoRadius;
         settings.maxTranslucencyDepth = o.maxTranslucencyDepth;
+        settings.pathMaxDepth = o.maxDepth;
         rtcore_sim::ModelUpdateStats modelStats;
         const Stopwatch modelClock;
         if (rtcore) {
@@ -277,10 +283,19 @@ int runRender(const RenderOptions& o) {
                        {"tlasUpdates", accelStats.tlasUpdates},
                        {"instancesMoved", accelStats.instancesMoved}};
         const tracer::TraceCounters& c = frame.counters;
-        static constexpr const char* kRayTypeNames[] = {"primary", "shadow", "reflection", "ao", "gi", "translucency"};
         fj["rays"] = nlohmann::json::object();
         for (std::uint32_t t = 0; t < shaders::kRayTypeCount; ++t)
-            fj["rays"][kRayTypeNames[t]] = {{"traced", c.rays[t]}, {"hits", c.hits[t]}, {"misses", c.misses[t]}};
+            fj["rays"][std::string(shaders::rayTypeName(t))] = {
+                {"traced", c.rays[t]}, {"hits", c.hits[t]}, {"misses", c.misses[t]}};
+        if (plan.has(shaders::Pass::PathTrace)) {
+            nlohmann::json vertices = nlohmann::json::array();
+            for (std::size_t d = 0; d < frame.pathVertices.size(); ++d)
+                vertices.push_back({{"vertex", d},
+                                    {"bounceRays", frame.pathVertices[d].bounceRays},
+                                    {"bounceHits", frame.pathVertices[d].bounceHits},
+                                    {"shadowRays", frame.pathVertices[d].shadowRays}});
+            fj["pathtrace"] = {{"maxDepth", o.maxDepth}, {"vertices", vertices}};
+        }
         fj["passes"] = nlohmann::json::object();
         for (std::size_t p = 0; p < shaders::kPassCount; ++p)
             fj["passes"][std::string(shaders::passName(static_cast<shaders::Pass>(p)))] = {

@@ -9,8 +9,9 @@
 namespace rtlab::shaders {
 namespace {
 
-constexpr std::array<std::string_view, kPassCount> kNames = {"gbuffer", "alpha", "shadows", "reflections",
-                                                              "ao",      "gi",    "translucency", "volumes"};
+constexpr std::array<std::string_view, kPassCount> kNames = {"gbuffer", "alpha",        "shadows",
+                                                              "reflections", "ao", "gi",
+                                                              "translucency", "volumes", "pathtrace"};
 
 std::string plural(std::size_t n, const std::string& what) {
     return std::to_string(n) + " " + what + (n == 1 ? "" : "s");
@@ -101,6 +102,17 @@ FramePlan planFrame(const ecs::SceneSnapshot& scene, const PlanOptions& options)
     set(Pass::Volumes, f.volumes > 0,
         f.volumes ? plural(f.volumes, "volume") + ": transmittance on primary, shadow, reflection and path-GI rays, single scattering"
                   : "no volume: OpenVDB code is not touched");
+    // The path tracer is a ray workload for studies (the incoherent mix of
+    // multi-bounce paths), not part of the real-time frame: only on request.
+    const bool pathTraceAsked = std::find(options.requested.begin(), options.requested.end(), Pass::PathTrace) !=
+                                options.requested.end();
+    if (!pathTraceAsked)
+        set(Pass::PathTrace, false, "a ray workload for studies: only with --effects pathtrace");
+    else
+        set(Pass::PathTrace, f.instances > 0,
+            f.instances ? "asked for: diffuse + glossy paths with next-event estimation, " + plural(lights, "light") +
+                              ", " + plural(f.emissiveMaterials, "emissive material")
+                        : "no geometry");
 
     // Step: --effects narrows the plan, never forces a pass without its inputs.
     if (!options.requested.empty()) {

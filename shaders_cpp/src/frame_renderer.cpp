@@ -3,6 +3,7 @@
 
 #include <rtlab/core/timer.hpp>
 
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -21,11 +22,17 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
     }
 }
 
+std::string_view rayTypeName(std::uint32_t rayType) {
+    static constexpr std::array<std::string_view, kRayTypeCount> kNames = {
+        "primary", "shadow", "reflection", "ao", "gi", "translucency", "pathBounce"};
+    return rayType < kRayTypeCount ? kNames[rayType] : std::string_view("unknown");
+}
+
 namespace {
 
 // A frame's layers as the compose reads them; absent layers count as 0 (T as 1).
 struct ComposeLayers {
-    std::vector<vec3> albedo, emissive, point, gi, reflection, brdf, translucency, inscatter;
+    std::vector<vec3> albedo, emissive, point, gi, reflection, brdf, translucency, inscatter, pathTraced;
     const float* metalness = nullptr;
     const float* transmission = nullptr;
     const float* transmittance = nullptr;
@@ -40,6 +47,7 @@ struct ComposeLayers {
         albedo = rgb("albedo"), emissive = rgb("emissive"), point = rgb("direct.point"), gi = rgb("gi");
         reflection = rgb("reflection"), brdf = rgb("reflection.brdf"), translucency = rgb("translucency");
         inscatter = rgb("volume.inscatter");
+        pathTraced = rgb("pathtrace");
         metalness = frame.channel("metalness.Y");
         transmission = frame.channel("transmission.Y");
         transmittance = frame.channel("volume.transmittance");
@@ -81,6 +89,10 @@ void composeBeauty(Image& frame) {
         beauty[p] = ComposeLayers::at(c.inscatter, p);
         if (!c.geometry(p)) continue;
         const float T = c.transmittance ? c.transmittance[p] : 1.f;
+        if (!c.pathTraced.empty()) {
+            beauty[p] += T * c.pathTraced[p];  // the path tracer's layer is the whole estimate
+            continue;
+        }
         beauty[p] += T * (ComposeLayers::at(c.emissive, p) + c.direct(p) + c.diffuseIndirect(p) + c.specular(p) +
                           c.transmitted(p));
     }
@@ -168,6 +180,9 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
         run(Pass::Volumes, [&](tracer::TraceCounters& c) {
             return detail::runVolumePass(ctx, out.image, primaryTransmittance, inscatter, c);
         });
+    if (plan.has(Pass::PathTrace))
+        run(Pass::PathTrace,
+            [&](tracer::TraceCounters& c) { return detail::runPathTracePass(ctx, out.image, out.pathVertices, c); });
 
     // Step: compose (from the layers, as after denoising).
     composeBeauty(out.image);

@@ -28,6 +28,8 @@ inline constexpr std::uint32_t kTranslucency = 0x600;      // + event depth: Fre
 inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;   // light at the opaque end (0, 1, 2)
 inline constexpr std::uint32_t kVolumeScatter = 0x700;     // distance, light pick, light point (0 .. 3)
 inline constexpr std::uint32_t kDdgiHit = 0x800;           // light at a probe ray's hit (0, 1, 2)
+inline constexpr std::uint32_t kPathBounce = 0x900;        // + path vertex: lobe choice (0), direction (1, 2)
+inline constexpr std::uint32_t kPathHit = 0xa00;           // + path vertex: light pick and point there (0, 1, 2)
 // Fog transmittance along a ray of stream s: kTransmittance + 4 s + segment (dimensions 0 .. 255).
 inline constexpr std::uint32_t kTransmittance = 0x10000;
 constexpr std::uint32_t transmittance(std::uint32_t s, std::uint32_t segment = 0) { return kTransmittance + 4 * s + segment; }
@@ -171,6 +173,11 @@ std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out,
 // Primary-ray transmittance and single scattering of the fog volumes.
 std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& primaryTransmittance,
                             std::vector<vec3>& inscatter, tracer::TraceCounters& counters);
+// --effects pathtrace: RenderSettings::pathMaxDepth bounces of diffuse +
+// glossy paths from the G-buffer, next-event estimation at every vertex;
+// writes the "pathtrace" layer (the whole estimate) and the rays per vertex.
+std::uint64_t runPathTracePass(RenderContext& ctx, Image& out, std::vector<PathVertexRays>& vertices,
+                               tracer::TraceCounters& counters);
 // Writes the radiance arriving through (and reflected off) transmissive
 // surfaces, Fresnel-weighted, per pixel.
 std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<vec3>& transmitted,

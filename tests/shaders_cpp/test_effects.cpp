@@ -135,7 +135,8 @@ TEST(FramePlan, ShowcaseNeedsEveryPassWithReasons) {
     ecs::load::loadScene(world, "builtin:showcase");
     const FramePlan plan = planFrame(ecs::makeSnapshot(world, world.update(0.f)));
     for (const PlannedPass& p : plan.passes) {
-        EXPECT_TRUE(p.planned) << passName(p.pass) << ": " << p.reason;
+        // The path tracer is a workload, planned only on request.
+        EXPECT_EQ(p.planned, p.pass != Pass::PathTrace) << passName(p.pass) << ": " << p.reason;
         EXPECT_FALSE(p.reason.empty());
     }
     // Mirror and glossy floor; the glass (transmissive) belongs to translucency.
@@ -160,6 +161,23 @@ TEST(FramePlan, EffectsNarrowButNeverForce) {
     EXPECT_TRUE(parseEffectList("auto").empty());
     EXPECT_THROW(parseEffectList("ao,glitter"), InputError);
     EXPECT_THROW(parseEffectList(","), InputError);
+}
+
+TEST(FramePlan, PathTraceOnlyOnRequest) {
+    ecs::World world;
+    ecs::load::loadScene(world, "builtin:cornell");
+    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
+    const FramePlan automatic = planFrame(scene);
+    EXPECT_FALSE(automatic.has(Pass::PathTrace));
+    EXPECT_NE(automatic[Pass::PathTrace].reason.find("--effects pathtrace"), std::string::npos);
+    PlanOptions o;
+    o.requested = parseEffectList("pathtrace");
+    const FramePlan asked = planFrame(scene, o);
+    EXPECT_TRUE(asked.has(Pass::PathTrace)) << asked.toText();
+    EXPECT_TRUE(asked.has(Pass::GBuffer));
+    for (Pass p : {Pass::Shadows, Pass::AmbientOcclusion, Pass::GlobalIllumination}) EXPECT_FALSE(asked.has(p));
+    EXPECT_TRUE(asked.notes.empty());
+    EXPECT_EQ(passFromName("pathtrace"), Pass::PathTrace);
 }
 
 // ---- what a skipped pass costs: nothing ------------------------------------------
@@ -187,7 +205,10 @@ TEST(Effects, ShowcaseEveryEffectTracesRays) {
     for (Pass p : {Pass::GBuffer, Pass::Shadows, Pass::Reflections, Pass::AmbientOcclusion,
                    Pass::GlobalIllumination, Pass::Translucency, Pass::Volumes})
         EXPECT_GT(report(r, p).rays, 0u) << passName(p);
-    for (std::uint32_t t = 0; t < kRayTypeCount; ++t) EXPECT_GT(r.out.counters.rays[t], 0u) << "ray type " << t;
+    // Every ray type but the path tracer's bounce (a workload only planned on request).
+    for (std::uint32_t t = 0; t < kRayTypeCount; ++t)
+        if (t != kRayPathBounce) EXPECT_GT(r.out.counters.rays[t], 0u) << "ray type " << t;
+    EXPECT_EQ(r.out.counters.rays[kRayPathBounce], 0u);
     EXPECT_GT(r.out.counters.anyHitInvocations, 0u);  // the foliage's alpha test
     for (const char* layer : {"R", "albedo.R", "normal.R", "geonormal.R", "depth.Z", "roughness.Y", "metalness.Y",
                               "id.mesh", "id.instance", "motion.X", "emissive.R", "shadow.light0.V",
@@ -221,6 +242,86 @@ TEST(Effects, WhiteFurnaceGiIsPiTimesEmission) {
     EXPECT_NEAR(meanOf(r.out.image, "gi.G"), kPi * 0.5, 0.01 * kPi * 0.5);
     EXPECT_NEAR(meanOf(r.out.image, "G"), 2.0 * 0.5, 0.01 * 1.0);
     expectAllFinite(r, "furnace");
+}
+
+// Inside a closed white emitter (Le = 0.5, no lights) every bounce hits and
+// adds Le x throughput: depth 0 is exactly Le, and D bounces give Le x sum
+// over k <= D of rho^k, rho = the BRDF's directional albedo (Lambert 1 plus
+// the dielectric GGX lobe's few percent).
+TEST(Effects, PathTraceFurnaceSumsOneEmissionPerBounce) {
+    const auto render = [](int depth) {
+        ecs::World world;  // a fresh world per render: a second update would report nothing new
+        ecs::Material m;
+        m.baseColor = vec4(1.f);
+        m.roughness = 1.f;
+        m.emissive = vec3(0.5f);
+        const ecs::MaterialId mat = world.addMaterial(m);
+        place(world, world.addMesh(ecs::load::makeMesh("furnace", ecs::load::makeIcosphere(5.f, 3, mat))), vec3(0.f));
+        addCamera(world, vec3(0.f), vec3(0.f, 0.f, -1.f));
+        PlanOptions o;
+        o.requested = parseEffectList("pathtrace");
+        RenderSettings s;
+        s.width = 32;
+        s.height = 24;
+        s.spp = 4;
+        s.pathMaxDepth = depth;
+        return renderWorld(world, s, o);
+    };
+    const Rendered direct = render(0);
+    ASSERT_TRUE(direct.plan.has(Pass::PathTrace)) << direct.plan.toText();
+    EXPECT_DOUBLE_EQ(meanOf(direct.out.image, "pathtrace.G"), 0.5);
+    EXPECT_EQ(direct.out.counters.rays[kRayPathBounce], 0u);
+    ASSERT_EQ(direct.out.pathVertices.size(), 1u);
+
+    const Rendered paths = render(3);
+    const double mean = meanOf(paths.out.image, "pathtrace.G");
+    EXPECT_GT(mean, 0.5 * 4 * 0.995);
+    EXPECT_LT(mean, 0.5 * 4 * 1.15);
+    EXPECT_DOUBLE_EQ(meanOf(paths.out.image, "G"), mean);  // the beauty is the path tracer's estimate
+    ASSERT_EQ(paths.out.pathVertices.size(), 4u);
+    EXPECT_EQ(paths.out.pathVertices[0].bounceRays, 0u);
+    for (std::size_t d = 1; d < 4; ++d) {
+        EXPECT_GT(paths.out.pathVertices[d].bounceRays, 0u) << d;
+        EXPECT_EQ(paths.out.pathVertices[d].bounceHits, paths.out.pathVertices[d].bounceRays) << d;  // closed
+        EXPECT_EQ(paths.out.pathVertices[d].shadowRays, 0u) << d;  // no light to sample
+    }
+    EXPECT_EQ(paths.out.counters.rays[kRayPathBounce], paths.out.pathVertices[1].bounceRays +
+                                                           paths.out.pathVertices[2].bounceRays +
+                                                           paths.out.pathVertices[3].bounceRays);
+    expectAllFinite(paths, "path-traced furnace");
+}
+
+// A deeper path only adds light (the random numbers of the first vertices do
+// not depend on the depth), and on the showcase (mirror, glass, fog, alpha
+// cut-outs) nothing goes non-finite.
+TEST(Effects, PathTraceDeeperPathsOnlyAddLight) {
+    PlanOptions o;
+    o.requested = parseEffectList("pathtrace");
+    const auto render = [&](const std::string& scene, int depth) {
+        ecs::World world;
+        ecs::load::loadScene(world, "builtin:" + scene);
+        RenderSettings s;
+        s.width = 48;
+        s.height = 32;
+        s.spp = 2;
+        s.pathMaxDepth = depth;
+        return renderWorld(world, s, o);
+    };
+    const Rendered shallow = render("cornell", 1), deep = render("cornell", 3);
+    ASSERT_TRUE(deep.plan.has(Pass::PathTrace));
+    const std::vector<vec3> a = shallow.out.image.rgbLayer("pathtrace"), b = deep.out.image.rgbLayer("pathtrace");
+    std::size_t brighter = 0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_GE(b[i][c], a[i][c] * (1.f - 1e-5f)) << "pixel " << i;
+            brighter += b[i][c] > a[i][c] * 1.001f;
+        }
+    EXPECT_GT(brighter, a.size());  // most pixels gain light from the extra bounces
+    EXPECT_GT(deep.out.counters.rays[kRayPathBounce], shallow.out.counters.rays[kRayPathBounce]);
+    EXPECT_GT(deep.out.counters.rays[kRayShadow], shallow.out.counters.rays[kRayShadow]);
+    const Rendered showcase = render("showcase", 4);
+    EXPECT_GT(showcase.out.counters.rays[kRayPathBounce], 0u);
+    expectAllFinite(showcase, "path-traced showcase");
 }
 
 // A mirror (roughness 0, metallic, albedo 1) seen at 45 degrees reflects an

@@ -30,9 +30,10 @@ enum class Pass : std::uint8_t {
     GlobalIllumination,  // one-bounce diffuse GI (path) or DDGI probes
     Translucency,      // refraction through transmissive materials
     Volumes,           // fog: transmittance on every ray + single scattering
+    PathTrace,         // multi-bounce diffuse + glossy paths with next-event estimation (only when asked for)
 };
-inline constexpr std::size_t kPassCount = 8;
-std::string_view passName(Pass pass);              // "gbuffer", "alpha", "shadows", "reflections", "ao", "gi", "translucency", "volumes"
+inline constexpr std::size_t kPassCount = 9;
+std::string_view passName(Pass pass);              // "gbuffer", "alpha", "shadows", "reflections", "ao", "gi", "translucency", "volumes", "pathtrace"
 std::optional<Pass> passFromName(std::string_view name);
 
 enum class GiTechnique : std::uint8_t { Path, Ddgi };

@@ -5,7 +5,8 @@
 //
 // Ray types (RayContributionToHitGroupIndex; per-type counters in stats):
 //   0 primary (G-buffer), 1 shadow, 2 reflection, 3 ambient occlusion,
-//   4 diffuse GI, 5 translucency
+//   4 diffuse GI, 5 translucency, 6 path-trace bounce (--effects pathtrace;
+//   its next-event rays are shadow rays, type 1)
 // Random numbers: SampleKey{pixel, frame, sample, bounce, seed} (core/rng.hpp).
 #include <rtlab/core/image.hpp>
 #include <rtlab/ecs/snapshot.hpp>
@@ -16,6 +17,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <string_view>
 #include <vector>
 
 namespace rtlab::shaders {
@@ -27,8 +29,11 @@ enum RayType : std::uint32_t {
     kRayOcclusion = 3,
     kRayGi = 4,
     kRayTranslucency = 5,
-    kRayTypeCount = 6,
+    kRayPathBounce = 6,
+    kRayTypeCount = 7,
 };
+// Stats names of the ray types: "primary", "shadow", "reflection", "ao", "gi", "translucency", "pathBounce".
+std::string_view rayTypeName(std::uint32_t rayType);
 
 struct RenderSettings {
     int width = 640;
@@ -42,6 +47,7 @@ struct RenderSettings {
     int maxTranslucencyDepth = 8; // refraction/reflection events along a translucent path
     float throughputCutoff = 1e-3f;  // a translucent path ends below this throughput
     float areaLightUnshadowedSamples = 16;  // samples of the unshadowed area-light estimate (no rays)
+    int pathMaxDepth = 4;         // pathtrace: bounce rays after the primary hit (each with its next-event ray)
 };
 
 class DdgiVolume;
@@ -66,6 +72,15 @@ struct PassReport {
     double milliseconds = 0.0;         // wall time (not deterministic)
 };
 
+// The rays of one path vertex of the path tracer, summed over samples:
+// vertex 0 is the primary hit (its next-event rays only), vertex d >= 1 is
+// reached by the d-th bounce ray.
+struct PathVertexRays {
+    std::uint64_t bounceRays = 0;  // bounce rays traced to reach this vertex (0 at vertex 0)
+    std::uint64_t bounceHits = 0;  // of those, how many hit a surface
+    std::uint64_t shadowRays = 0;  // next-event (shadow) rays from this vertex
+};
+
 struct FrameOutput {
     Image image;  // beauty R,G,B + every pass's layers (docs/effects.md)
     std::array<PassReport, kPassCount> passes{};
@@ -73,12 +88,14 @@ struct FrameOutput {
     std::vector<std::uint32_t> primaryRayPixels;  // with RenderSettings::recordRayOrder
     std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
     Image ddgiAtlas;  // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
+    std::vector<PathVertexRays> pathVertices;  // --effects pathtrace: RenderSettings::pathMaxDepth + 1 entries
 };
 
 // The beauty image (R, G, B) from a frame's layers, the renderer's compose:
 //   in-scattered + T x (emission + sum_i direct.light<i> x shadow.light<i>.V
 //   + direct.point + diffuse albedo / pi x gi + reflection.brdf x reflection
-//   + transmission x translucency), diffuse albedo = (1 - metalness)(1 -
+//   + transmission x translucency), or in-scattered + T x pathtrace when the
+//   path tracer ran (its layer is the whole estimate), diffuse albedo = (1 - metalness)(1 -
 //   transmission) albedo; sky pixels (id.mesh < 0) get the in-scattered light
 //   only. Absent layers count as 0 (T as 1). Used again after denoising.
 void composeBeauty(Image& frame);

@@ -1,0 +1,136 @@
+// Path tracing (--effects pathtrace): the incoherent multi-bounce ray mix a
+// hardware study wants, shaded well enough to look right. Wavefront style,
+// one dispatch per bounce over the image grid:
+//   vertex 0 = the G-buffer hit; at every vertex, emission + one light picked
+//   by importance with its shadow ray (shadeHits, next-event estimation);
+//   then a bounce: the diffuse or the GGX lobe picked by their estimated
+//   weights, the direction sampled from it, weighted by f cos / (mixture pdf).
+// Lights are reached by next-event estimation only (as in every pass: area
+// lights are not geometry), emissive surfaces by bounce rays only, so no
+// light is counted twice. Transmissive materials act as their opaque part
+// (no refraction along paths), fog weights every segment by transmittance.
+// Paths end after RenderSettings::pathMaxDepth bounces, on a miss, below the
+// surface, or on a zero or non-finite weight (no Russian roulette, so the ray
+// counts per vertex do not depend on random termination beyond misses).
+#include "indirect_shading.hpp"
+
+#include <algorithm>
+
+namespace rtlab::shaders::detail {
+namespace {
+
+// The G-buffer pixel as a hit payload, so vertex 0 is shaded like the rest.
+HitPayload payloadOf(const GPixel& g) {
+    HitPayload p;
+    p.hit = g.hit;
+    p.t = g.t;
+    p.instance = g.instance;
+    p.mesh = g.mesh;
+    p.position = g.position;
+    p.geometricNormal = g.geometricNormal;
+    p.shadingNormal = g.normal;
+    p.frontFace = g.frontFace;
+    p.material = g.material;
+    p.albedo = g.albedo;
+    p.errorScale = g.errorScale;
+    return p;
+}
+
+// A bounce from a surface: direction and f cos / pdf, or nothing (the path ends).
+struct BounceSample {
+    vec3 direction{0.f};
+    vec3 weight{0.f};
+};
+
+std::optional<BounceSample> sampleBounce(const ShadingPoint& sp, float uLobe, vec2 u) {
+    // Step: lobe probabilities from the lobes' estimated albedos.
+    const float cosO = std::max(sp.woLocal.z, 0.f);
+    if (!(cosO > 0.f)) return std::nullopt;
+    const float diffuse = (1.f - sp.metalness) * (1.f - sp.transmission) * luminance(sp.albedo);
+    const float specular = luminance(fresnelSchlick(specularF0(sp), cosO));
+    if (!(diffuse + specular > 0.f)) return std::nullopt;
+    const float pSpecular = specular / (diffuse + specular);
+    const float alpha = ggxAlpha(sp.roughness);
+    // Step: direction from the picked lobe.
+    vec3 wiLocal;
+    if (uLobe < pSpecular) {
+        const GgxReflectionSample rs = sampleGgxReflection(sp.woLocal, alpha, u);
+        if (!(rs.pdf > 0.f)) return std::nullopt;
+        wiLocal = rs.wi;
+    } else {
+        wiLocal = sampleCosineHemisphere(u);
+    }
+    // Step: weight by the mixture pdf of both lobes.
+    const float pdf = pSpecular * ggxReflectionPdf(sp.woLocal, wiLocal, alpha) +
+                      (1.f - pSpecular) * cosineHemispherePdf(wiLocal.z);
+    const vec3 direction = glm::normalize(toWorld(sp.frame, wiLocal));
+    if (!(pdf > 0.f) || glm::dot(direction, sp.geometricNormal) <= 0.f) return std::nullopt;
+    const vec3 weight = evalBrdfCos(sp, direction) / pdf;
+    if (!isFinite(weight) || !(std::max({weight.x, weight.y, weight.z}) > 0.f)) return std::nullopt;
+    return BounceSample{direction, weight};
+}
+
+}  // namespace
+
+std::uint64_t runPathTracePass(RenderContext& ctx, Image& out, std::vector<PathVertexRays>& vertices,
+                               tracer::TraceCounters& counters) {
+    const std::size_t n = ctx.gbuffer.size();
+    const int spp = std::max(ctx.settings.spp, 1);
+    const int maxDepth = std::max(ctx.settings.pathMaxDepth, 0);
+    const RayGrid grid = imageGrid(ctx);
+    vertices.assign(std::size_t(maxDepth) + 1, PathVertexRays{});
+    std::vector<vec3> radiance(n, vec3(0.f)), throughput(n), incoming(n);
+    std::vector<HitPayload> hits(n);
+    std::vector<SecondaryRay> rays(n);
+    for (int s = 0; s < spp; ++s) {
+        const auto sample = static_cast<std::uint32_t>(s);
+        for (std::size_t i = 0; i < n; ++i) {
+            hits[i] = payloadOf(ctx.gbuffer[i]);
+            incoming[i] = -ctx.gbuffer[i].viewDir;
+            throughput[i] = vec3(1.f);
+        }
+        for (int depth = 0;; ++depth) {
+            const auto vertex = static_cast<std::uint32_t>(depth);
+            // Step: emission and next-event estimation at this vertex.
+            tracer::TraceCounters shade;
+            shadeHits(ctx, grid, hits, incoming, throughput, sample, stream::kPathHit + vertex, radiance, shade);
+            vertices[depth].shadowRays += shade.totalRays();
+            counters.add(shade);
+            if (depth == maxDepth) break;
+            // Step: the bounce rays leaving every live vertex.
+            bool any = false;
+            for (std::size_t i = 0; i < n; ++i) {
+                rays[i].active = false;
+                if (!hits[i].hit) continue;
+                const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
+                const SampleKey key = ctx.key(i, sample, stream::kPathBounce + vertex);
+                const std::optional<BounceSample> b =
+                    sampleBounce(sp, sampleUniform(key, 0), vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
+                if (!b) continue;
+                throughput[i] *= b->weight;
+                incoming[i] = b->direction;
+                rays[i].active = true;
+                rays[i].ray = tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, b->direction,
+                                                               sp.errorScale),
+                                              0.f, b->direction, kInfinity};
+                any = true;
+            }
+            if (!any) break;
+            tracer::TraceCounters bounce;
+            traceSecondary(ctx, grid, rays, kRayPathBounce, hits, bounce);
+            vertices[depth + 1].bounceRays += bounce.rays[kRayPathBounce];
+            vertices[depth + 1].bounceHits += bounce.hits[kRayPathBounce];
+            counters.add(bounce);
+            // Step: fog between the vertices.
+            for (std::size_t i = 0; i < n; ++i)
+                if (hits[i].hit)
+                    throughput[i] *= ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
+                                                       stream::transmittance(stream::kPathBounce + vertex));
+        }
+    }
+    for (vec3& r : radiance) r /= float(spp);
+    out.addRgbLayer("pathtrace", radiance);
+    return n * (4 * 3 * sizeof(float) + sizeof(HitPayload) + sizeof(SecondaryRay));
+}
+
+}  // namespace rtlab::shaders::detail
