@@ -2,6 +2,7 @@
 // The rtlab subcommands. Each returns the process exit code; bad input is
 // thrown as rtlab::InputError and turned into exit 2 by main().
 #include <CLI/CLI.hpp>
+#include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 
 #include <cstdint>
@@ -34,11 +35,29 @@ struct RenderOptions {
     float aoRadius = 1.0f;                  // --ao-radius (world units)
     int maxTranslucencyDepth = 8;           // --max-translucency-depth
     int maxDepth = 4;                       // --max-depth: path-tracer bounces (--effects pathtrace)
+    std::string recordRays;                 // --record-rays DIR: DIR/frame_NNNN.rays per frame
 };
 void addRenderCommand(CLI::App& app, RenderOptions& options);
 // --reflection-roughness and --ao-radius, shared by render and converge.
 void addEffectSettingOptions(CLI::App& command, float& reflectionRoughness, float& aoRadius);
 int runRender(const RenderOptions& options);
+
+// The RT-core configuration: defaults, then the JSON file (if any), then
+// each section.field=value in order, validated. Bad keys and values are
+// InputErrors (exit 2).
+rtcore_sim::RtCoreConfig resolveRtCoreConfig(const std::string& configFile, const std::vector<std::string>& sets);
+
+struct ReplayOptions {
+    std::string scene;
+    std::string rays;                       // a .rays file or a directory of frame_NNNN.rays
+    std::string backend = "embree";
+    std::string rtcoreConfig;
+    std::vector<std::string> rtcoreSet;
+    int threads = 0;
+    std::string out = "out/replay";
+};
+void addReplayCommand(CLI::App& app, ReplayOptions& options);
+int runReplay(const ReplayOptions& options);
 
 struct PlanOptions {
     std::string scene;

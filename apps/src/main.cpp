@@ -33,11 +33,13 @@ int main(int argc, char** argv) {
     app::InfoOptions info;
     app::CompareOptions compare;
     app::ConvergeOptions converge;
+    app::ReplayOptions replay;
     app::addRenderCommand(app, render);
     app::addPlanCommand(app, plan);
     app::addInfoCommand(app, info);
     app::addCompareCommand(app, compare);
     app::addConvergeCommand(app, converge);
+    app::addReplayCommand(app, replay);
 
     try {
         app.parse(argc, argv);
@@ -56,6 +58,7 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("info")) return app::runInfo(info);
         if (app.got_subcommand("compare")) return app::runCompare(compare);
         if (app.got_subcommand("converge")) return app::runConverge(converge);
+        if (app.got_subcommand("replay")) return app::runReplay(replay);
     } catch (const InputError& e) {
         std::cerr << "rtlab: " << e.what() << "\n";
         return static_cast<int>(ExitCode::BadInput);

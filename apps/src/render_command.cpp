@@ -13,6 +13,7 @@
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
+#include <rtlab/study/ray_recorder.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 
 #include <nlohmann/json.hpp>
@@ -69,16 +70,17 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
                     "auto (every effect's signal), none, or a comma-separated list of shadows,reflections,ao,gi,"
                     "translucency,volumes: SVGF per signal layer, noisy layers kept as noisy.*")
         ->capture_default_str();
+    cmd->add_option("--record-rays", o.recordRays,
+                    "Write every ray as submitted to the back end, with its hit, to DIR/frame_NNNN.rays "
+                    "(docs/ray-trace-format.md; rtlab replay)");
     cmd->add_option("--out", o.out, "Output directory")->capture_default_str();
 }
 
-// The RT-core configuration of a render: defaults, then the JSON file, then
-// each --rtcore-set in order. Bad keys and values are InputErrors (exit 2).
-rtcore_sim::RtCoreConfig resolveRtCoreConfig(const RenderOptions& o) {
+rtcore_sim::RtCoreConfig resolveRtCoreConfig(const std::string& configFile, const std::vector<std::string>& sets) {
     rtcore_sim::RtCoreConfig config =
-        o.rtcoreConfig.empty() ? rtcore_sim::RtCoreConfig{} : rtcore_sim::RtCoreConfig::loadFile(o.rtcoreConfig);
-    for (const std::string& assignment : o.rtcoreSet) config.set(assignment);
-    config.validate(o.rtcoreConfig.empty() ? "--rtcore-set" : o.rtcoreConfig);
+        configFile.empty() ? rtcore_sim::RtCoreConfig{} : rtcore_sim::RtCoreConfig::loadFile(configFile);
+    for (const std::string& assignment : sets) config.set(assignment);
+    config.validate(configFile.empty() ? "--rtcore-set" : configFile);
     return config;
 }
 
@@ -175,13 +177,21 @@ int runRender(const RenderOptions& o) {
     // Step: the RT-core model, configured before anything is loaded (a bad key is the clearer error).
     std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
     if (o.backend == "rtcore") {
-        rtcore = std::make_unique<rtcore_sim::RtCoreBackend>(resolveRtCoreConfig(o));
+        rtcore = std::make_unique<rtcore_sim::RtCoreBackend>(resolveRtCoreConfig(o.rtcoreConfig, o.rtcoreSet));
         rtcore->recordPrimaryRays(true);
         rtcore->setVerify(o.verify);
     }
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
     if (ec || !std::filesystem::is_directory(o.out)) throw InputError(o.out, "cannot create output directory");
+    // Step: --record-rays wraps the back end (Embree or the model) in a recorder.
+    std::unique_ptr<study::RecordingBackend> recorder;
+    if (!o.recordRays.empty()) {
+        std::filesystem::create_directories(o.recordRays, ec);
+        if (ec || !std::filesystem::is_directory(o.recordRays))
+            throw InputError(o.recordRays, "cannot create the --record-rays directory");
+        recorder = std::make_unique<study::RecordingBackend>(rtcore.get());
+    }
 
     const ThreadLimit threadLimit(o.threads);
     ecs::World world;
@@ -243,9 +253,21 @@ int runRender(const RenderOptions& o) {
             settings.recordRayOrder = true;
         }
         const double modelBuildMs = modelClock.elapsedMs();
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%04d", f);
+        if (recorder) {
+            recorder->beginFrame(std::filesystem::path(o.recordRays) / (std::string(name) + ".rays"));
+            settings.backend = recorder.get();
+        }
         const Stopwatch renderClock;
         shaders::FrameOutput frame = shaders::renderFrame(accel, scene, plan, settings, history);
         const double renderMs = renderClock.elapsedMs();
+        std::uint64_t uniqueTriangles = 0;
+        for (const ecs::MeshAsset& mesh : *scene.meshes)
+            for (const ecs::Geometry& g : mesh.geometries) uniqueTriangles += g.triangleCount();
+        if (recorder)
+            recorder->endFrame(static_cast<std::uint32_t>(f), study::sceneFingerprint(scene), scene.instances.size(),
+                               uniqueTriangles);
         // Step: denoise the effect signals, keep the noisy beauty, compose again.
         nlohmann::json denoised = nlohmann::json::array();
         const Stopwatch denoiseClock;
@@ -257,8 +279,6 @@ int runRender(const RenderOptions& o) {
         }
         const double denoiseMs = denoiseClock.elapsedMs();
 
-        char name[32];
-        std::snprintf(name, sizeof name, "frame_%04d", f);
         const std::filesystem::path base = std::filesystem::path(o.out) / name;
         writeExr(base.string() + ".exr", frame.image, ExrPixelType::Float);
         writePng(base.string() + ".png", frame.image);
@@ -303,6 +323,9 @@ int runRender(const RenderOptions& o) {
                 {"rays", frame.passes[p].rays},
                 {"bytesAllocated", frame.passes[p].bytesAllocated}};
         fj["nonFiniteValuesRepaired"] = frame.nonFiniteValuesRepaired;
+        if (recorder)
+            fj["recordedRays"] = {{"file", (std::filesystem::path(o.recordRays) / (std::string(name) + ".rays")).string()},
+                                  {"rays", recorder->recordedRays()}};
         fj["denoised"] = denoised;
         fj["shaders"] = {{"anyHit", c.anyHitInvocations},
                          {"intersection", c.intersectionInvocations},
@@ -331,9 +354,6 @@ int runRender(const RenderOptions& o) {
         // Acceleration-structure memory per unique triangle: the model's BVH
         // layout and rtlab's watertight clusters are deterministic; what
         // Embree holds depends on its build threads ("measured" below).
-        std::uint64_t uniqueTriangles = 0;
-        for (const ecs::MeshAsset& mesh : *scene.meshes)
-            for (const ecs::Geometry& g : mesh.geometries) uniqueTriangles += g.triangleCount();
         auto perTriangle = [&](double bytes) { return uniqueTriangles ? bytes / double(uniqueTriangles) : 0.0; };
         fj["accelMemory"] = {{"uniqueTriangles", uniqueTriangles},
                              {"watertightClusterBytes", accel.clusterBytes()},
