@@ -1,0 +1,149 @@
+// `rtlab render --record-rays DIR` and `rtlab replay` end to end: recording
+// changes no pixel and is the same for any thread count; replay finds every
+// recorded hit again on both back ends; on the RT-core model, replaying the
+// frames gives exactly the render's cycle counts and stats; a file recorded
+// on another scene, or damaged, exits 2 with one line; a differing hit exits 1.
+#include "cli_test_util.hpp"
+
+#include <rtlab/study/ray_trace_file.hpp>
+
+#include <cstring>
+
+using namespace rtlab::test;
+
+namespace {
+
+std::vector<char> bytesOf(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::vector<char>(std::istreambuf_iterator<char>(in), {});
+}
+
+nlohmann::json statsOf(const fs::path& dir) {
+    std::ifstream in(dir / "stats.json");
+    return nlohmann::json::parse(in);
+}
+
+const std::string kScene = "'builtin:terrain?triangles=3000&seed=2'";
+const std::string kRender = "render --scene " + kScene + " --effects shadows,ao,pathtrace --max-depth 2 --width 32 --height 24 --frames 2";
+
+}  // namespace
+
+TEST(CliRayReplay, RecordingChangesNoPixelAndIsTheSameOnOneAndTwoThreads) {
+    const fs::path plain = freshDir("rec_plain"), r1 = freshDir("rec_t1"), r2 = freshDir("rec_t2");
+    ASSERT_EQ(runCli(kRender + " --out " + plain.string()).exitCode, 0);
+    const CliRun one = runCli(kRender + " --threads 1 --record-rays " + (r1 / "rays").string() + " --out " + r1.string());
+    ASSERT_EQ(one.exitCode, 0) << one.out;
+    const CliRun two = runCli(kRender + " --threads 2 --record-rays " + (r2 / "rays").string() + " --out " + r2.string());
+    ASSERT_EQ(two.exitCode, 0) << two.out;
+    for (const char* frame : {"frame_0000", "frame_0001"}) {
+        const CliRun c = runCli("compare " + (plain / (std::string(frame) + ".exr")).string() + " " +
+                                (r1 / (std::string(frame) + ".exr")).string());
+        EXPECT_NE(c.out.find("identical: true"), std::string::npos) << frame << c.out;
+        const fs::path a = r1 / "rays" / (std::string(frame) + ".rays"), b = r2 / "rays" / (std::string(frame) + ".rays");
+        ASSERT_TRUE(fs::exists(a)) << a;
+        EXPECT_EQ(bytesOf(a), bytesOf(b)) << frame;
+        EXPECT_FALSE(fs::exists(a.string() + ".tmp"));
+    }
+    // stats.json names each frame's file and its ray count: every ray the frame traced.
+    const nlohmann::json s = statsOf(r1);
+    for (const auto& f : s["frames"]) {
+        long long traced = 0;
+        for (const auto& [type, counts] : f["rays"].items()) traced += counts["traced"].get<long long>();
+        EXPECT_EQ(f["recordedRays"]["rays"].get<long long>(), traced);
+        // About 64 bytes per ray (plus 32 per trace call and the header).
+        const auto bytes = fs::file_size(f["recordedRays"]["file"].get<std::string>());
+        EXPECT_LE(double(bytes), 70.0 * double(traced) + 128) << bytes << " bytes for " << traced << " rays";
+    }
+}
+
+TEST(CliRayReplay, ReplayOnTheModelGivesTheRendersCyclesAndStatsExactly) {
+    const fs::path dir = freshDir("rec_rtcore");
+    const std::string config = " --backend rtcore --rtcore-set cache.sizeBytes=4096";
+    const CliRun render = runCli(kRender + config + " --record-rays " + (dir / "rays").string() + " --out " + dir.string());
+    ASSERT_EQ(render.exitCode, 0) << render.out;
+    const fs::path out = dir / "replay";
+    const CliRun replay = runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + config +
+                                 " --out " + out.string());
+    ASSERT_EQ(replay.exitCode, 0) << replay.out;
+    const nlohmann::json rendered = statsOf(dir), replayed = statsOf(out);
+    EXPECT_EQ(rendered["rtcore"]["config"], replayed["rtcore"]["config"]);
+    ASSERT_EQ(replayed["frames"].size(), 2u);
+    for (std::size_t f = 0; f < 2; ++f) {
+        nlohmann::json a = rendered["frames"][f]["rtcore"];
+        const nlohmann::json& b = replayed["frames"][f]["rtcore"];
+        for (const char* renderOnly : {"bvhUpdate", "heatmap", "verify"}) a.erase(renderOnly);
+        EXPECT_EQ(a, b) << "frame " << f;
+        EXPECT_GT(a.dump().size(), 100u);
+        EXPECT_EQ(replayed["frames"][f]["differingHits"], 0);
+        EXPECT_EQ(replayed["frames"][f]["notBitIdentical"], 0);
+        EXPECT_EQ(replayed["frames"][f]["recordedOn"], "rtcore");
+        EXPECT_GT(replayed["frames"][f]["rays"]["pathBounce"]["traced"].get<long long>(), 0);
+    }
+    // The same rays on Embree: every hit found again (the back ends agree).
+    const CliRun embree = runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + " --out " +
+                                 (dir / "replay_embree").string());
+    EXPECT_EQ(embree.exitCode, 0) << embree.out;
+    EXPECT_NE(embree.out.find(" 0 hit(s) differ"), std::string::npos) << embree.out;
+}
+
+TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
+    const fs::path dir = freshDir("rec_bad");
+    ASSERT_EQ(runCli("render --scene builtin:cornell --effects gbuffer,shadows --width 16 --height 16 --record-rays " +
+                     (dir / "rays").string() + " --out " + dir.string())
+                  .exitCode,
+              0);
+    const fs::path file = dir / "rays" / "frame_0000.rays";
+    const auto oneLine = [](const CliRun& r) {
+        return std::count(r.out.begin(), r.out.end(), '\n') == 1;
+    };
+    // Another scene: the fingerprint differs.
+    const CliRun foreign = runCli("replay --scene builtin:showcase --rays " + file.string() + " --out " +
+                                  (dir / "o1").string());
+    EXPECT_EQ(foreign.exitCode, 2) << foreign.out;
+    EXPECT_NE(foreign.out.find("fingerprint"), std::string::npos) << foreign.out;
+    EXPECT_TRUE(oneLine(foreign)) << foreign.out;
+    // Truncated.
+    std::vector<char> bytes = bytesOf(file);
+    const fs::path truncated = dir / "truncated.rays";
+    {
+        std::ofstream out(truncated, std::ios::binary);
+        out.write(bytes.data(), std::streamsize(bytes.size() - 100));
+    }
+    const CliRun cut = runCli("replay --scene builtin:cornell --rays " + truncated.string() + " --out " + (dir / "o2").string());
+    EXPECT_EQ(cut.exitCode, 2) << cut.out;
+    EXPECT_NE(cut.out.find(truncated.string()), std::string::npos) << cut.out;
+    EXPECT_TRUE(oneLine(cut)) << cut.out;
+    EXPECT_FALSE(fs::exists(dir / "o2" / "stats.json"));
+    // Missing and empty inputs.
+    EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + (dir / "nothing.rays").string()).exitCode, 2);
+    fs::create_directories(dir / "empty");
+    EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + (dir / "empty").string()).exitCode, 2);
+    EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + file.string() + " --rtcore-set cache.ways=2").exitCode, 2);
+    // A recorded hit turned into a miss (checksum made consistent): replay finds a differing hit, exit 1.
+    std::size_t offset = sizeof(rtlab::study::RayTraceHeader) + sizeof(rtlab::study::BatchRecord);
+    auto* header = reinterpret_cast<rtlab::study::RayTraceHeader*>(bytes.data());
+    bool altered = false;
+    for (std::uint64_t b = 0; b < header->batchCount && !altered; ++b) {
+        auto* batch = reinterpret_cast<rtlab::study::BatchRecord*>(bytes.data() + offset - sizeof(rtlab::study::BatchRecord));
+        auto* rays = reinterpret_cast<rtlab::study::RayRecord*>(bytes.data() + offset);
+        for (std::uint32_t i = 0; i < batch->rays && !altered; ++i)
+            if (rays[i].flags & rtlab::study::RayRecord::kHit) {
+                rays[i].flags = 0;
+                altered = true;
+            }
+        offset += batch->rays * sizeof(rtlab::study::RayRecord) + sizeof(rtlab::study::BatchRecord);
+    }
+    ASSERT_TRUE(altered);
+    rtlab::study::Fnv64 sum;
+    sum.add(bytes.data() + sizeof(rtlab::study::RayTraceHeader), header->bodyBytes);
+    header->bodyChecksum = sum.value();
+    const fs::path changed = dir / "changed.rays";
+    {
+        std::ofstream out(changed, std::ios::binary);
+        out.write(bytes.data(), std::streamsize(bytes.size()));
+    }
+    const CliRun differ = runCli("replay --scene builtin:cornell --rays " + changed.string() + " --out " + (dir / "o3").string());
+    EXPECT_EQ(differ.exitCode, 1) << differ.out;
+    EXPECT_NE(differ.out.find(" 1 hit(s) differ"), std::string::npos) << differ.out;
+    EXPECT_EQ(statsOf(dir / "o3")["frames"][0]["differingHits"], 1);
+}

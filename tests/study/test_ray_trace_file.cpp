@@ -1,0 +1,235 @@
+// Ray-trace files (docs/ray-trace-format.md): a written file reads back bit
+// for bit; truncated, padded, corrupt or foreign files are InputErrors that
+// name the file; an unfinished writer leaves nothing behind; the scene
+// fingerprint sees vertices and transforms.
+#include <rtlab/core/error.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
+#include <rtlab/ecs/snapshot.hpp>
+#include <rtlab/ecs/world.hpp>
+#include <rtlab/study/ray_trace_file.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+using namespace rtlab;
+using namespace rtlab::study;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path scratch(const std::string& name) {
+    const fs::path d = fs::temp_directory_path() / "rtlab_study_tests";
+    fs::create_directories(d);
+    fs::remove(d / name);
+    return d / name;
+}
+
+// Two calls of seeded random rays (some lanes inactive, some hits) written to `path`.
+struct Written {
+    std::vector<std::vector<tracer::RayDesc>> rays;
+    std::vector<std::vector<bool>> active;
+    std::vector<std::vector<tracer::CommittedHit>> hits;
+    std::vector<tracer::TraceArgs> args;
+};
+
+Written writeSample(const fs::path& path, std::uint32_t seed = 7) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1e3f, 1e3f);
+    Written w;
+    RayTraceWriter writer(path);
+    for (std::size_t call = 0; call < 2; ++call) {
+        const std::size_t n = call == 0 ? 256 : 1;
+        std::vector<tracer::RayDesc> rays(n);
+        std::vector<tracer::CommittedHit> hits(n);
+        std::unique_ptr<bool[]> active(new bool[n]);
+        std::vector<bool> activeCopy(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            rays[i] = tracer::RayDesc{vec3(u(rng), u(rng), u(rng)), 0.f, glm::normalize(vec3(u(rng), u(rng), u(rng))),
+                                      i % 5 == 0 ? kInfinity : std::abs(u(rng))};
+            active[i] = activeCopy[i] = (i % 3 != 1) || n == 1;
+            if (i % 2 == 0) {
+                hits[i].hit = true;
+                hits[i].t = std::abs(u(rng));
+                hits[i].instanceIndex = std::uint32_t(i);
+                hits[i].geometryIndex = std::uint32_t(i % 4);
+                hits[i].primitiveIndex = std::uint32_t(i * 7);
+                hits[i].hitKind = 0xfe;
+                hits[i].hitGroupRecord = std::uint32_t(i % 9);
+                hits[i].attributes.values[0] = 0.25f;
+                hits[i].attributes.values[1] = std::nextafter(0.5f, 1.f);
+            }
+        }
+        tracer::TraceArgs a;
+        a.rayFlags = call == 0 ? 0x1u : 0x4u;
+        a.instanceInclusionMask = call == 0 ? 0xffu : 0x0fu;
+        a.rayContribution = std::uint32_t(call) + 1;
+        a.multiplier = 7;
+        a.missIndex = std::uint32_t(call);
+        writer.append(a, 1 + std::uint32_t(call), rays.data(), active.get(), hits.data(), n);
+        w.rays.push_back(rays);
+        w.active.push_back(activeCopy);
+        w.hits.push_back(hits);
+        w.args.push_back(a);
+    }
+    RayTraceInfo info;
+    info.frame = 3;
+    info.sceneFingerprint = 0x0123456789abcdefull;
+    info.rayTypeCount = 7;
+    info.hitGroupCount = 42;
+    info.backend = RecordedBackend::RtCore;
+    info.instanceCount = 5;
+    info.uniqueTriangles = 1234;
+    writer.finish(info);
+    return w;
+}
+
+std::vector<char> bytesOf(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::vector<char>(std::istreambuf_iterator<char>(in), {});
+}
+void writeBytes(const fs::path& p, const std::vector<char>& b) {
+    std::ofstream out(p, std::ios::binary);
+    out.write(b.data(), std::streamsize(b.size()));
+}
+
+// The InputError message of reading `path` ("" when it reads fine).
+std::string readError(const fs::path& path) {
+    try {
+        RayTraceFile::read(path);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+}  // namespace
+
+TEST(RayTraceFile, RoundTripKeepsEveryBitAndLane) {
+    const fs::path path = scratch("round_trip.rays");
+    const Written w = writeSample(path);
+    EXPECT_FALSE(fs::exists(path.string() + ".tmp"));
+    const RayTraceFile f = RayTraceFile::read(path);
+    const RayTraceInfo info = f.info();
+    EXPECT_EQ(info.frame, 3u);
+    EXPECT_EQ(info.sceneFingerprint, 0x0123456789abcdefull);
+    EXPECT_EQ(info.rayTypeCount, 7u);
+    EXPECT_EQ(info.hitGroupCount, 42u);
+    EXPECT_EQ(info.backend, RecordedBackend::RtCore);
+    EXPECT_EQ(info.uniqueTriangles, 1234u);
+    ASSERT_EQ(f.batches().size(), 2u);
+    EXPECT_EQ(f.header().laneCount, 257u);
+    std::uint64_t expectedRays = 0;
+    for (std::size_t b = 0; b < 2; ++b) {
+        const RayTraceFile::Batch& batch = f.batches()[b];
+        EXPECT_EQ(batch.record->lanes, w.rays[b].size());
+        EXPECT_EQ(batch.record->depth, 1 + b);
+        const tracer::TraceArgs a = batch.args();
+        EXPECT_EQ(a.rayFlags, w.args[b].rayFlags);
+        EXPECT_EQ(a.instanceInclusionMask, w.args[b].instanceInclusionMask);
+        EXPECT_EQ(a.rayContribution, w.args[b].rayContribution);
+        EXPECT_EQ(a.multiplier, w.args[b].multiplier);
+        EXPECT_EQ(a.missIndex, w.args[b].missIndex);
+        std::size_t next = 0;
+        for (std::size_t lane = 0; lane < w.rays[b].size(); ++lane) {
+            if (!w.active[b][lane]) continue;
+            expectedRays++;
+            ASSERT_LT(next, batch.rays.size());
+            const RayRecord& r = batch.rays[next++];
+            EXPECT_EQ(r.lane, lane);
+            const tracer::RayDesc d = rayOf(r);
+            EXPECT_EQ(std::memcmp(&d, &w.rays[b][lane], sizeof d), 0) << "lane " << lane;
+            const tracer::CommittedHit h = hitOf(r), &e = w.hits[b][lane];
+            EXPECT_EQ(h.hit, e.hit);
+            if (!e.hit) continue;
+            EXPECT_EQ(std::memcmp(&h.t, &e.t, sizeof(float)), 0);
+            EXPECT_EQ(h.instanceIndex, e.instanceIndex);
+            EXPECT_EQ(h.geometryIndex, e.geometryIndex);
+            EXPECT_EQ(h.primitiveIndex, e.primitiveIndex);
+            EXPECT_EQ(h.hitKind, e.hitKind);
+            EXPECT_EQ(h.hitGroupRecord, e.hitGroupRecord);
+            EXPECT_EQ(h.attributes.values[1], e.attributes.values[1]);
+        }
+        EXPECT_EQ(next, batch.rays.size());
+    }
+    EXPECT_EQ(f.header().rayCount, expectedRays);
+    // 64 bytes per ray plus 32 per call.
+    EXPECT_EQ(fs::file_size(path), 128 + 2 * 32 + expectedRays * 64);
+}
+
+TEST(RayTraceFile, DamagedFilesAreInputErrorsNamingTheFile) {
+    const fs::path good = scratch("good.rays");
+    writeSample(good);
+    const std::vector<char> bytes = bytesOf(good);
+    const auto damaged = [&](const std::string& name, std::vector<char> b) {
+        const fs::path p = scratch(name);
+        writeBytes(p, b);
+        const std::string error = readError(p);
+        EXPECT_NE(error.find(p.string()), std::string::npos) << name << ": " << error;
+        return error;
+    };
+    EXPECT_NE(damaged("empty.rays", {}).find("shorter than the header"), std::string::npos);
+    EXPECT_NE(damaged("truncated.rays", std::vector<char>(bytes.begin(), bytes.end() - 10)).find("truncated"),
+              std::string::npos);
+    std::vector<char> padded = bytes;
+    padded.push_back(0);
+    EXPECT_NE(damaged("padded.rays", padded).find("truncated or padded"), std::string::npos);
+    std::vector<char> magic = bytes;
+    magic[0] = 'X';
+    EXPECT_NE(damaged("magic.rays", magic).find("bad magic"), std::string::npos);
+    std::vector<char> version = bytes;
+    version[8] = 9;
+    EXPECT_NE(damaged("version.rays", version).find("version 9"), std::string::npos);
+    std::vector<char> flipped = bytes;
+    flipped[128 + 32 + 5] ^= 0x10;  // a bit of the first ray's origin
+    EXPECT_NE(damaged("flipped.rays", flipped).find("checksum"), std::string::npos);
+    std::vector<char> counts = bytes;
+    counts[24] ^= 1;  // batchCount
+    EXPECT_NE(damaged("counts.rays", counts).find("corrupt header"), std::string::npos);
+    EXPECT_NE(readError(scratch("missing.rays")).find("cannot open"), std::string::npos);
+    // Random garbage of every length up to 300 bytes never crashes.
+    std::mt19937 rng(11);
+    for (std::size_t n = 0; n < 300; n += 7) {
+        std::vector<char> garbage(n);
+        for (char& c : garbage) c = char(rng());
+        if (n >= 8) std::memcpy(garbage.data(), kRayTraceMagic, 8);
+        EXPECT_FALSE(damaged("garbage.rays", garbage).empty()) << n;
+    }
+}
+
+TEST(RayTraceFile, AnUnfinishedWriterLeavesNoFile) {
+    const fs::path path = scratch("unfinished.rays");
+    {
+        RayTraceWriter writer(path);
+        const tracer::RayDesc ray;
+        const bool active = true;
+        const tracer::CommittedHit hit;
+        writer.append(tracer::TraceArgs{}, 1, &ray, &active, &hit, 1);
+        EXPECT_TRUE(fs::exists(path.string() + ".tmp"));
+    }
+    EXPECT_FALSE(fs::exists(path));
+    EXPECT_FALSE(fs::exists(path.string() + ".tmp"));
+}
+
+TEST(RayTraceFile, FingerprintSeesVerticesAndTransforms) {
+    ecs::World world;
+    ecs::load::loadScene(world, "builtin:cornell");
+    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
+    const std::uint64_t base = sceneFingerprint(scene);
+    EXPECT_EQ(sceneFingerprint(scene), base);
+    ecs::SceneSnapshot moved = scene;
+    moved.instances[1].worldFromObject[3][0] = std::nextafter(moved.instances[1].worldFromObject[3][0], 1e9f);
+    EXPECT_NE(sceneFingerprint(moved), base);
+    std::vector<ecs::MeshAsset> meshes = *scene.meshes;
+    meshes[0].geometries[0].positions[0].y += 1e-3f;
+    ecs::SceneSnapshot deformed = scene;
+    deformed.meshes = &meshes;
+    EXPECT_NE(sceneFingerprint(deformed), base);
+    ecs::World other;
+    ecs::load::loadScene(other, "builtin:terrain?triangles=2000");
+    EXPECT_NE(sceneFingerprint(ecs::makeSnapshot(other, other.update(0.f))), base);
+}
