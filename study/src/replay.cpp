@@ -40,31 +40,36 @@ struct BatchOutcome {
     std::vector<DifferingHit> examples;
 };
 
-// Traces one batch on `backend` and compares with the recording.
+// Traces one batch on `backend` and compares with the recording. With
+// `keepLanes` the call is rebuilt lane for lane (the model forms its warps
+// from the call as submitted); otherwise the recorded rays are packed densely
+// (Embree's hits do not depend on the lane a ray sits in, its packets do).
 void replayBatch(const tracer::TraceEngine& engine, tracer::TraversalBackend& backend,
-                 const RayTraceFile::Batch& batch, std::uint64_t index, BatchOutcome& o) {
-    // Step: the call as recorded: its lanes, the recorded rays on their lanes.
-    const std::size_t n = batch.record->lanes;
+                 const RayTraceFile::Batch& batch, std::uint64_t index, bool keepLanes, BatchOutcome& o) {
+    const std::size_t n = keepLanes ? batch.record->lanes : batch.rays.size();
     std::vector<tracer::RayDesc> rays(n);
     std::unique_ptr<bool[]> active(new bool[n]());
     std::vector<void*> payloads(n, nullptr);
     std::vector<tracer::CommittedHit> hits(n);
-    for (const RayRecord& r : batch.rays) {
-        rays[r.lane] = rayOf(r);
-        active[r.lane] = true;
+    for (std::size_t k = 0; k < batch.rays.size(); ++k) {
+        const std::size_t lane = keepLanes ? batch.rays[k].lane : k;
+        rays[lane] = rayOf(batch.rays[k]);
+        active[lane] = true;
     }
     o.rays += batch.rays.size();
     const tracer::TraceArgs args = batch.args();
     backend.trace(engine, args, rays.data(), payloads.data(), active.get(), n, batch.record->depth, hits.data(),
                   o.counters);
     const bool hitOnly = (args.rayFlags & tracer::RayFlag::AcceptFirstHitAndEndSearch) != 0;
-    for (const RayRecord& record : batch.rays) {
-        const std::uint32_t i = record.lane;
+    for (std::size_t k = 0; k < batch.rays.size(); ++k) {
+        const RayRecord& record = batch.rays[k];
+        const std::uint32_t i = keepLanes ? record.lane : std::uint32_t(k);
         const tracer::CommittedHit recorded = hitOf(record);
         if (!rtcore_sim::sameHit(recorded, hits[i], hitOnly)) {
             ++o.differing;
             if (o.examples.size() < kExamples)
-                o.examples.push_back(DifferingHit{index, i, args.rayContribution & 0xf, rays[i], recorded, hits[i]});
+                o.examples.push_back(
+                    DifferingHit{index, record.lane, args.rayContribution & 0xf, rays[i], recorded, hits[i]});
         } else if (recorded.hit && !hitOnly &&
                    (std::memcmp(&recorded.t, &hits[i].t, sizeof(float)) != 0 ||
                     std::memcmp(recorded.attributes.values.data(), hits[i].attributes.values.data(),
@@ -92,20 +97,22 @@ void checkReplayable(const RayTraceFile& file, std::uint64_t fingerprint) {
 }
 
 ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel,
-                        tracer::TraversalBackend* backend) {
+                        tracer::TraversalBackend* backend, std::uint32_t rayTypeMask) {
     const RayTraceInfo info = file.info();
     const NoShaderTable shaders(info.hitGroupCount);
     const tracer::TraceEngine engine(accel, shaders, info.rayTypeCount);
-    const auto& batches = file.batches();
+    std::vector<RayTraceFile::Batch> batches;
+    for (const RayTraceFile::Batch& b : file.batches())
+        if (rayTypeMask >> (b.record->rayContribution & 0xf) & 1) batches.push_back(b);
     std::vector<BatchOutcome> outcomes(batches.size());
     const Stopwatch clock;
     if (backend) {
         // Step: order-dependent back ends get the batches in recorded order.
-        for (std::size_t b = 0; b < batches.size(); ++b) replayBatch(engine, *backend, batches[b], b, outcomes[b]);
+        for (std::size_t b = 0; b < batches.size(); ++b) replayBatch(engine, *backend, batches[b], b, true, outcomes[b]);
     } else {
         // Step: Embree: batches in parallel, outcomes reduced in order below.
         tracer::EmbreeBackend embree;
-        parallelForEach(batches.size(), [&](std::size_t b) { replayBatch(engine, embree, batches[b], b, outcomes[b]); });
+        parallelForEach(batches.size(), [&](std::size_t b) { replayBatch(engine, embree, batches[b], b, false, outcomes[b]); });
     }
     ReplayResult r;
     r.milliseconds = clock.elapsedMs();

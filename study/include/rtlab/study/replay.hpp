@@ -40,8 +40,9 @@ void checkReplayable(const RayTraceFile& file, std::uint64_t sceneFingerprint);
 
 // Traces every batch of `file` on `backend` in recorded order (nullptr =
 // Embree through TraceEngine::trace8, batches spread over threads; the
-// results do not depend on the thread count).
+// results do not depend on the thread count). Only batches whose ray type
+// (RayContributionToHitGroupIndex & 0xf) has its bit in `rayTypeMask`.
 ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel,
-                        tracer::TraversalBackend* backend);
+                        tracer::TraversalBackend* backend, std::uint32_t rayTypeMask = 0xffff);
 
 }  // namespace rtlab::study
