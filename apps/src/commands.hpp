@@ -53,6 +53,7 @@ struct ReplayOptions {
     std::string backend = "embree";
     std::string rtcoreConfig;
     std::vector<std::string> rtcoreSet;
+    std::string rayTypes = "all";           // --ray-types all|LIST (primary,shadow,...)
     int threads = 0;
     std::string out = "out/replay";
 };

@@ -9,6 +9,7 @@
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
+#include <rtlab/rtcore_sim/layout.hpp>
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
 #include <rtlab/study/replay.hpp>
@@ -21,6 +22,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <sstream>
 
 namespace rtlab::app {
 namespace {
@@ -45,6 +47,28 @@ std::vector<std::filesystem::path> rayFiles(const std::string& rays) {
     return files;
 }
 
+// --ray-types: "all" or a comma-separated list of ray-type names, as a bit mask.
+std::uint32_t rayTypeMask(const std::string& list) {
+    if (list == "all") return 0xffffu;
+    std::uint32_t mask = 0;
+    std::stringstream in(list);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        if (item.empty()) continue;
+        std::uint32_t t = 0;
+        while (t < shaders::kRayTypeCount && shaders::rayTypeName(t) != item) ++t;
+        if (t == shaders::kRayTypeCount) {
+            std::string known;
+            for (std::uint32_t k = 0; k < shaders::kRayTypeCount; ++k)
+                known += (k ? ", " : "") + std::string(shaders::rayTypeName(k));
+            throw InputError("--ray-types", "unknown ray type '" + item + "' (known: all, " + known + ")");
+        }
+        mask |= 1u << t;
+    }
+    if (!mask) throw InputError("--ray-types", "empty list (use all or ray-type names)");
+    return mask;
+}
+
 }  // namespace
 
 void addReplayCommand(CLI::App& app, ReplayOptions& o) {
@@ -57,6 +81,10 @@ void addReplayCommand(CLI::App& app, ReplayOptions& o) {
     cmd->add_option("--rtcore-config", o.rtcoreConfig, "RT-core model parameters (JSON; docs/rtcore-model.md)");
     cmd->add_option("--rtcore-set", o.rtcoreSet, "Override one RT-core parameter: section.field=value (repeatable)")
         ->allow_extra_args(false);
+    cmd->add_option("--ray-types", o.rayTypes,
+                    "all, or the recorded batches of these ray types only: primary,shadow,reflection,ao,gi,"
+                    "translucency,pathBounce")
+        ->capture_default_str();
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--out", o.out, "Output directory (stats.json)")->capture_default_str();
 }
@@ -67,6 +95,7 @@ int runReplay(const ReplayOptions& o) {
         if (!o.rtcoreConfig.empty()) throw InputError("--rtcore-config", "only applies to --backend rtcore");
         if (!o.rtcoreSet.empty()) throw InputError("--rtcore-set", "only applies to --backend rtcore");
     }
+    const std::uint32_t typeMask = rayTypeMask(o.rayTypes);
     std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
     if (o.backend == "rtcore") rtcore = std::make_unique<rtcore_sim::RtCoreBackend>(resolveRtCoreConfig(o.rtcoreConfig, o.rtcoreSet));
     std::map<std::uint32_t, study::RayTraceFile> byFrame;
@@ -93,6 +122,7 @@ int runReplay(const ReplayOptions& o) {
     stats["scene"] = o.scene;
     stats["rays"] = o.rays;
     stats["backend"] = o.backend;
+    stats["rayTypes"] = o.rayTypes;
     if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
     stats["frames"] = nlohmann::json::array();
     std::uint64_t differing = 0, replayed = 0;
@@ -110,7 +140,7 @@ int runReplay(const ReplayOptions& o) {
         study::checkReplayable(file, study::sceneFingerprint(scene));
         progress("replaying frame " + std::to_string(f) + " (" + std::to_string(file.header().rayCount) + " rays)");
         if (rtcore) rtcore->beginFrame();
-        const study::ReplayResult r = study::replayRays(file, accel, rtcore.get());
+        const study::ReplayResult r = study::replayRays(file, accel, rtcore.get(), typeMask);
         differing += r.differingHits;
         replayed += r.rays;
 
@@ -136,7 +166,11 @@ int runReplay(const ReplayOptions& o) {
                                 {"recorded", hitJson(d.recorded)},
                                 {"replayed", hitJson(d.replayed)}});
         fj["differingExamples"] = examples;
+        fj["uniqueTriangles"] = file.info().uniqueTriangles;
         if (rtcore) {
+            rtcore_sim::MemoryLayout layout;
+            layout.build(rtcore->model());
+            fj["rtcoreModelBytes"] = layout.totalBytes();
             nlohmann::json tree = rtcore->statsJson();
             tree.erase("config");  // echoed once, at the top level
             fj["rtcore"] = std::move(tree);

@@ -84,6 +84,16 @@ TEST(CliRayReplay, ReplayOnTheModelGivesTheRendersCyclesAndStatsExactly) {
                                  (dir / "replay_embree").string());
     EXPECT_EQ(embree.exitCode, 0) << embree.out;
     EXPECT_NE(embree.out.find(" 0 hit(s) differ"), std::string::npos) << embree.out;
+    // One ray type alone (a per-type workload study): only its batches are traced.
+    const CliRun bounces = runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() +
+                                  " --ray-types pathBounce" + config + " --out " + (dir / "bounces").string());
+    ASSERT_EQ(bounces.exitCode, 0) << bounces.out;
+    const nlohmann::json b = statsOf(dir / "bounces")["frames"][0];
+    ASSERT_EQ(b["rays"].size(), 1u) << b["rays"].dump();
+    EXPECT_EQ(b["rays"]["pathBounce"]["traced"], rendered["frames"][0]["rays"]["pathBounce"]["traced"]);
+    EXPECT_EQ(b["rtcore"]["frame"]["rays"], b["rays"]["pathBounce"]["traced"]);
+    EXPECT_GT(b["rtcoreModelBytes"].get<long long>(), 0);
+    EXPECT_EQ(runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + " --ray-types glitter").exitCode, 2);
 }
 
 TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
