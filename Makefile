@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench converge test-asan clean
+.PHONY: deps configure build demo test bench converge workloads test-asan clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -21,6 +21,12 @@ test: build
 bench: build
 	@mkdir -p out/bench
 	@bash perf/run-benchmarks.sh build/release out/bench
+
+# The workload table (docs/workloads.md): per suite workload and ray type,
+# node and leaf visits, node-cache hit rates at 32 KiB and 1 MiB, rays per
+# cycle on the RT-core model, from recorded and replayed rays (~10 minutes).
+workloads: build
+	@python3 perf/workloads.py build/release/apps/rtlab out/workloads docs/workloads.md
 
 # Error against run time of the showcase's shadow, reflection, AO and GI
 # denoisers (docs/denoise.md). References are cached in out/converge-cache:
