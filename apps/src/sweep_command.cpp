@@ -47,6 +47,7 @@ int runSweep(const SweepOptions& o) {
             std::cerr << "rtlab: sweep " << o.study << ": " << e.total << " point(s), " << e.skipped
                       << " already complete in " << o.out << ", " << e.toRun << " to run, " << e.workers
                       << " at a time\n";
+            progress(ProgressStep{"sweep: points", 0, e.toRun, 0.0, "running"});  // terminal only
             return;
         }
         const std::size_t ran = e.done - e.skipped + e.failed;
