@@ -106,8 +106,14 @@ ResultStore::ResultStore(const fs::path& dir, const Study& study, const std::str
     // Step: the directory: new, empty, or this study's.
     if (fs::exists(dir) && !fs::is_directory(dir)) throw InputError(where, "exists and is not a directory");
     const bool existed = fs::exists(dir / "study.json");
-    if (!existed && fs::exists(dir) && !fs::is_empty(dir))
-        throw InputError(where, "exists, is not empty and holds no sweep (no study.json): choose another --out");
+    if (!existed && fs::exists(dir))
+        for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+            // What a sweep killed before writing study.json leaves: an empty points/ and the lock.
+            const std::string name = e.path().filename().string();
+            if (name == ".lock" || (name == "points" && fs::is_directory(e.path()) && fs::is_empty(e.path())))
+                continue;
+            throw InputError(where, "exists, is not empty and holds no sweep (no study.json): choose another --out");
+        }
     fs::create_directories(dir / "points", ec);
     if (ec) throw InputError(where, "cannot create directory: " + ec.message());
 

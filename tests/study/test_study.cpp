@@ -274,3 +274,19 @@ TEST(Report, FromRecordedRowsDrawsOnePlotPerParameterAndMetric) {
     EXPECT_NE(html.find("rtlab sweep s.json --out " + dir.string()), std::string::npos);
     EXPECT_EQ(html.find("<script"), std::string::npos);
 }
+
+TEST(ResultStore, AcceptsWhatASweepKilledBeforeItsRecordLeaves) {
+    const Study s = parseStudy(kIssueStudy, "s.json");
+    const fs::path dir = freshDir("store_early_kill");
+    fs::create_directories(dir / "points");
+    std::ofstream(dir / ".lock") << "";
+    {
+        ResultStore store(dir, s, "s.json");
+        EXPECT_EQ(store.doneCount(), 0u);
+    }
+    EXPECT_TRUE(fs::exists(dir / "study.json"));
+    // Anything else in points/ is not ours to reuse.
+    const fs::path other = freshDir("store_early_kill_other");
+    fs::create_directories(other / "points" / "x");
+    EXPECT_THROW(ResultStore(other, s, "s.json"), InputError);
+}
