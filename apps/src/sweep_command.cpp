@@ -6,9 +6,12 @@
 #include <rtlab/study/report.hpp>
 #include <rtlab/study/sweep.hpp>
 
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <unistd.h>
 
 namespace rtlab::app {
 
@@ -24,6 +27,26 @@ void addSweepCommand(CLI::App& app, SweepOptions& o) {
 }
 
 namespace {
+
+// Ctrl-C / SIGTERM: say how to resume, then die of the signal as before
+// (the renders die with the sweep; complete points are kept).
+void onInterrupt(int sig) {
+    static const char message[] = "\nrtlab: sweep interrupted: complete points are kept; rerun the same command "
+                                  "to resume\n";
+    const ssize_t ignored = write(STDERR_FILENO, message, sizeof message - 1);
+    (void)ignored;
+    raise(sig);  // the handler was reset (SA_RESETHAND): the default action now
+}
+
+void sayHowToResumeOnInterrupt() {
+    struct sigaction action;
+    std::memset(&action, 0, sizeof action);
+    action.sa_handler = onInterrupt;
+    action.sa_flags = SA_RESETHAND;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, nullptr);
+    sigaction(SIGTERM, &action, nullptr);
+}
 
 std::string seconds(double s) {
     char buf[32];
@@ -59,6 +82,7 @@ int runSweep(const SweepOptions& o) {
         if (e.row) detail += " in " + seconds(e.row->at("timing").value("wallSeconds", 0.0));
         progress(ProgressStep{"sweep: points", ran, e.toRun, e.elapsedSeconds, detail}, true);
     };
+    if (study::launcherRank() == 0) sayHowToResumeOnInterrupt();
     const int code = study::runSweep(options);
     if (study::launcherRank() != 0) return code;  // MPI workers: rank 0 reports
     progress("");

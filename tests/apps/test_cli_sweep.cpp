@@ -102,6 +102,10 @@ void killAndResume(const std::string& name, int sig) {
     int status = 0;
     waitpid(pid, &status, 0);
     ASSERT_TRUE(WIFSIGNALED(status)) << "the sweep finished before it could be killed: " << readText(study.parent_path() / "first.log");
+    if (sig == SIGINT) {
+        EXPECT_NE(readText(study.parent_path() / "first.log").find("sweep interrupted: complete points are kept"),
+                  std::string::npos);
+    }
     const std::size_t kept = countResults(out);
     ASSERT_GE(kept, 2u);
     ASSERT_LT(kept, 10u);
