@@ -29,7 +29,8 @@ public:
     // A point's outcome: recorded when complete, otherwise counted as failed
     // (a bad-input failure stops handing out points).
     void finished(std::size_t index, const PointOutcome& outcome);
-    // 0, 1 (a point failed) or throws InputError (a point reported bad input).
+    // Brings the result tables up to date, then: 0, 1 (a point failed) or
+    // throws InputError (a point reported bad input).
     int exitCode() const;
 
 private:

@@ -159,9 +159,15 @@ ResultStore::ResultStore(const fs::path& dir, const Study& study, const std::str
         rows_[p.index] = std::move(row);
     }
     writeTables();
+    sinceTables_.restart();
 }
 
 ResultStore::~ResultStore() {
+    try {
+        flush();
+    } catch (const std::exception&) {
+        // The rows are safe in their result.json files; the next sweep rebuilds the tables.
+    }
     if (lockFd_ >= 0) ::close(lockFd_);
 }
 
@@ -176,8 +182,16 @@ json ResultStore::record(const Point& point, const std::string& statsText, doubl
     json row = makeRow(point, stats, wallSeconds);
     writeTextFileAtomically(pd / "result.json", row.dump(2) + "\n");  // last: the point is complete
     rows_[point.index] = row;
-    writeTables();
+    tablesStale_ = true;
+    if (sinceTables_.elapsedMs() >= 1000.0) flush();
     return row;
+}
+
+void ResultStore::flush() {
+    if (!tablesStale_) return;
+    writeTables();
+    tablesStale_ = false;
+    sinceTables_.restart();
 }
 
 std::vector<json> ResultStore::rows() const {

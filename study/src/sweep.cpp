@@ -76,6 +76,7 @@ void Coordinator::finished(std::size_t index, const PointOutcome& outcome) {
 }
 
 int Coordinator::exitCode() const {
+    store_->flush();
     if (!badInput_.empty()) throw InputError(options_.studyFile.string(), badInput_);
     return failed_ > 0 ? static_cast<int>(ExitCode::Internal) : 0;
 }

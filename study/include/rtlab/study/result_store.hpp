@@ -5,11 +5,13 @@
 //   DIR/points/pNNNN/stats.json  the point's render statistics
 //   DIR/points/pNNNN/result.json the point's row, written last: its presence
 //                                means the point is complete
-//   DIR/results.jsonl, .csv      every complete row, in point order
+//   DIR/results.jsonl, .csv      every complete row, in point order (rebuilt
+//                                from the result.json files when a sweep starts)
 //
 // Every file is written to a temporary name and renamed, so a kill at any
 // moment leaves each point either complete or absent. A DIR holding another
 // study's results is refused; one sweep at a time may hold a DIR (a lock).
+#include <rtlab/core/timer.hpp>
 #include <rtlab/study/study.hpp>
 
 #include <nlohmann/json.hpp>
@@ -41,8 +43,13 @@ public:
     std::size_t doneCount() const { return rows_.size(); }
 
     // Records a finished point: its stats.json text (as `rtlab render` wrote
-    // it), then its row; rewrites results.jsonl and results.csv. Returns the row.
+    // it), then its row (the point is then complete). Rewrites results.jsonl
+    // and results.csv when the last rewrite is a second old or more (a study
+    // of thousands of points does not rewrite them thousands of times);
+    // flush() and the destructor bring them up to date. Returns the row.
     nlohmann::json record(const Point& point, const std::string& statsText, double wallSeconds);
+    // Rewrites results.jsonl and results.csv if a recorded row is not in them yet.
+    void flush();
 
     // The recorded rows, in point order.
     std::vector<nlohmann::json> rows() const;
@@ -54,6 +61,8 @@ private:
     Study study_;
     int lockFd_ = -1;
     std::map<std::size_t, nlohmann::json> rows_;
+    bool tablesStale_ = false;
+    Stopwatch sinceTables_;
 };
 
 // One result row (docs/studies.md): id, index, workload, overrides, metrics, timing.
