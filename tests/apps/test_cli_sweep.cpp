@@ -307,3 +307,25 @@ TEST(Report, WritesSelfContainedHtmlWithPlotsTableConfigAndCommands) {
     EXPECT_EQ(missing.exitCode, 2) << missing.out;
     EXPECT_NE(missing.out.find("not a sweep directory"), std::string::npos) << missing.out;
 }
+
+TEST(Sweep, OnATerminalOneProgressLineWithEta) {
+    if (std::system("command -v script >/dev/null 2>&1") != 0) GTEST_SKIP() << "no script(1) to give the sweep a terminal";
+    const fs::path study = writeStudy("tty", kIssueStudy);
+    const fs::path out = freshDir("sweep_tty");
+    // script(1) runs the sweep on a pseudo-terminal and copies what it wrote.
+    const std::string cmd = "script -qec '" + std::string(RTLAB_CLI) + " sweep " + study.string() + " --out " +
+                            out.string() + "' /dev/null 2>&1";
+    std::string output;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    char buf[4096];
+    while (fgets(buf, sizeof buf, pipe)) output += buf;
+    ASSERT_EQ(pclose(pipe), 0) << output;
+    EXPECT_NE(output.find("\r\033[Ksweep: points 0/4, running, ETA ?"), std::string::npos) << output;
+    for (int i = 1; i <= 4; ++i)
+        EXPECT_NE(output.find("\r\033[Ksweep: points " + std::to_string(i) + "/4, p000"), std::string::npos) << output;
+    EXPECT_NE(output.find("ETA 0:0"), std::string::npos) << output;
+    // No per-point log lines on a terminal: the line is rewritten in place.
+    EXPECT_EQ(output.find("rtlab: sweep: points"), std::string::npos) << output;
+    EXPECT_EQ(rows(out).size(), 4u);
+}
