@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench converge workloads test-asan clean
+.PHONY: deps configure build demo test bench converge workloads study test-asan clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -35,6 +35,13 @@ converge: build
 	@for e in shadows reflections ao gi; do \
 	  ./build/release/apps/rtlab converge --scene builtin:showcase --effect $$e --out out/converge/showcase-$$e || exit $$?; \
 	done
+
+# The example study of docs/studies.md: node-cache size x scheduling policy on
+# three workloads (27 points), then its report (out/study/report.html).
+# Resumable: run it again after an interruption.
+study: build
+	./build/release/apps/rtlab sweep docs/studies/cache-policy.json --out out/study --jobs $$(nproc)
+	./build/release/apps/rtlab report out/study
 
 # The sanitizer configuration (ASan + UBSan) over the whole suite.
 test-asan: deps

@@ -102,8 +102,37 @@ struct ConvergeOptions {
 void addConvergeCommand(CLI::App& app, ConvergeOptions& options);
 int runConverge(const ConvergeOptions& options);
 
-// Progress line on stderr, only when stderr is a terminal.
+// Progress of long work on stderr. progress(line): a line rewritten in place,
+// only when stderr is a terminal ("" clears it).
 void progress(const std::string& line);
+// One step of counted work (frames of a render, points of a sweep): on a
+// terminal, "WHAT DONE/TOTAL[, DETAIL], ETA M:SS" rewritten in place (the ETA
+// from the rate so far); otherwise, with logLine, one plain line per step
+// "rtlab: WHAT DONE/TOTAL[, DETAIL]" (a log file or CI), else nothing.
+struct ProgressStep {
+    std::string what;
+    std::size_t done = 0;
+    std::size_t total = 0;
+    double elapsedSeconds = 0.0;  // for done steps
+    std::string detail;
+};
+void progress(const ProgressStep& step, bool logLine = false);
+// "M:SS" (or "H:MM:SS") left for total - done steps at the rate so far; "?" before the first step.
+std::string etaText(double elapsedSeconds, std::size_t done, std::size_t total);
+
+struct SweepOptions {
+    std::string study;
+    std::string out;
+    int jobs = 1;
+};
+void addSweepCommand(CLI::App& app, SweepOptions& options);
+int runSweep(const SweepOptions& options);
+
+struct ReportOptions {
+    std::string dir;
+};
+void addReportCommand(CLI::App& app, ReportOptions& options);
+int runReport(const ReportOptions& options);
 
 // ecs::load::loadScene, then one "rtlab: warning: ..." line on stderr per
 // warning the loaders recorded (World::loadReport(), e.g. skipped points/lines).

@@ -224,8 +224,10 @@ int runRender(const RenderOptions& o) {
                      {"warnings", report.warnings}};
     stats["frames"] = nlohmann::json::array();
 
+    const Stopwatch framesClock;
     for (int f = 0; f < o.frames; ++f) {
-        progress("rendering frame " + std::to_string(f + 1) + "/" + std::to_string(o.frames));
+        progress(ProgressStep{"rendering: frames done", std::size_t(f), std::size_t(o.frames),
+                              framesClock.elapsedMs() / 1000.0, ""});
         // Step: systems -> what changed -> acceleration structures -> shading.
         const ecs::FrameUpdate update = world.update(f == 0 ? 0.f : world.settings().frameSeconds);
         const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, update);

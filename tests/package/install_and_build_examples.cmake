@@ -25,9 +25,9 @@ function(run_step what)
 endfunction()
 
 run_step("install into ${prefix}" ${CMAKE_COMMAND} --install "${RTLAB_BINARY_DIR}" --prefix "${prefix}")
-foreach(pattern include/rtlab/tracer/pipeline.hpp include/rtlab/rtcore_sim/scheduler.hpp include/rtlab/ecs/world.hpp
+foreach(pattern include/rtlab/tracer/pipeline.hpp include/rtlab/rtcore_sim/scheduler.hpp include/rtlab/ecs/world.hpp include/rtlab/study/study.hpp
                 lib*/librtlab_core.a lib*/librtlab_ecs.a lib*/librtlab_tracer.a lib*/librtlab_rtcore_sim.a
-                lib*/librtlab_shaders_cpp.a lib*/librtlab_denoise.a lib*/cmake/rtlab/rtlabConfig.cmake
+                lib*/librtlab_shaders_cpp.a lib*/librtlab_denoise.a lib*/librtlab_study.a lib*/cmake/rtlab/rtlabConfig.cmake
                 lib*/cmake/rtlab/rtlabConfigVersion.cmake lib*/cmake/rtlab/rtlabTargets.cmake bin/rtlab
                 share/doc/rtlab/api.md)
   file(GLOB found "${prefix}/${pattern}")

@@ -1,0 +1,112 @@
+#pragma once
+// A study (docs/studies.md): workloads x RT-core configurations, each pair one
+// point, each point one `rtlab render`. A STUDY.json file names
+//
+//   "workloads": scene sources ("builtin:cornell", {"scene": "a.gltf"});
+//   "render":    the render settings every point shares (width, height, ...);
+//   "base":      {"section.field": value} overrides applied to every point;
+//   "grid":      {"section.field": [values...]}: the cartesian product;
+//   "list":      [{"section.field": value, ...}, ...]: explicit override sets.
+//
+// The override sets of a study are the grid's product (keys in sorted order,
+// the last key varying fastest) followed by the list's entries; the points
+// are workloads x override sets, workload-major. Bad input throws
+// rtlab::InputError naming the file and the key.
+#include <rtlab/rtcore_sim/config.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace rtlab::study {
+
+// One workload: a scene to render. (A recorded ray trace to replay,
+// {"rays": FILE, "scene": SRC}, is rejected until `rtlab replay` lands.)
+struct Workload {
+    std::string scene;
+
+    nlohmann::json toJson() const;
+    // The label of rows and plots: the scene source.
+    const std::string& label() const { return scene; }
+};
+
+// Settings every point of the study renders with (the `rtlab render` options).
+struct RenderSettings {
+    int width = 64;
+    int height = 64;
+    int spp = 1;
+    int frames = 1;
+    std::string backend = "rtcore";
+    std::string effects = "auto";
+    std::string denoise = "none";  // sweeps measure traversal; `rtlab render` defaults to auto
+    std::string gi = "path";
+    std::uint32_t seed = 0;
+    int threads = 0;            // per point; 0 = the sweep chooses (cores / concurrent points)
+    std::string rtcoreConfig;   // an RT-core configuration JSON file applied before "base"
+
+    nlohmann::json toJson() const;  // every field but threads (results do not depend on it)
+};
+
+// One "section.field=value" override.
+struct Override {
+    std::string key;            // "cache.sizeBytes"
+    nlohmann::json value;       // 4096, "treelet", true
+
+    // The value as `--rtcore-set` takes it: strings bare, everything else as JSON.
+    std::string valueText() const;
+    std::string assignment() const { return key + "=" + valueText(); }
+};
+using OverrideSet = std::vector<Override>;
+
+struct Study {
+    std::vector<Workload> workloads;
+    RenderSettings render;
+    OverrideSet base;
+    std::vector<std::pair<std::string, std::vector<nlohmann::json>>> grid;  // sorted by key
+    std::vector<OverrideSet> list;
+
+    // The canonical form: what the study means, independent of formatting
+    // and key order. Two files with the same canonical form are the same study.
+    nlohmann::json toJson() const;
+    // A 16-hex-digit hash of toJson().dump().
+    std::string fingerprint() const;
+};
+
+// Parses a study; `where` (the file name) prefixes every error. With
+// checkPoints, every point's whole RT-core configuration is resolved and
+// validated too (reading render.rtcoreConfig).
+Study parseStudy(const nlohmann::json& json, const std::string& where, bool checkPoints = true);
+// Reads and parses STUDY.json (InputError naming the file when unreadable or invalid).
+Study loadStudy(const std::filesystem::path& path);
+
+struct Point {
+    std::size_t index = 0;
+    std::string id;          // "p0000", "p0001", ... in point order
+    Workload workload;
+    OverrideSet overrides;   // this point's grid / list overrides (without "base")
+};
+
+// Every point of the study, in order.
+std::vector<Point> expandPoints(const Study& study);
+// The swept parameters: the grid's keys, then keys first seen in the list.
+std::vector<std::string> sweptParameters(const Study& study);
+// The value `point` gives parameter `key` (null when it does not set it).
+nlohmann::json overrideValue(const Point& point, const std::string& key);
+
+// The RT-core configuration of a point: defaults, the study's rtcoreConfig
+// file, "base", then the point's overrides (validated; InputError naming the
+// study file and the point). With point == nullptr: the base configuration.
+rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, const std::string& where);
+
+// The `rtlab render` arguments of a point (without the program name),
+// writing into `outDir`, rendering with `threads` threads (0 = all cores).
+std::vector<std::string> renderArguments(const Study& study, const Point& point, const std::string& outDir,
+                                         int threads);
+// A command line for a shell: each argument quoted when it needs to be.
+std::string shellCommand(const std::vector<std::string>& arguments);
+
+}  // namespace rtlab::study

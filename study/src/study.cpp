@@ -1,0 +1,336 @@
+#include <rtlab/study/study.hpp>
+
+#include <rtlab/core/error.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <set>
+
+namespace rtlab::study {
+
+namespace {
+
+using nlohmann::json;
+
+std::string joinKeys(std::initializer_list<const char*> keys) {
+    std::string s;
+    for (const char* k : keys) s += (s.empty() ? "" : ", ") + std::string(k);
+    return s;
+}
+
+void rejectUnknownKeys(const json& object, std::initializer_list<const char*> known, const std::string& where,
+                       const std::string& prefix) {
+    for (const auto& [key, value] : object.items()) {
+        bool found = false;
+        for (const char* k : known) found = found || key == k;
+        if (!found) throw InputError(where, prefix + key + ": unknown key (known: " + joinKeys(known) + ")");
+    }
+}
+
+int intField(const json& object, const char* key, int min, int max, int fallback, const std::string& where,
+             const std::string& path) {
+    if (!object.contains(key)) return fallback;
+    const json& v = object.at(key);
+    if (!v.is_number_integer() || v.get<long long>() < min || v.get<long long>() > max)
+        throw InputError(where, path + ": must be an integer in " + std::to_string(min) + ".." + std::to_string(max) +
+                                    " (got " + v.dump() + ")");
+    return v.get<int>();
+}
+
+std::string stringField(const json& object, const char* key, const std::string& fallback, const std::string& where,
+                        const std::string& path, std::initializer_list<const char*> allowed = {}) {
+    if (!object.contains(key)) return fallback;
+    const json& v = object.at(key);
+    if (!v.is_string() || v.get<std::string>().empty())
+        throw InputError(where, path + ": must be a non-empty string (got " + v.dump() + ")");
+    const std::string s = v.get<std::string>();
+    if (allowed.size() != 0) {
+        bool ok = false;
+        for (const char* a : allowed) ok = ok || s == a;
+        if (!ok) throw InputError(where, path + ": must be one of " + joinKeys(allowed) + " (got \"" + s + "\")");
+    }
+    return s;
+}
+
+// A parameter value: a number, a bool or a string (a choice such as a policy name).
+void checkScalar(const json& value, const std::string& where, const std::string& path) {
+    if (!(value.is_number() || value.is_boolean() || value.is_string()))
+        throw InputError(where, path + ": must be a number, a boolean or a string (got " + value.dump() + ")");
+}
+
+OverrideSet parseOverrideObject(const json& object, const std::string& where, const std::string& path) {
+    if (!object.is_object()) throw InputError(where, path + ": must be an object {\"section.field\": value}");
+    OverrideSet set;
+    for (const auto& [key, value] : object.items()) {
+        Override o{key, value};
+        checkScalar(value, where, path + "." + key);
+        rtcore_sim::RtCoreConfig scratch;
+        scratch.set(o.assignment(), where + ": " + path);
+        set.push_back(std::move(o));
+    }
+    return set;
+}
+
+Workload parseWorkload(const json& w, const std::string& where, const std::string& path) {
+    Workload workload;
+    if (w.is_string()) {
+        workload.scene = w.get<std::string>();
+    } else if (w.is_object()) {
+        if (w.contains("rays"))
+            throw InputError(where, path + ".rays: ray-trace workloads (replaying a file recorded by rtlab render "
+                                           "--record-rays) are not supported by this rtlab yet; use a scene "
+                                           "source such as \"builtin:cornell\"");
+        rejectUnknownKeys(w, {"scene"}, where, path + ".");
+        if (!w.contains("scene")) throw InputError(where, path + ": needs \"scene\" (a scene source)");
+        workload.scene = stringField(w, "scene", "", where, path + ".scene");
+    } else {
+        throw InputError(where, path + ": must be a scene source string or {\"scene\": SRC} (got " + w.dump() + ")");
+    }
+    if (workload.scene.empty()) throw InputError(where, path + ": empty scene source");
+    return workload;
+}
+
+std::string hex64(std::uint64_t v) {
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+    return buf;
+}
+
+}  // namespace
+
+json Workload::toJson() const { return {{"scene", scene}}; }
+
+json RenderSettings::toJson() const {
+    json j = {{"width", width},     {"height", height},   {"spp", spp},         {"frames", frames},
+              {"backend", backend}, {"effects", effects}, {"denoise", denoise}, {"gi", gi},
+              {"seed", seed}};
+    if (!rtcoreConfig.empty()) j["rtcoreConfig"] = rtcoreConfig;
+    return j;
+}
+
+std::string Override::valueText() const { return value.is_string() ? value.get<std::string>() : value.dump(); }
+
+json Study::toJson() const {
+    json j;
+    j["workloads"] = json::array();
+    for (const Workload& w : workloads) j["workloads"].push_back(w.toJson());
+    j["render"] = render.toJson();
+    j["base"] = json::object();
+    for (const Override& o : base) j["base"][o.key] = o.value;
+    j["grid"] = json::object();
+    for (const auto& [key, values] : grid) j["grid"][key] = values;
+    j["list"] = json::array();
+    for (const OverrideSet& set : list) {
+        json entry = json::object();
+        for (const Override& o : set) entry[o.key] = o.value;
+        j["list"].push_back(entry);
+    }
+    return j;
+}
+
+std::string Study::fingerprint() const {
+    std::uint64_t h = 1469598103934665603ull;  // FNV-1a 64
+    for (const unsigned char c : toJson().dump()) {
+        h ^= c;
+        h *= 1099511628211ull;
+    }
+    return hex64(h);
+}
+
+Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
+    if (!j.is_object()) throw InputError(where, "a study must be a JSON object");
+    rejectUnknownKeys(j, {"workloads", "render", "base", "grid", "list"}, where, "");
+    Study study;
+
+    // Step: workloads.
+    if (!j.contains("workloads")) throw InputError(where, "workloads: missing (a list of scene sources)");
+    const json& workloads = j.at("workloads");
+    if (!workloads.is_array() || workloads.empty())
+        throw InputError(where, "workloads: must be a non-empty list of scene sources");
+    for (std::size_t i = 0; i < workloads.size(); ++i)
+        study.workloads.push_back(parseWorkload(workloads[i], where, "workloads[" + std::to_string(i) + "]"));
+
+    // Step: render settings.
+    if (j.contains("render")) {
+        const json& r = j.at("render");
+        if (!r.is_object()) throw InputError(where, "render: must be an object");
+        rejectUnknownKeys(r,
+                          {"width", "height", "spp", "frames", "backend", "effects", "denoise", "gi", "seed", "threads",
+                           "rtcoreConfig"},
+                          where, "render.");
+        RenderSettings& s = study.render;
+        s.width = intField(r, "width", 1, 16384, s.width, where, "render.width");
+        s.height = intField(r, "height", 1, 16384, s.height, where, "render.height");
+        s.spp = intField(r, "spp", 1, 1 << 20, s.spp, where, "render.spp");
+        s.frames = intField(r, "frames", 1, 100000, s.frames, where, "render.frames");
+        s.backend = stringField(r, "backend", s.backend, where, "render.backend", {"embree", "rtcore"});
+        s.effects = stringField(r, "effects", s.effects, where, "render.effects");
+        s.denoise = stringField(r, "denoise", s.denoise, where, "render.denoise");
+        s.gi = stringField(r, "gi", s.gi, where, "render.gi", {"path", "ddgi"});
+        if (r.contains("seed")) {
+            const json& v = r.at("seed");
+            if (!v.is_number_unsigned() || v.get<std::uint64_t>() > 0xffffffffull)
+                throw InputError(where, "render.seed: must be an integer in 0..4294967295 (got " + v.dump() + ")");
+            s.seed = v.get<std::uint32_t>();
+        }
+        s.threads = intField(r, "threads", 0, 1024, s.threads, where, "render.threads");
+        s.rtcoreConfig = stringField(r, "rtcoreConfig", "", where, "render.rtcoreConfig");
+    }
+
+    // Step: the parameter space.
+    if (j.contains("base")) study.base = parseOverrideObject(j.at("base"), where, "base");
+    if (j.contains("grid")) {
+        const json& g = j.at("grid");
+        if (!g.is_object()) throw InputError(where, "grid: must be an object {\"section.field\": [values...]}");
+        for (const auto& [key, values] : g.items()) {
+            const std::string path = "grid." + key;
+            if (!values.is_array() || values.empty())
+                throw InputError(where, path + ": must be a non-empty list of values");
+            std::set<std::string> seen;
+            for (const json& v : values) {
+                checkScalar(v, where, path);
+                rtcore_sim::RtCoreConfig scratch;
+                scratch.set(Override{key, v}.assignment(), where + ": grid");
+                if (!seen.insert(v.dump()).second) throw InputError(where, path + ": value " + v.dump() + " repeated");
+            }
+            study.grid.emplace_back(key, std::vector<json>(values.begin(), values.end()));
+        }
+    }
+    if (j.contains("list")) {
+        const json& l = j.at("list");
+        if (!l.is_array()) throw InputError(where, "list: must be a list of override objects");
+        for (std::size_t i = 0; i < l.size(); ++i) {
+            const std::string path = "list[" + std::to_string(i) + "]";
+            if (l[i].is_object() && l[i].empty()) throw InputError(where, path + ": empty override set");
+            study.list.push_back(parseOverrideObject(l[i], where, path));
+        }
+    }
+    const bool overrides = !study.base.empty() || !study.grid.empty() || !study.list.empty() ||
+                           !study.render.rtcoreConfig.empty();
+    if (overrides && study.render.backend != "rtcore")
+        throw InputError(where, "render.backend: RT-core parameters (base, grid, list, rtcoreConfig) need "
+                                "\"rtcore\" (got \"" + study.render.backend + "\")");
+
+    // Step: every point's whole configuration, checked now rather than mid-sweep.
+    if (checkPoints && study.render.backend == "rtcore")
+        for (const Point& p : expandPoints(study)) resolveConfig(study, &p, where);
+    return study;
+}
+
+Study loadStudy(const std::filesystem::path& path) {
+    const std::string where = path.string();
+    std::ifstream in(path);
+    if (!in) throw InputError(where, "cannot open study file");
+    json j;
+    try {
+        j = json::parse(in);
+    } catch (const json::parse_error& e) {
+        throw InputError(where, std::string("not valid JSON: ") + e.what());
+    }
+    return parseStudy(j, where);
+}
+
+std::vector<Point> expandPoints(const Study& study) {
+    // Step: the override sets: the grid's product (last key fastest), then the list.
+    std::vector<OverrideSet> sets;
+    if (!study.grid.empty()) {
+        std::vector<std::size_t> digit(study.grid.size(), 0);
+        for (;;) {
+            OverrideSet set;
+            for (std::size_t k = 0; k < study.grid.size(); ++k)
+                set.push_back({study.grid[k].first, study.grid[k].second[digit[k]]});
+            sets.push_back(std::move(set));
+            std::size_t k = study.grid.size();
+            while (k > 0 && ++digit[k - 1] == study.grid[k - 1].second.size()) digit[--k] = 0;
+            if (k == 0) break;
+        }
+    }
+    for (const OverrideSet& set : study.list) sets.push_back(set);
+    if (sets.empty()) sets.emplace_back();  // one point per workload: the base configuration
+
+    // Step: workloads x sets.
+    std::vector<Point> points;
+    for (const Workload& w : study.workloads)
+        for (const OverrideSet& set : sets) {
+            Point p;
+            p.index = points.size();
+            char id[24];
+            std::snprintf(id, sizeof id, "p%04zu", p.index);
+            p.id = id;
+            p.workload = w;
+            p.overrides = set;
+            points.push_back(std::move(p));
+        }
+    return points;
+}
+
+std::vector<std::string> sweptParameters(const Study& study) {
+    std::vector<std::string> keys;
+    const auto add = [&](const std::string& key) {
+        for (const std::string& k : keys)
+            if (k == key) return;
+        keys.push_back(key);
+    };
+    for (const auto& [key, values] : study.grid) add(key);
+    for (const OverrideSet& set : study.list)
+        for (const Override& o : set) add(o.key);
+    return keys;
+}
+
+json overrideValue(const Point& point, const std::string& key) {
+    for (const Override& o : point.overrides)
+        if (o.key == key) return o.value;
+    return nullptr;
+}
+
+rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, const std::string& where) {
+    rtcore_sim::RtCoreConfig config = study.render.rtcoreConfig.empty()
+                                          ? rtcore_sim::RtCoreConfig{}
+                                          : rtcore_sim::RtCoreConfig::loadFile(study.render.rtcoreConfig);
+    for (const Override& o : study.base) config.set(o.assignment(), where + ": base");
+    if (!point) {
+        config.validate(where + ": base");
+        return config;
+    }
+    std::string label = "point " + point->id + " (" + point->workload.label();
+    for (const Override& o : point->overrides) label += ", " + o.assignment();
+    label += ")";
+    for (const Override& o : point->overrides) config.set(o.assignment(), where + ": " + label);
+    config.validate(where + ": " + label);
+    return config;
+}
+
+std::vector<std::string> renderArguments(const Study& study, const Point& point, const std::string& outDir,
+                                         int threads) {
+    const RenderSettings& s = study.render;
+    std::vector<std::string> a = {"render",    "--scene",   point.workload.scene,   "--width",
+                                  std::to_string(s.width),  "--height", std::to_string(s.height),
+                                  "--spp",     std::to_string(s.spp),   "--frames", std::to_string(s.frames),
+                                  "--backend", s.backend,   "--effects", s.effects, "--denoise",
+                                  s.denoise,   "--gi",      s.gi,        "--seed",  std::to_string(s.seed)};
+    if (!s.rtcoreConfig.empty()) a.insert(a.end(), {"--rtcore-config", s.rtcoreConfig});
+    for (const Override& o : study.base) a.insert(a.end(), {"--rtcore-set", o.assignment()});
+    for (const Override& o : point.overrides) a.insert(a.end(), {"--rtcore-set", o.assignment()});
+    if (threads > 0) a.insert(a.end(), {"--threads", std::to_string(threads)});
+    a.insert(a.end(), {"--out", outDir});
+    return a;
+}
+
+std::string shellCommand(const std::vector<std::string>& arguments) {
+    std::string line;
+    for (const std::string& arg : arguments) {
+        const bool plain = !arg.empty() && arg.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                                                 "0123456789-_./:=,+@%") == std::string::npos;
+        if (!line.empty()) line += ' ';
+        if (plain) {
+            line += arg;
+        } else {
+            line += '\'';
+            for (char c : arg) line += c == '\'' ? std::string("'\\''") : std::string(1, c);
+            line += '\'';
+        }
+    }
+    return line;
+}
+
+}  // namespace rtlab::study

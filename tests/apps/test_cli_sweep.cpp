@@ -1,0 +1,331 @@
+// End-to-end: rtlab sweep and rtlab report (docs/studies.md): the minimal
+// study of issue 15, resume after SIGKILL / SIGINT, --jobs and MPI give the
+// same rows, a changed study is refused, bad studies exit 2 naming the key.
+#include "cli_test_util.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <fcntl.h>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace rtlab::test;
+using nlohmann::json;
+
+namespace {
+
+// The minimal study of issue 15, as written there.
+const char* kIssueStudy = R"({"workloads": ["builtin:cornell"],
+ "render": {"width": 64, "height": 64, "frames": 1, "effects": "gbuffer", "backend": "rtcore"},
+ "grid": {"cache.sizeBytes": [4096, 32768], "traversal.units": [1, 2]}})";
+
+// A small study: 2 workloads x 3 cache sizes = 6 points, 32x32 gbuffer.
+const char* kSmallStudy = R"({"workloads": ["builtin:cornell", "builtin:terrain?triangles=2000"],
+ "render": {"width": 32, "height": 32, "effects": "gbuffer"},
+ "grid": {"cache.sizeBytes": [2048, 8192, 32768]}})";
+
+fs::path writeStudy(const std::string& name, const std::string& text) {
+    const fs::path dir = freshDir("study_" + name);
+    fs::create_directories(dir);
+    std::ofstream(dir / "study.json") << text;
+    return dir / "study.json";
+}
+
+std::string readText(const fs::path& path) {
+    std::ifstream in(path);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+std::vector<json> rows(const fs::path& dir) {
+    std::vector<json> out;
+    std::ifstream in(dir / "results.jsonl");
+    std::string line;
+    while (std::getline(in, line))
+        if (!line.empty()) out.push_back(json::parse(line));
+    return out;
+}
+
+// The rows without their timing fields (everything else is deterministic).
+std::vector<json> rowsWithoutTiming(const fs::path& dir) {
+    std::vector<json> out = rows(dir);
+    for (json& r : out) r.erase("timing");
+    return out;
+}
+
+std::size_t countResults(const fs::path& dir) {
+    std::size_t n = 0;
+    if (!fs::exists(dir / "points")) return 0;
+    for (const auto& e : fs::directory_iterator(dir / "points")) n += fs::exists(e.path() / "result.json");
+    return n;
+}
+
+// Starts `rtlab sweep STUDY --out DIR --jobs 1` in the background (output to LOG).
+pid_t startSweep(const fs::path& study, const fs::path& out, const fs::path& log) {
+    const pid_t pid = fork();
+    if (pid == 0) {
+        const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        dup2(fd, 1);
+        dup2(fd, 2);
+        execl(RTLAB_CLI, RTLAB_CLI, "sweep", study.c_str(), "--out", out.c_str(), "--jobs", "1", (char*)nullptr);
+        _exit(127);
+    }
+    return pid;
+}
+
+// Kills a sweep with `sig` once `atLeast` points are complete, reruns it and
+// checks that finished points were kept (not redone) and the rest done.
+void killAndResume(const std::string& name, int sig) {
+    const fs::path study = writeStudy(name, R"({"workloads": ["builtin:cornell", "builtin:terrain?triangles=20000"],
+ "render": {"width": 48, "height": 48, "frames": 2, "effects": "gbuffer"},
+ "grid": {"cache.sizeBytes": [2048, 4096, 8192, 16384, 32768]}})");
+    const fs::path out = freshDir(name + "_out");
+    const pid_t pid = startSweep(study, out, study.parent_path() / "first.log");
+    ASSERT_GT(pid, 0);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (countResults(out) < 2 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    kill(pid, sig);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the sweep finished before it could be killed: " << readText(study.parent_path() / "first.log");
+    if (sig == SIGINT) {
+        EXPECT_NE(readText(study.parent_path() / "first.log").find("sweep interrupted: complete points are kept"),
+                  std::string::npos);
+    }
+    const std::size_t kept = countResults(out);
+    ASSERT_GE(kept, 2u);
+    ASSERT_LT(kept, 10u);
+    // The rows so far are complete and recorded (results.jsonl may lag by the last point only).
+    std::map<std::string, std::string> before;  // point -> result.json text
+    for (const auto& e : fs::directory_iterator(out / "points"))
+        if (fs::exists(e.path() / "result.json")) before[e.path().filename()] = readText(e.path() / "result.json");
+
+    // No render of the killed sweep lives on (they die with it): nothing changes the points now.
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    EXPECT_EQ(countResults(out), kept);
+
+    const CliRun again = runCli("sweep " + study.string() + " --out " + out.string() + " --jobs 2");
+    ASSERT_EQ(again.exitCode, 0) << again.out;
+    EXPECT_NE(again.out.find(std::to_string(kept) + " already complete"), std::string::npos) << again.out;
+    EXPECT_NE(again.out.find(std::to_string(10 - kept) + " to run"), std::string::npos) << again.out;
+    for (const auto& [point, text] : before)
+        EXPECT_EQ(readText(out / "points" / point / "result.json"), text) << point << " was redone";
+    const std::vector<json> resumed = rowsWithoutTiming(out);
+    ASSERT_EQ(resumed.size(), 10u);
+    for (std::size_t i = 0; i < resumed.size(); ++i) EXPECT_EQ(resumed[i]["index"], i);
+
+    // Same rows as one uninterrupted run.
+    const fs::path fresh = freshDir(name + "_fresh");
+    const CliRun once = runCli("sweep " + study.string() + " --out " + fresh.string() + " --jobs 2");
+    ASSERT_EQ(once.exitCode, 0) << once.out;
+    EXPECT_EQ(rowsWithoutTiming(fresh), resumed);
+}
+
+}  // namespace
+
+TEST(Sweep, IssueMinimalStudyWritesFourRowsAndStats) {
+    const fs::path study = writeStudy("issue", kIssueStudy);
+    const fs::path out = freshDir("sweep_issue");
+    const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    const std::vector<json> rs = rows(out);
+    ASSERT_EQ(rs.size(), 4u);
+    const std::vector<std::pair<int, int>> expected = {{4096, 1}, {4096, 2}, {32768, 1}, {32768, 2}};
+    for (std::size_t i = 0; i < 4; ++i) {
+        const json& row = rs[i];
+        EXPECT_EQ(row["id"], "p000" + std::to_string(i));
+        EXPECT_EQ(row["workload"], "builtin:cornell");
+        EXPECT_EQ(row["overrides"]["cache.sizeBytes"], expected[i].first);
+        EXPECT_EQ(row["overrides"]["traversal.units"], expected[i].second);
+        ASSERT_TRUE(row["metrics"]["cycles"].is_number()) << row.dump();
+        EXPECT_GT(row["metrics"]["cycles"].get<double>(), 0.0);
+        EXPECT_GT(row["metrics"]["raysPerCycle"].get<double>(), 0.0);
+        EXPECT_GE(row["metrics"]["cacheHitRate"].get<double>(), 0.0);
+        EXPECT_LE(row["metrics"]["cacheHitRate"].get<double>(), 1.0);
+        EXPECT_EQ(row["metrics"]["raysTraced"], 64 * 64);
+        EXPECT_GT(row["timing"]["wallSeconds"].get<double>(), 0.0);
+        // The point's stats.json is the render's, with the overrides applied.
+        std::ifstream in(out / "points" / row["id"].get<std::string>() / "stats.json");
+        const json stats = json::parse(in);
+        EXPECT_EQ(stats["rtcore"]["config"]["cache"]["sizeBytes"], expected[i].first);
+        EXPECT_EQ(stats["rtcore"]["config"]["traversal"]["units"], expected[i].second);
+        EXPECT_EQ(stats["frames"][0]["rtcore"]["frame"]["cycles"], row["metrics"]["cycles"]);
+    }
+    // The overrides reach the model: an 8x larger node cache moves fewer bytes.
+    EXPECT_GT(rs[0]["metrics"]["memoryBytes"].get<double>(), rs[2]["metrics"]["memoryBytes"].get<double>());
+    const std::string csv = readText(out / "results.csv");
+    EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);
+    EXPECT_EQ(csv.substr(0, csv.find('\n')).find("id,workload,cache.sizeBytes,traversal.units,"), 0u) << csv;
+    EXPECT_NE(csv.find("p0003,builtin:cornell,32768,2,"), std::string::npos) << csv;
+    // Not a terminal: one line per finished point.
+    for (int i = 1; i <= 4; ++i)
+        EXPECT_NE(r.out.find("sweep: points " + std::to_string(i) + "/4"), std::string::npos) << r.out;
+
+    // A rerun of a complete sweep runs nothing and changes nothing.
+    const std::string before = readText(out / "results.jsonl");
+    const CliRun again = runCli("sweep " + study.string() + " --out " + out.string());
+    ASSERT_EQ(again.exitCode, 0) << again.out;
+    EXPECT_NE(again.out.find("4 already complete"), std::string::npos) << again.out;
+    EXPECT_NE(again.out.find("0 to run"), std::string::npos) << again.out;
+    EXPECT_EQ(readText(out / "results.jsonl"), before);
+}
+
+TEST(Sweep, ResumesAfterSigkillWithoutRedoingFinishedPoints) { killAndResume("kill9", SIGKILL); }
+
+TEST(Sweep, ResumesAfterSigintWithoutRedoingFinishedPoints) { killAndResume("int", SIGINT); }
+
+TEST(Sweep, TwoJobsGiveTheSameRowsAsOne) {
+    const fs::path study = writeStudy("jobs", kSmallStudy);
+    const fs::path one = freshDir("sweep_jobs1"), two = freshDir("sweep_jobs2");
+    const CliRun a = runCli("sweep " + study.string() + " --out " + one.string() + " --jobs 1");
+    ASSERT_EQ(a.exitCode, 0) << a.out;
+    const CliRun b = runCli("sweep " + study.string() + " --out " + two.string() + " --jobs 2");
+    ASSERT_EQ(b.exitCode, 0) << b.out;
+    EXPECT_NE(b.out.find("2 at a time"), std::string::npos) << b.out;
+    const std::vector<json> ra = rowsWithoutTiming(one);
+    ASSERT_EQ(ra.size(), 6u);
+    EXPECT_EQ(ra, rowsWithoutTiming(two));
+    EXPECT_EQ(readText(one / "points/p0004/stats.json").size() > 0, true);
+}
+
+TEST(Sweep, MpiThreeRanksGiveTheSameRowsAsOneProcess) {
+#ifndef RTLAB_TEST_MPIEXEC
+    GTEST_SKIP() << "rtlab was built without MPI";
+#else
+    const fs::path study = writeStudy("mpi", kSmallStudy);
+    const fs::path one = freshDir("sweep_mpi_local"), mpi = freshDir("sweep_mpi_ranks");
+    const CliRun a = runCli("sweep " + study.string() + " --out " + one.string());
+    ASSERT_EQ(a.exitCode, 0) << a.out;
+    std::string launcher = std::string(RTLAB_TEST_MPIEXEC) + " -n 3 --oversubscribe";
+    if (geteuid() == 0) launcher += " --allow-run-as-root";
+    const std::string cmd = launcher + " " + RTLAB_CLI + " sweep " + study.string() + " --out " + mpi.string() + " 2>&1";
+    std::string output;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    char buf[4096];
+    while (fgets(buf, sizeof buf, pipe)) output += buf;
+    const int status = pclose(pipe);
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+    EXPECT_NE(output.find("2 at a time"), std::string::npos) << output;  // rank 0 hands out, ranks 1 and 2 render
+    EXPECT_EQ(output.find("warning"), std::string::npos) << output;
+    const std::vector<json> ra = rowsWithoutTiming(one);
+    ASSERT_EQ(ra.size(), 6u);
+    EXPECT_EQ(ra, rowsWithoutTiming(mpi));
+#endif
+}
+
+TEST(Sweep, ChangedStudyUnderAnExistingDirIsRefused) {
+    const fs::path study = writeStudy("changed", kSmallStudy);
+    const fs::path out = freshDir("sweep_changed");
+    ASSERT_EQ(runCli("sweep " + study.string() + " --out " + out.string() + " --jobs 2").exitCode, 0);
+    // Formatting alone is no change.
+    std::ofstream(study) << json::parse(kSmallStudy).dump(4);
+    const CliRun same = runCli("sweep " + study.string() + " --out " + out.string());
+    EXPECT_EQ(same.exitCode, 0) << same.out;
+    json changed = json::parse(kSmallStudy);
+    changed["grid"]["cache.sizeBytes"].push_back(65536);
+    std::ofstream(study) << changed.dump();
+    const std::string before = readText(out / "results.jsonl");
+    const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
+    EXPECT_EQ(r.exitCode, 2) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_NE(r.out.find(study.string() + ": differs from the study whose results are in " + out.string()),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(readText(out / "results.jsonl"), before);
+}
+
+TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {R"({"workloads": ["builtin:cornell"], "grdi": {}})", "grdi: unknown key"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"widht": 3}})", "render.widht: unknown key"},
+        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.sizeBytes": [3000]}})", "cache.sizeBytes"},
+        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.nope": [1]}})", "cache.nope"},
+        {R"({"workloads": [{"rays": "a.rtrays", "scene": "builtin:cornell"}]})", "workloads[0].rays: ray-trace workloads"},
+        {R"({"render": {}})", "workloads: missing"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"backend": "embree"}, "grid": {"cache.ways": [2]}})",
+         "render.backend"},
+        {R"({"workloads": ["builtin:cornell"], "list": [{"scheduler.policy": "nope"}]})", "scheduler.policy"},
+        {"{not json", "not valid JSON"},
+    };
+    for (std::size_t i = 0; i < cases.size(); ++i) {
+        const fs::path study = writeStudy("bad" + std::to_string(i), cases[i].first);
+        const fs::path out = freshDir("sweep_bad" + std::to_string(i));
+        const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
+        EXPECT_EQ(r.exitCode, 2) << cases[i].first << "\n" << r.out;
+        EXPECT_EQ(r.out.rfind("rtlab: " + study.string() + ": ", 0), 0u) << r.out;
+        EXPECT_NE(r.out.find(cases[i].second), std::string::npos) << r.out;
+        EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+        EXPECT_FALSE(fs::exists(out)) << "a bad study must not create " << out;
+    }
+}
+
+TEST(Sweep, PointWithBadSceneStopsWithExitTwoNamingThePoint) {
+    const fs::path study = writeStudy("badscene", R"({"workloads": ["builtin:nope"], "render": {"width": 16, "height": 16}})");
+    const fs::path out = freshDir("sweep_badscene");
+    const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
+    EXPECT_EQ(r.exitCode, 2) << r.out;
+    EXPECT_NE(r.out.find("point p0000 (builtin:nope) exited with 2"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("nope"), std::string::npos) << r.out;
+    EXPECT_TRUE(rows(out).empty());
+}
+
+TEST(Report, WritesSelfContainedHtmlWithPlotsTableConfigAndCommands) {
+    const fs::path study = writeStudy("report", kSmallStudy);
+    const fs::path out = freshDir("sweep_report");
+    ASSERT_EQ(runCli("sweep " + study.string() + " --out " + out.string() + " --jobs 2").exitCode, 0);
+    const CliRun r = runCli("report " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    const std::string html = readText(out / "report.html");
+    EXPECT_NE(html.find("<img alt=\"cycles vs cache.sizeBytes\" src=\"data:image/png;base64,iVBORw0KGgo"),
+              std::string::npos);
+    EXPECT_EQ(html.find("<script"), std::string::npos);
+    EXPECT_EQ(html.find("src=\"http"), std::string::npos);
+    EXPECT_EQ(html.find("src=\"file"), std::string::npos);
+    for (int i = 0; i < 6; ++i) EXPECT_NE(html.find(">p000" + std::to_string(i) + "<"), std::string::npos) << i;
+    EXPECT_NE(html.find("Base configuration"), std::string::npos);
+    EXPECT_NE(html.find("&quot;sizeBytes&quot;: 32768"), std::string::npos);  // the resolved base config
+    EXPECT_NE(html.find("rtlab sweep " + study.string() + " --out " + out.string()), std::string::npos);
+    EXPECT_NE(html.find("rtlab render --scene builtin:cornell --width 32 --height 32"), std::string::npos);
+    EXPECT_TRUE(fs::exists(out / "plots" / "cycles-vs-cache.sizeBytes.png"));
+
+    const CliRun missing = runCli("report " + freshDir("report_missing").string());
+    EXPECT_EQ(missing.exitCode, 2) << missing.out;
+    EXPECT_NE(missing.out.find("not a sweep directory"), std::string::npos) << missing.out;
+}
+
+TEST(Sweep, OnATerminalOneProgressLineWithEta) {
+    if (std::system("command -v script >/dev/null 2>&1") != 0) GTEST_SKIP() << "no script(1) to give the sweep a terminal";
+    const fs::path study = writeStudy("tty", kIssueStudy);
+    const fs::path out = freshDir("sweep_tty");
+    // script(1) runs the sweep on a pseudo-terminal and copies what it wrote.
+    const std::string cmd = "script -qec '" + std::string(RTLAB_CLI) + " sweep " + study.string() + " --out " +
+                            out.string() + "' /dev/null 2>&1";
+    std::string output;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    char buf[4096];
+    while (fgets(buf, sizeof buf, pipe)) output += buf;
+    ASSERT_EQ(pclose(pipe), 0) << output;
+    EXPECT_NE(output.find("\r\033[Ksweep: points 0/4, running, ETA ?"), std::string::npos) << output;
+    for (int i = 1; i <= 4; ++i)
+        EXPECT_NE(output.find("\r\033[Ksweep: points " + std::to_string(i) + "/4, p000"), std::string::npos) << output;
+    EXPECT_NE(output.find("ETA 0:0"), std::string::npos) << output;
+    // No per-point log lines on a terminal: the line is rewritten in place.
+    EXPECT_EQ(output.find("rtlab: sweep: points"), std::string::npos) << output;
+    EXPECT_EQ(rows(out).size(), 4u);
+}
