@@ -3,6 +3,7 @@
 #include <rtlab/core/error.hpp>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <set>
 
@@ -76,13 +77,18 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
     if (w.is_string()) {
         workload.scene = w.get<std::string>();
     } else if (w.is_object()) {
-        if (w.contains("rays"))
-            throw InputError(where, path + ".rays: ray-trace workloads (replaying a file recorded by rtlab render "
-                                           "--record-rays) are not supported by this rtlab yet; use a scene "
-                                           "source such as \"builtin:cornell\"");
-        rejectUnknownKeys(w, {"scene"}, where, path + ".");
-        if (!w.contains("scene")) throw InputError(where, path + ": needs \"scene\" (a scene source)");
+        rejectUnknownKeys(w, {"scene", "rays"}, where, path + ".");
+        if (!w.contains("scene"))
+            throw InputError(where, path + ": needs \"scene\" (a scene source; with \"rays\", the recorded scene)");
         workload.scene = stringField(w, "scene", "", where, path + ".scene");
+        if (w.contains("rays")) {
+            workload.rays = stringField(w, "rays", "", where, path + ".rays");
+            if (workload.rays.empty())
+                throw InputError(where, path + ".rays: empty (a .rays file or directory from rtlab render --record-rays)");
+            std::error_code ec;
+            if (!std::filesystem::exists(workload.rays, ec))
+                throw InputError(where, path + ".rays: " + workload.rays + ": no such file or directory");
+        }
     } else {
         throw InputError(where, path + ": must be a scene source string or {\"scene\": SRC} (got " + w.dump() + ")");
     }
@@ -98,7 +104,11 @@ std::string hex64(std::uint64_t v) {
 
 }  // namespace
 
-json Workload::toJson() const { return {{"scene", scene}}; }
+json Workload::toJson() const {
+    json j = {{"scene", scene}};
+    if (!rays.empty()) j["rays"] = rays;
+    return j;
+}
 
 json RenderSettings::toJson() const {
     json j = {{"width", width},     {"height", height},   {"spp", spp},         {"frames", frames},
@@ -303,11 +313,17 @@ rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, c
 std::vector<std::string> renderArguments(const Study& study, const Point& point, const std::string& outDir,
                                          int threads) {
     const RenderSettings& s = study.render;
-    std::vector<std::string> a = {"render",    "--scene",   point.workload.scene,   "--width",
-                                  std::to_string(s.width),  "--height", std::to_string(s.height),
-                                  "--spp",     std::to_string(s.spp),   "--frames", std::to_string(s.frames),
-                                  "--backend", s.backend,   "--effects", s.effects, "--denoise",
-                                  s.denoise,   "--gi",      s.gi,        "--seed",  std::to_string(s.seed)};
+    // Step: a ray-trace workload replays its recorded rays (traversal only); a scene renders.
+    std::vector<std::string> a;
+    if (!point.workload.rays.empty())
+        a = {"replay", "--scene", point.workload.scene, "--rays", point.workload.rays, "--backend", s.backend};
+    else
+        a = {"render",    "--scene",   point.workload.scene,   "--width",
+             std::to_string(s.width),  "--height", std::to_string(s.height),
+             "--spp",     std::to_string(s.spp),   "--frames", std::to_string(s.frames),
+             "--backend", s.backend,   "--effects", s.effects, "--denoise",
+             s.denoise,   "--gi",      s.gi,        "--seed",  std::to_string(s.seed)};
+    // Step: the RT-core configuration and the output, the same for both.
     if (!s.rtcoreConfig.empty()) a.insert(a.end(), {"--rtcore-config", s.rtcoreConfig});
     for (const Override& o : study.base) a.insert(a.end(), {"--rtcore-set", o.assignment()});
     for (const Override& o : point.overrides) a.insert(a.end(), {"--rtcore-set", o.assignment()});

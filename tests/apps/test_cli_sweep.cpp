@@ -255,7 +255,7 @@ TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
         {R"({"workloads": ["builtin:cornell"], "render": {"widht": 3}})", "render.widht: unknown key"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.sizeBytes": [3000]}})", "cache.sizeBytes"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.nope": [1]}})", "cache.nope"},
-        {R"({"workloads": [{"rays": "a.rtrays", "scene": "builtin:cornell"}]})", "workloads[0].rays: ray-trace workloads"},
+        {R"({"workloads": [{"rays": "a.rtrays", "scene": "builtin:cornell"}]})", "workloads[0].rays: a.rtrays: no such file or directory"},
         {R"({"render": {}})", "workloads: missing"},
         {R"({"workloads": ["builtin:cornell"], "render": {"backend": "embree"}, "grid": {"cache.ways": [2]}})",
          "render.backend"},
@@ -328,4 +328,36 @@ TEST(Sweep, OnATerminalOneProgressLineWithEta) {
     // No per-point log lines on a terminal: the line is rewritten in place.
     EXPECT_EQ(output.find("rtlab: sweep: points"), std::string::npos) << output;
     EXPECT_EQ(rows(out).size(), 4u);
+}
+
+// A ray-trace workload: recorded rays are replayed on the model at every
+// point (traversal only); each row's cycles are those of `rtlab replay` with
+// the same configuration.
+TEST(Sweep, RecordedRaysAreReplayedAtEveryPoint) {
+    const fs::path dir = freshDir("sweep_rays");
+    const CliRun record = runCli("render --scene builtin:cornell --effects gbuffer,shadows,ao --width 32 --height 32 "
+                                 "--record-rays " + (dir / "rays").string() + " --out " + (dir / "render").string());
+    ASSERT_EQ(record.exitCode, 0) << record.out;
+    const fs::path study = writeStudy("rays", R"({"workloads": [{"scene": "builtin:cornell", "rays": ")" +
+                                                  (dir / "rays").string() + R"("}],
+      "render": {"backend": "rtcore"},
+      "grid": {"cache.sizeBytes": [1024, 32768]}})");
+    const fs::path out = dir / "sweep";
+    const CliRun sweep = runCli("sweep " + study.string() + " --out " + out.string());
+    ASSERT_EQ(sweep.exitCode, 0) << sweep.out;
+    const std::vector<json> rs = rows(out);
+    ASSERT_EQ(rs.size(), 2u);
+    const CliRun replay = runCli("replay --scene builtin:cornell --rays " + (dir / "rays").string() +
+                                 " --backend rtcore --rtcore-set cache.sizeBytes=1024 --out " + (dir / "replay").string());
+    ASSERT_EQ(replay.exitCode, 0) << replay.out;
+    std::ifstream in(dir / "replay" / "stats.json");
+    const json replayed = json::parse(in);
+    EXPECT_EQ(rs[0]["metrics"]["cycles"].get<double>(), replayed["frames"][0]["rtcore"]["frame"]["cycles"].get<double>());
+    EXPECT_NE(rs[0]["metrics"]["cycles"], rs[1]["metrics"]["cycles"]);  // the cache size matters
+    EXPECT_NE(rs[0]["workload"].get<std::string>().find("[rays "), std::string::npos) << rs[0].dump();
+    // A ray-trace workload whose file is missing is a bad study (exit 2 naming the key).
+    const fs::path missing = writeStudy("rays_missing", R"({"workloads": [{"scene": "builtin:cornell", "rays": "nowhere.rays"}]})");
+    const CliRun bad = runCli("sweep " + missing.string() + " --out " + (dir / "bad").string());
+    EXPECT_EQ(bad.exitCode, 2) << bad.out;
+    EXPECT_NE(bad.out.find("workloads[0].rays"), std::string::npos) << bad.out;
 }

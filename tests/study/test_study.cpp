@@ -103,7 +103,7 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
         {R"({"workloads": []})", "s.json: workloads: must be a non-empty list"},
         {R"({"workloads": [3]})", "s.json: workloads[0]: must be a scene source"},
         {R"({"workloads": [{"scene": "builtin:cornell", "x": 1}]})", "s.json: workloads[0].x: unknown key"},
-        {R"({"workloads": [{"rays": "t.rtrays", "scene": "builtin:cornell"}]})", "s.json: workloads[0].rays: ray-trace"},
+        {R"({"workloads": [{"rays": "t.rtrays", "scene": "builtin:cornell"}]})", "s.json: workloads[0].rays: t.rtrays: no such file"},
         {R"({"workloads": ["builtin:cornell"], "render": {"width": 0}})", "s.json: render.width: must be an integer"},
         {R"({"workloads": ["builtin:cornell"], "render": {"gi": "x"}})", "s.json: render.gi: must be one of"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": []}})", "s.json: grid.cache.ways: must be a non-empty list"},

@@ -1,8 +1,9 @@
 #pragma once
 // A study (docs/studies.md): workloads x RT-core configurations, each pair one
-// point, each point one `rtlab render`. A STUDY.json file names
+// point, each point one `rtlab render` (or `rtlab replay`). A STUDY.json file names
 //
-//   "workloads": scene sources ("builtin:cornell", {"scene": "a.gltf"});
+//   "workloads": scene sources ("builtin:cornell", {"scene": "a.gltf"}) or
+//                recorded rays ({"scene": SRC, "rays": "out/rays"});
 //   "render":    the render settings every point shares (width, height, ...);
 //   "base":      {"section.field": value} overrides applied to every point;
 //   "grid":      {"section.field": [values...]}: the cartesian product;
@@ -24,14 +25,16 @@
 
 namespace rtlab::study {
 
-// One workload: a scene to render. (A recorded ray trace to replay,
-// {"rays": FILE, "scene": SRC}, is rejected until `rtlab replay` lands.)
+// One workload: a scene to render, or recorded rays to replay on it
+// ({"rays": FILE or DIR, "scene": SRC}: `rtlab replay`, traversal only, no
+// shading; docs/ray-trace-format.md).
 struct Workload {
     std::string scene;
+    std::string rays;  // empty: render the scene
 
     nlohmann::json toJson() const;
-    // The label of rows and plots: the scene source.
-    const std::string& label() const { return scene; }
+    // The label of rows and plots: the scene source, and the rays when replayed.
+    std::string label() const { return rays.empty() ? scene : scene + " [rays " + rays + "]"; }
 };
 
 // Settings every point of the study renders with (the `rtlab render` options).
@@ -102,8 +105,9 @@ nlohmann::json overrideValue(const Point& point, const std::string& key);
 // study file and the point). With point == nullptr: the base configuration.
 rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, const std::string& where);
 
-// The `rtlab render` arguments of a point (without the program name),
-// writing into `outDir`, rendering with `threads` threads (0 = all cores).
+// The `rtlab render` arguments of a point (`rtlab replay` for a ray-trace
+// workload) without the program name, writing into `outDir`, with `threads`
+// threads (0 = all cores).
 std::vector<std::string> renderArguments(const Study& study, const Point& point, const std::string& outDir,
                                          int threads);
 // A command line for a shell: each argument quoted when it needs to be.
