@@ -296,7 +296,7 @@ struct Core {
         std::uint64_t enterCycle;
     };
 
-    const RtCoreConfig& config;
+    const RtCoreConfig config;  // a copy: read on every step, never aliased by the counters
     const ModelScene& scene;
     const MemoryLayout& layout;
     BatchState& batch;
