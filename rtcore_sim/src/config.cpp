@@ -285,6 +285,8 @@ std::string toString(WarpDispatch dispatch) {
 
 std::string toString(L2Mode mode) { return mode == L2Mode::Ideal ? "ideal" : "cache"; }
 
+std::string toString(RayOrder order) { return order == RayOrder::Submission ? "submission" : "directionOrigin"; }
+
 const ParamTable<GpuParams>& gpuParamTable() {
     static const ParamTable<GpuParams> table = [] {
         ParamTable<GpuParams> t;
@@ -296,6 +298,11 @@ const ParamTable<GpuParams>& gpuParamTable() {
                     "`cores` contiguous runs",
                     std::vector<std::pair<std::string, WarpDispatch>>{{"roundRobin", WarpDispatch::RoundRobin},
                                                                       {"contiguous", WarpDispatch::Contiguous}});
+        t.addChoice("rayOrder", &GpuParams::rayOrder,
+                    "ray reordering before warp formation: submission = as submitted; directionOrigin = stable sort "
+                    "by direction octant, then origin and direction Morton codes (src/policies/order_direction_origin.cpp)",
+                    std::vector<std::pair<std::string, RayOrder>>{{"submission", RayOrder::Submission},
+                                                                  {"directionOrigin", RayOrder::DirectionOrigin}});
         return t;
     }();
     return table;

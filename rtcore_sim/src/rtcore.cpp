@@ -18,6 +18,8 @@
 #include <rtlab/rtcore_sim/scheduler.hpp>
 #include <rtlab/rtcore_sim/stats.hpp>
 
+#include "ray_order.hpp"
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -268,6 +270,10 @@ struct BatchState {
     std::vector<std::uint32_t> warpRemaining;
     std::uint32_t delivered = 0;
     std::vector<RayTypeStats> rayTypes;  // over the whole GPU (a type's activity is a union over cores)
+    // gpu.rayOrder other than submission: rays/results above are the reordered
+    // copies; order[i] = index in the caller's batch (side callbacks get it).
+    std::vector<std::uint32_t> order;
+    std::uint32_t sideIndex(std::uint32_t i) const { return order.empty() ? i : order[i]; }
 };
 
 // ---------------------------------------------------------------------------
@@ -380,7 +386,7 @@ struct Core {
         Slot& s = slots[slot];
         stats.scheduler += c - s.readyCycle;
         StepInfo& st = s.step;
-        s.trav.step(*batch.side, s.rayIndex, st);
+        s.trav.step(*batch.side, batch.sideIndex(s.rayIndex), st);
 
         // Step: the short stack — pushes spill the bottom entries once it is
         // full, pops from an empty short stack refill from memory.
@@ -896,6 +902,8 @@ struct RtCore::Impl {
     MemoryLayout layout;
     std::uint64_t layoutGeneration = ~std::uint64_t(0);
     BatchState batch;
+    std::vector<SimRay> orderedRays;  // the batch in gpu.rayOrder (when not submission)
+    std::vector<SimRayResult> orderedResults;
     std::unique_ptr<SharedL2> l2;  // l2 mode cache only
     std::vector<std::unique_ptr<Core>> cores;
     bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
@@ -947,9 +955,18 @@ struct RtCore::Impl {
             layoutGeneration = scene.generation();
         }
         if (rays.empty()) return;
+        // Step: the ray order before warp formation (gpu.rayOrder).
+        batch.order.clear();
+        if (config.gpu.rayOrder == RayOrder::DirectionOrigin) {
+            batch.order = directionOriginOrder(rays);
+            orderedRays.resize(rays.size());
+            for (std::size_t i = 0; i < rays.size(); ++i) orderedRays[i] = rays[batch.order[i]];
+            orderedResults.assign(rays.size(), SimRayResult{});
+            rays = orderedRays;
+        }
         batch.rays = rays;
         batch.side = &programmable;
-        batch.results = out;
+        batch.results = batch.order.empty() ? out : std::span<SimRayResult>(orderedResults);
         batch.delivered = 0;
         const std::uint32_t w = config.core.warpWidth;
         const std::uint32_t warps = static_cast<std::uint32_t>((rays.size() + w - 1) / w);
@@ -994,6 +1011,7 @@ struct RtCore::Impl {
                 for (auto& core : cores) core->wheel.advance(c);
             }
             now = portsFree(c);  // spill writes drain before the batch ends
+            for (std::size_t i = 0; i < batch.order.size(); ++i) out[batch.order[i]] = orderedResults[i];
         } catch (...) {
             abortBatch();
             throw;
@@ -1064,7 +1082,7 @@ nlohmann::json RtCore::Impl::statsJson() const {
     }
     out["rayTypes"] = std::move(types);
 
-    out["gpu"] = {{"cores", n}, {"dispatch", toString(config.gpu.dispatch)}};
+    out["gpu"] = {{"cores", n}, {"dispatch", toString(config.gpu.dispatch)}, {"rayOrder", toString(config.gpu.rayOrder)}};
     json perCore = json::array();
     for (std::uint32_t k = 0; k < n; ++k) perCore.push_back(coreTreeJson(snaps[k], config, 1, cycles, batches));
     out["cores"] = std::move(perCore);

@@ -299,6 +299,8 @@ TEST(RtCoreGpu, LawsHoldOnSeveralWorkloadsAndConfigurations) {
     scarce.dram.channels = 1;
     scarce.dram.bytesPerCycle = 4;
     scarce.scheduler.policy = "treelet";
+    RtCoreConfig reordered = gpuConfig(8, L2Mode::Cache);
+    reordered.gpu.rayOrder = RayOrder::DirectionOrigin;
     RtCoreConfig contiguous = gpuConfig(2, L2Mode::Cache);
     contiguous.gpu.dispatch = WarpDispatch::Contiguous;
     const std::pair<std::string, RtCoreConfig> configs[] = {
@@ -308,6 +310,7 @@ TEST(RtCoreGpu, LawsHoldOnSeveralWorkloadsAndConfigurations) {
         {"8 cores ideal", gpuConfig(8, L2Mode::Ideal)},
         {"8 cores cache", gpuConfig(8, L2Mode::Cache)},
         {"8 cores scarce", scarce},
+        {"8 cores cache directionOrigin", reordered},
     };
     for (const char* source : {"builtin:showcase", "builtin:terrain?triangles=20000"}) {
         for (const auto& [name, config] : configs) {
@@ -439,4 +442,44 @@ TEST(RtCoreGpu, ConfigurationSectionsAndErrors) {
     old.cache.lineBytes = 256;
     old.cache.sizeBytes = 32768;
     EXPECT_NO_THROW(old.validate("cfg"));
+}
+
+TEST(RtCoreGpu, RayReorderingChangesCyclesNotHitsAndSidesSeeTheCallersIndices) {
+    // A side that rejects every candidate of odd ray indices: whatever the
+    // order of warp formation, exactly the even rays of the caller's batch hit.
+    struct EvenRaysOnly final : ProgrammableSide {
+        CandidateVerdict triangle(std::uint32_t ray, const TriangleCandidate&) override {
+            CandidateVerdict v;
+            v.commit = ray % 2 == 0;
+            return v;
+        }
+        ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return {}; }
+    };
+    RtCoreConfig config = gpuConfig(4, L2Mode::Cache);
+    MicroScene scene;
+    loadScene(scene, "builtin:showcase", config.bvh);
+    std::vector<SimRay> rays = primaryRays(scene.snapshot.camera, 48, 32);
+    // Interleave two cameras' worth of directions so that the order matters: reverse every other row.
+    for (std::size_t i = 0; i + 1 < rays.size(); i += 96) std::reverse(rays.begin() + i, rays.begin() + i + 48);
+    std::vector<SimRayResult> plain(rays.size()), sorted(rays.size());
+    {
+        RtCore gpu(config, *scene.model);
+        EvenRaysOnly side;
+        gpu.run(rays, side, plain);
+    }
+    config.gpu.rayOrder = RayOrder::DirectionOrigin;
+    RtCore gpu(config, *scene.model);
+    EvenRaysOnly side;
+    gpu.run(rays, side, sorted);
+    EXPECT_EQ(gpu.statsJson()["gpu"]["rayOrder"], "directionOrigin");
+    std::size_t hits = 0, differentLatency = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_TRUE(sameHit(plain[i].hit, sorted[i].hit)) << i;
+        ASSERT_TRUE(sameWork(plain[i].work, sorted[i].work)) << i;
+        if (i % 2 == 1) ASSERT_FALSE(sorted[i].hit.hit) << i;
+        hits += sorted[i].hit.hit;
+        differentLatency += plain[i].cycles != sorted[i].cycles;
+    }
+    EXPECT_GT(hits, rays.size() / 4);
+    EXPECT_GT(differentLatency, 0u);  // warps were formed differently
 }

@@ -232,9 +232,15 @@ enum class WarpDispatch : std::uint8_t {
     RoundRobin,  // warp w -> core w mod cores
     Contiguous,  // the batch's warps in `cores` contiguous runs (neighbouring pixels on one core)
 };
+// The order in which a batch's rays are cut into warps (src/policies/order_*.cpp).
+enum class RayOrder : std::uint8_t {
+    Submission,       // as submitted
+    DirectionOrigin,  // sorted by direction octant, origin Morton code, direction Morton code
+};
 struct GpuParams {
     std::uint32_t cores = 1;                          // RT cores
     WarpDispatch dispatch = WarpDispatch::RoundRobin;  // warp -> core rule
+    RayOrder rayOrder = RayOrder::Submission;          // ray reordering before warp formation
 };
 const ParamTable<GpuParams>& gpuParamTable();
 
@@ -311,5 +317,6 @@ struct RtCoreConfig {
 std::string toString(BuildQuality quality);
 std::string toString(WarpDispatch dispatch);
 std::string toString(L2Mode mode);
+std::string toString(RayOrder order);
 
 }  // namespace rtlab::rtcore_sim
