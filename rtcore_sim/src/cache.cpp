@@ -16,6 +16,29 @@ NodeCache::NodeCache(const CacheParams& params) : params_(params) {
     tags_.assign(lines, kInvalid);
     ready_.assign(lines, 0);
     used_.assign(lines, 0);
+    prefetched_.assign(lines, 0);
+}
+
+void NodeCache::prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port) {
+    ++prefetchRequests;
+    const std::uint64_t first = range.address >> lineShift_;
+    const std::uint64_t last = (range.address + std::max<std::uint32_t>(range.bytes, 1) - 1) >> lineShift_;
+    for (std::uint64_t line = first; line <= last; ++line) {
+        const std::size_t base = std::size_t(line & (sets_ - 1)) * params_.ways;
+        std::size_t victim = base;
+        bool present = false;
+        for (std::size_t i = base; i < base + params_.ways && !present; ++i) {
+            present = tags_[i] == line;
+            if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
+        }
+        if (present) continue;
+        ++prefetchLines;
+        if (tags_[victim] != kInvalid) ++evictions;
+        tags_[victim] = line;
+        used_[victim] = ++stamp_;
+        prefetched_[victim] = 1;
+        ready_[victim] = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
+    }
 }
 
 void NodeCache::invalidate() {
@@ -32,6 +55,10 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
         if (tags_[i] == line) {
             ++hits;
             used_[i] = ++stamp_;
+            if (prefetched_[i]) {
+                ++prefetchHits;
+                prefetched_[i] = 0;
+            }
             if (ready_[i] > hitReady) {
                 ++pendingHits;
                 return LineFill{ready_[i], 0, 0};
@@ -45,6 +72,7 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
     if (tags_[victim] != kInvalid) ++evictions;
     tags_[victim] = line;
     used_[victim] = ++stamp_;
+    prefetched_[victim] = 0;
     const LineFill fill = port.readLine(line << lineShift_, params_.lineBytes, now);
     ready_[victim] = fill.ready;
     return fill;

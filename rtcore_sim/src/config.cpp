@@ -177,12 +177,17 @@ const ParamTable<SchedulerParams>& schedulerParamTable() {
         ParamTable<SchedulerParams> t;
         t.addRegistryChoice("policy", &SchedulerParams::policy,
                             "which ready ray issues next: fifo, oldestFirst, treelet (Aila & Karras 2010 treelet "
-                            "queues) or a policy registered with registerSchedulerPolicy",
+                            "queues), treeletPrefetch (fifo + treelet prefetch into the L1, Chou et al. 2023) or a "
+                            "policy registered with registerSchedulerPolicy",
                             &schedulerPolicyNames);
         t.addUnsigned("issueWidth", &SchedulerParams::issueWidth, "traversal steps the scheduler issues per cycle", 1, 64);
         t.addUnsigned("treeletBytes", &SchedulerParams::treeletBytes,
                       "treelet policy: BVH memory per treelet (a treelet = an aligned block of this many bytes)", 64,
                       1u << 24);
+        t.addUnsigned("prefetchBytes", &SchedulerParams::prefetchBytes,
+                      "treeletPrefetch policy: bytes read into the node cache from the address where a ray enters a "
+                      "treelet (at most to the treelet's end)",
+                      16, 1u << 24);
         return t;
     }();
     return table;

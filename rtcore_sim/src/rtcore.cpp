@@ -224,7 +224,7 @@ struct CoreSnapshot {
     CoreStats stats;
     UnitCounters box, triangle, transform;
     std::uint64_t cacheAccesses = 0, cacheHits = 0, cachePendingHits = 0, cacheMisses = 0, cacheEvictions = 0,
-                  cacheInvalidations = 0;
+                  cacheInvalidations = 0, prefetchRequests = 0, prefetchLines = 0, prefetchHits = 0;
     std::uint64_t memReads = 0, memReadBytes = 0, memWrites = 0, memWriteBytes = 0, memBusy = 0, memQueue = 0;
     Histogram inputQueueOcc, slotOcc, readyOcc, completionOcc;
     nlohmann::json policyStats = nlohmann::json::object();
@@ -240,6 +240,9 @@ struct CoreSnapshot {
         cacheMisses += o.cacheMisses;
         cacheEvictions += o.cacheEvictions;
         cacheInvalidations += o.cacheInvalidations;
+        prefetchRequests += o.prefetchRequests;
+        prefetchLines += o.prefetchLines;
+        prefetchHits += o.prefetchHits;
         memReads += o.memReads;
         memReadBytes += o.memReadBytes;
         memWrites += o.memWrites;
@@ -311,6 +314,7 @@ struct Core {
     UnitPool boxUnits, triangleUnits, transformUnits;
     std::unique_ptr<SchedulerPolicy> policy;
     bool policyUsesAddress = true;
+    bool policyPrefetches = true;
     std::size_t readyCount = 0;  // rays held by the policy
     EventWheel wheel;
     std::vector<Slot> slots;
@@ -334,7 +338,12 @@ struct Core {
           slots(cfg.core.raySlots), inputQueueOcc(cfg.core.inputQueueRays), slotOcc(cfg.core.raySlots),
           readyOcc(cfg.core.raySlots), completionOcc(cfg.core.completionQueueRays) {
         policyUsesAddress = policy->usesAddress();
+        policyPrefetches = !isBuiltinNonPrefetching(cfg.scheduler.policy);  // saves a virtual call per cycle
         resetSlots();
+    }
+
+    static bool isBuiltinNonPrefetching(const std::string& name) {
+        return name == "fifo" || name == "oldestFirst" || name == "treelet";
     }
 
     void resetSlots() {
@@ -649,6 +658,11 @@ struct Core {
             ++stats.issueCycles;
             readyOcc.set(readyCount, c);
         }
+        // Prefetches the policy asked for, after this cycle's demand fetches.
+        if (policyPrefetches) {
+            PrefetchRequest p;
+            while (policy->takePrefetch(p)) cache.prefetch(MemoryRange{p.address, p.bytes}, c, port);
+        }
     }
 
     // The five phases of cycle c.
@@ -733,6 +747,9 @@ struct Core {
         s.cacheMisses = cache.misses;
         s.cacheEvictions = cache.evictions;
         s.cacheInvalidations = cache.invalidations;
+        s.prefetchRequests = cache.prefetchRequests;
+        s.prefetchLines = cache.prefetchLines;
+        s.prefetchHits = cache.prefetchHits;
         const MemoryChannel& m = port.channel;
         s.memReads = m.reads;
         s.memReadBytes = m.readBytes;
@@ -856,6 +873,11 @@ nlohmann::json coreTreeJson(const CoreSnapshot& snap, const RtCoreConfig& config
                     {"evictions", snap.cacheEvictions},
                     {"invalidations", snap.cacheInvalidations},
                     {"hitRate", rate(double(snap.cacheHits), double(snap.cacheAccesses))}};
+    if (snap.prefetchRequests > 0)  // only policies that prefetch (treeletPrefetch)
+        out["cache"]["prefetch"] = {{"requests", snap.prefetchRequests},
+                                    {"lines", snap.prefetchLines},
+                                    {"usefulLines", snap.prefetchHits},
+                                    {"accuracy", rate(double(snap.prefetchHits), double(snap.prefetchLines))}};
     out["memory"] = {{"reads", snap.memReads},
                      {"readBytes", snap.memReadBytes},
                      {"writes", snap.memWrites},

@@ -136,7 +136,9 @@ void expectGpuLaws(const json& s, const RtCoreConfig& config, const std::string&
     EXPECT_GE(dram["utilization"].get<double>(), 0.0) << what;
     EXPECT_LE(dram["utilization"].get<double>(), 1.0) << what;
     if (config.l2.mode == L2Mode::Cache) {
-        EXPECT_EQ(u64(l2["accesses"]), u64(s["cache"]["misses"])) << what;  // every L1 miss goes to the L2
+        // Every L1 miss and every prefetched line goes to the L2.
+        const std::uint64_t prefetched = s["cache"].contains("prefetch") ? u64(s["cache"]["prefetch"]["lines"]) : 0;
+        EXPECT_EQ(u64(l2["accesses"]), u64(s["cache"]["misses"]) + prefetched) << what;
         EXPECT_EQ(u64(dram["readBytes"]), u64(l2["misses"]) * config.l2.lineBytes) << what;
         EXPECT_LE(l2["bankUtilization"].get<double>(), 1.0) << what;
         EXPECT_LE(l2["busiestBankUtilization"].get<double>(), 1.0) << what;
@@ -311,12 +313,25 @@ TEST(RtCoreGpu, LawsHoldOnSeveralWorkloadsAndConfigurations) {
         {"8 cores cache", gpuConfig(8, L2Mode::Cache)},
         {"8 cores scarce", scarce},
         {"8 cores cache directionOrigin", reordered},
+        {"8 cores cache treeletPrefetch", [] {
+             RtCoreConfig c = gpuConfig(8, L2Mode::Cache);
+             c.scheduler.policy = "treeletPrefetch";
+             return c;
+         }()},
     };
     for (const char* source : {"builtin:showcase", "builtin:terrain?triangles=20000"}) {
         for (const auto& [name, config] : configs) {
             std::vector<SimRayResult> results;
             const json s = runScene(source, config, 64, 48, &results);
             expectGpuLaws(s, config, std::string(source) + " " + name);
+            if (name == "8 cores cache treeletPrefetch") {
+                ASSERT_TRUE(s["cache"].contains("prefetch")) << source;
+                EXPECT_GT(u64(s["cache"]["prefetch"]["lines"]), 0u) << source;
+                EXPECT_GT(u64(s["cache"]["prefetch"]["usefulLines"]), 0u) << source;
+                EXPECT_LE(u64(s["cache"]["prefetch"]["usefulLines"]), u64(s["cache"]["prefetch"]["lines"])) << source;
+            } else {
+                EXPECT_FALSE(s["cache"].contains("prefetch")) << source << " " << name;
+            }
             if (name == "8 cores scarce") {
                 EXPECT_GT(u64(s["l2"]["bankConflicts"]), 0u) << source;
                 EXPECT_GT(u64(s["dram"]["queueCycles"]), 0u) << source;
@@ -482,4 +497,33 @@ TEST(RtCoreGpu, RayReorderingChangesCyclesNotHitsAndSidesSeeTheCallersIndices) {
     }
     EXPECT_GT(hits, rays.size() / 4);
     EXPECT_GT(differentLatency, 0u);  // warps were formed differently
+}
+
+TEST(RtCoreGpu, TreeletPrefetchReadsAheadWithoutDelayingTheRay) {
+    // The cold one-triangle ray (3 steps, each in its own 4096-byte treelet:
+    // TLAS leaf at 0, instance at 4096, BLAS leaf at 8192). Each step's demand
+    // miss goes first; then the prefetch of prefetchBytes = 256 from the same
+    // address reads the three lines after it (64..255 past the step's
+    // address) - 9 lines, none of them used by this ray - while the ray still
+    // takes 3 (T + L) + transform + triangle cycles: the port is free again
+    // long before the next demand miss.
+    RtCoreConfig config;
+    config.scheduler.policy = "treeletPrefetch";
+    MicroScene scene;
+    makeOneTriangleScene(scene, config.bvh);
+    RtCore core(config, *scene.model);
+    const auto r = runBatch(core, {simRay(kDownOntoTriangle)});
+    const std::uint64_t T = config.cache.lineBytes / config.memory.bytesPerCycle;
+    EXPECT_EQ(r[0].cycles, 3 * (T + config.memory.latency) + config.transform.latency + config.triangle.latency);
+    const json s = core.statsJson();
+    EXPECT_EQ(s["cache"]["prefetch"]["requests"], 3);
+    EXPECT_EQ(s["cache"]["prefetch"]["lines"], 9);
+    EXPECT_EQ(s["cache"]["prefetch"]["usefulLines"], 0);
+    EXPECT_EQ(s["memory"]["reads"], 12);
+    EXPECT_EQ(s["scheduler"]["treeletEntries"], 3);
+    // The same ray again: every line is cached, no treelet prefetch reads anything.
+    core.resetStats();
+    runBatch(core, {simRay(kDownOntoTriangle)});
+    EXPECT_EQ(core.statsJson()["cache"]["prefetch"]["lines"], 0);
+    EXPECT_EQ(core.statsJson()["memory"]["reads"], 0);
 }

@@ -157,8 +157,14 @@ public:
     // One line (address / lineBytes) at `now`: the cycle its data is there.
     LineFill accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port);
 
+    // Reads `range` ahead of demand at `now`: every line it touches that is
+    // not in the cache is allocated and filled through `port` (LRU victim);
+    // lines present or pending are left alone. A later demand hit on a line
+    // brought in this way counts as a prefetchHit.
+    void prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port);
+
     void invalidate();  // every line invalid (the BVHs changed)
-    void resetStats() { accesses = hits = pendingHits = misses = evictions = 0; }
+    void resetStats() { accesses = hits = pendingHits = misses = evictions = prefetchRequests = prefetchLines = prefetchHits = 0; }
     std::uint32_t lineBytes() const { return params_.lineBytes; }
     std::uint32_t sets() const { return sets_; }
 
@@ -168,10 +174,14 @@ public:
     std::uint64_t misses = 0;
     std::uint64_t evictions = 0;    // valid lines replaced
     std::uint64_t invalidations = 0;
+    std::uint64_t prefetchRequests = 0;  // prefetch() calls
+    std::uint64_t prefetchLines = 0;     // lines they read (not already present)
+    std::uint64_t prefetchHits = 0;      // first demand hits on prefetched lines
 
 private:
     static constexpr std::uint64_t kInvalid = ~std::uint64_t(0);
     CacheParams params_;
+    std::vector<std::uint8_t> prefetched_;  // per way: filled by prefetch(), not yet hit by demand
     std::uint32_t sets_ = 1;
     std::uint32_t lineShift_ = 6;
     std::vector<std::uint64_t> tags_;   // line number per way, kInvalid when empty

@@ -166,6 +166,7 @@ struct SchedulerParams {
     std::string policy = "fifo";        // a name in the policy registry (scheduler.hpp)
     std::uint32_t issueWidth = 2;       // traversal steps issued per cycle
     std::uint32_t treeletBytes = 4096;  // treelet policy: bytes of BVH memory per treelet
+    std::uint32_t prefetchBytes = 256;  // treeletPrefetch policy: bytes prefetched when a ray enters a treelet
 };
 const ParamTable<SchedulerParams>& schedulerParamTable();
 
