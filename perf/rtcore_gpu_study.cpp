@@ -11,7 +11,8 @@
 //
 // Prints one CSV line per point (scene, seed, policy, l1, l2, rays, cycles,
 // raysPerCycle, l1HitRate, l2HitRate, dramBytesPerCycle, dramUtilization,
-// meanLatency, latency shares of fetch / l2 / dram / inputQueue / scheduler).
+// meanLatency, latency shares of fetch / l2 / dram / inputQueue / scheduler,
+// port utilization, prefetched lines and their accuracy).
 // Deterministic: the same arguments print the same numbers.
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
@@ -83,7 +84,8 @@ std::string withSeed(const std::string& source, const std::string& seed) {
 
 int run(const Options& o) {
     std::printf("scene,seed,policy,l1Bytes,l2Bytes,rays,cycles,raysPerCycle,l1HitRate,l2HitRate,dramBytesPerCycle,"
-                "dramUtilization,meanLatency,shareFetch,shareL2,shareDram,shareInputQueue,shareScheduler\n");
+                "dramUtilization,meanLatency,shareFetch,shareL2,shareDram,shareInputQueue,shareScheduler,portUtilization,"
+                "prefetchLines,prefetchAccuracy\n");
     for (const std::string& source : o.scenes)
         for (const std::string& seed : o.seeds) {
             const std::string src = withSeed(source, seed);
@@ -135,13 +137,17 @@ int run(const Options& o) {
                         const double total = s["rays"]["latency"]["mean"].get<double>() *
                                              std::max(1.0, s["rays"]["latency"]["count"].get<double>());
                         const auto share = [&](const char* k) { return total > 0 ? b[k].get<double>() / total : 0.0; };
-                        std::printf("%s,%s,%s,%s,%s,%zu,%llu,%.4f,%.4f,%.4f,%.2f,%.4f,%.1f,%.3f,%.3f,%.3f,%.3f,%.3f\n",
+                        const bool pf = s["cache"].contains("prefetch");
+                        std::printf("%s,%s,%s,%s,%s,%zu,%llu,%.4f,%.4f,%.4f,%.2f,%.4f,%.1f,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%llu,%.4f\n",
                                     source.c_str(), seed.c_str(), policy.c_str(), l1.c_str(), l2.c_str(), rays.size(),
                                     static_cast<unsigned long long>(s["frame"]["cycles"].get<std::uint64_t>()),
                                     s["frame"]["raysPerCycle"].get<double>(), s["cache"]["hitRate"].get<double>(),
                                     s["l2"]["hitRate"].get<double>(), s["dram"]["bytesPerCycle"].get<double>(),
                                     s["dram"]["utilization"].get<double>(), s["rays"]["latency"]["mean"].get<double>(),
-                                    share("fetch"), share("l2"), share("dram"), share("inputQueue"), share("scheduler"));
+                                    share("fetch"), share("l2"), share("dram"), share("inputQueue"), share("scheduler"),
+                                    s["memory"]["utilization"].get<double>(),
+                                    static_cast<unsigned long long>(pf ? s["cache"]["prefetch"]["lines"].get<std::uint64_t>() : 0),
+                                    pf ? s["cache"]["prefetch"]["accuracy"].get<double>() : 0.0);
                         std::fflush(stdout);
                     }
         }
