@@ -928,6 +928,7 @@ struct RtCore::Impl {
     std::vector<SimRayResult> orderedResults;
     std::unique_ptr<SharedL2> l2;  // l2 mode cache only
     std::vector<std::unique_ptr<Core>> cores;
+    std::vector<std::uint64_t> visit;  // per core: its next active cycle during a batch
     bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
     std::uint64_t now = 0;    // the clock between batches
     std::uint64_t clock = 0;  // the cycle being simulated during a batch
@@ -1004,33 +1005,39 @@ struct RtCore::Impl {
         try {
             std::uint64_t& c = clock;
             c = now;
-            for (auto& core : cores) core->wheel.advance(c);
+            // Each core is visited only in its own active cycles (a ready ray, a
+            // result to return, a ray to admit, a warp that fits, or an event):
+            // a core's future depends only on its own state, since L2 and DRAM
+            // times are computed when a request is made. Cores visited in the
+            // same cycle run in index order.
+            constexpr std::uint64_t kNever = ~std::uint64_t(0);
+            visit.assign(cores.size(), c);
             for (;;) {
-                for (auto& core : cores) core->cycle(c);
-                if (batch.delivered == rays.size()) break;
-                // Step: the next cycle in which some core has something to do.
-                bool busy = false;
-                for (const auto& core : cores) busy = busy || core->busy();
-                std::uint64_t next = c + 1;
-                if (!busy && !everyCycle) {
-                    bool any = false;
-                    for (const auto& core : cores) {
-                        std::uint64_t e = 0;
-                        if (core->wheel.nextAfter(c, e) && (!any || e < next)) {
-                            next = e;
-                            any = true;
-                        }
+                for (std::size_t k = 0; k < cores.size(); ++k)
+                    if (visit[k] == c) {
+                        cores[k]->wheel.advance(c);
+                        cores[k]->cycle(c);
                     }
-                    if (!any) throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
+                if (batch.delivered == rays.size()) break;
+                // Step: each visited core's next active cycle; the GPU's is the earliest.
+                std::uint64_t next = kNever;
+                bool anyBusy = false, anyEvent = false;
+                for (std::size_t k = 0; k < cores.size(); ++k) {
+                    Core& core = *cores[k];
+                    if (visit[k] == c) {
+                        const bool busy = core.busy();
+                        anyBusy = anyBusy || busy;
+                        std::uint64_t n = c + 1;
+                        if (!busy && !everyCycle && !core.wheel.nextAfter(c, n)) n = kNever;
+                        if (n != kNever) core.accountUntil(c, n);
+                        visit[k] = n;
+                    }
+                    anyEvent = anyEvent || !core.wheel.empty();
+                    next = std::min(next, visit[k]);
                 }
-                if (everyCycle && !busy) {
-                    bool allEmpty = true;
-                    for (const auto& core : cores) allEmpty = allEmpty && core->wheel.empty();
-                    if (allEmpty) throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
-                }
-                for (auto& core : cores) core->accountUntil(c, next);
+                if (next == kNever || (everyCycle && !anyBusy && !anyEvent))
+                    throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
                 c = next;
-                for (auto& core : cores) core->wheel.advance(c);
             }
             now = portsFree(c);  // spill writes drain before the batch ends
             for (std::size_t i = 0; i < batch.order.size(); ++i) out[batch.order[i]] = orderedResults[i];
