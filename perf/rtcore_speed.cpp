@@ -11,8 +11,13 @@
 //   BM_EmbreeIntersect1   rtcIntersect1 per ray on the same scene: second
 //                         argument 1 = the default watertight triangles (the
 //                         test the model uses), 0 = Embree's native triangles
+//   BM_RtCoreGpu8         the GPU level (issue 14): 8 cores, l2.mode cache, on
+//                         showcase (0) and a 10^6-triangle terrain (1), primary (0)
+//                         and bounce (1) rays; BM_EmbreeIntersect1Scene: Embree on
+//                         the terrain's rays
 // All on one thread; perf/summarize.py turns rays_per_s into
-// rtcore_speed_vs_embree_{primary,bounce}[_native] (issue goal: >= 0.125).
+// rtcore_speed_vs_embree_{primary,bounce}[_native] (issue goal: >= 0.125) and
+// rtcore_speed_gpu8_vs_embree_{showcase,terrain1m}_{primary,bounce} (issue 14 goal: >= 0.1).
 #include "bench_scenes.hpp"
 
 #include <rtlab/rtcore_sim/rtcore.hpp>
@@ -33,17 +38,18 @@ constexpr int kWidth = 320, kHeight = 240;
 constexpr std::size_t kBatch = 1024;
 
 struct Workload {
-    bench::LoadedScene scene{"builtin:showcase"};
-    bench::LoadedScene native{"builtin:showcase", [] {
-        tracer::AccelOptions o;
-        o.watertight = false;
-        return o;
-    }()};
+    bench::LoadedScene scene;
+    std::unique_ptr<bench::LoadedScene> native;  // Embree's native triangles (showcase only)
     RtCoreConfig config;
     std::unique_ptr<ModelScene> model;
     std::vector<SimRay> primary, bounce;
 
-    Workload() {
+    Workload(const std::string& source, bool withNative) : scene(source) {
+        if (withNative) {
+            tracer::AccelOptions o;
+            o.watertight = false;
+            native = std::make_unique<bench::LoadedScene>(source, o);
+        }
         model = std::make_unique<ModelScene>(config.bvh);
         model->update(scene.snapshot);
         const shaders::PinholeCamera camera = scene.camera(kWidth, kHeight);
@@ -65,8 +71,13 @@ struct Workload {
     const std::vector<SimRay>& rays(std::int64_t which) const { return which == 0 ? primary : bounce; }
 };
 
-const Workload& workload() {
-    static const Workload w;
+// 0: builtin:showcase (with a native-triangle Embree scene); 1: a terrain of 10^6 triangles.
+const Workload& workload(std::int64_t which = 0) {
+    if (which == 1) {
+        static const Workload terrain("builtin:terrain?triangles=1000000", false);
+        return terrain;
+    }
+    static const Workload w("builtin:showcase", true);
     return w;
 }
 
@@ -121,10 +132,51 @@ void BM_RtCoreFunctional(benchmark::State& state) {
     setRate(state, rays.size());
 }
 
+void embreeLoop(benchmark::State& state, RTCScene tlas, const std::vector<SimRay>& rays);
+
 void BM_EmbreeIntersect1(benchmark::State& state) {
     const Workload& w = workload();
     const std::vector<SimRay>& rays = w.rays(state.range(0));
-    const RTCScene tlas = state.range(1) != 0 ? w.scene.accel->tlas() : w.native.accel->tlas();
+    const RTCScene tlas = state.range(1) != 0 ? w.scene.accel->tlas() : w.native->accel->tlas();
+    embreeLoop(state, tlas, rays);
+}
+
+// rtcIntersect1, watertight triangles, on workload range(0) (0 showcase, 1 terrain 10^6), rays range(1).
+void BM_EmbreeIntersect1Scene(benchmark::State& state) {
+    const Workload& w = workload(state.range(0));
+    embreeLoop(state, w.scene.accel->tlas(), w.rays(state.range(1)));
+}
+
+// The GPU level: 8 cores, L2 in mode cache, batches of 8192 rays (32 warps
+// per core), cold GPU per iteration, one host thread; workload range(0), rays range(1).
+void BM_RtCoreGpu8(benchmark::State& state) {
+    const Workload& w = workload(state.range(0));
+    const std::vector<SimRay>& rays = w.rays(state.range(1));
+    RtCoreConfig config = w.config;
+    config.gpu.cores = 8;
+    config.l2.mode = L2Mode::Cache;
+    state.SetLabel(std::string(state.range(0) == 0 ? "showcase " : "terrain1M ") +
+                   (state.range(1) == 0 ? "primary" : "bounce"));
+    RtCore gpu(config, *w.model);
+    std::vector<SimRayResult> results(rays.size());
+    OpaqueSide side;
+    constexpr std::size_t kGpuBatch = 8192;
+    for (auto _ : state) {
+        gpu.reset();
+        for (std::size_t first = 0; first < rays.size(); first += kGpuBatch) {
+            const std::size_t n = std::min(kGpuBatch, rays.size() - first);
+            gpu.run(std::span(rays).subspan(first, n), side, std::span(results).subspan(first, n));
+        }
+        benchmark::DoNotOptimize(results.data());
+    }
+    setRate(state, rays.size());
+    const nlohmann::json stats = gpu.statsJson();
+    state.counters["cyclesPerRay"] = static_cast<double>(gpu.cycle()) / static_cast<double>(rays.size());
+    state.counters["l2HitRate"] = stats["l2"]["hitRate"].get<double>();
+    state.counters["dramUtilization"] = stats["dram"]["utilization"].get<double>();
+}
+
+void embreeLoop(benchmark::State& state, RTCScene tlas, const std::vector<SimRay>& rays) {
     for (auto _ : state) {
         std::uint64_t hits = 0;
         for (const SimRay& r : rays) {
@@ -154,4 +206,6 @@ void BM_EmbreeIntersect1(benchmark::State& state) {
 BENCHMARK(BM_RtCoreTimingModel)->ArgsProduct({{0, 1}, {0, 1, 2}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RtCoreFunctional)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EmbreeIntersect1)->ArgsProduct({{0, 1}, {1, 0}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreGpu8)->ArgsProduct({{0, 1}, {0, 1}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EmbreeIntersect1Scene)->ArgsProduct({{1}, {0, 1}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -60,6 +60,11 @@ summary = {
     "rtcore_speed_vs_embree_bounce": ratio("BM_RtCoreTimingModel/1/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
     "rtcore_speed_vs_embree_primary_native_triangles": ratio("BM_RtCoreTimingModel/0/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/0/min_time:1.000/real_time", rates),
     "rtcore_speed_vs_embree_bounce_native_triangles": ratio("BM_RtCoreTimingModel/1/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/0/min_time:1.000/real_time", rates),
+    # GPU level (issue 14): 8 simulated cores with the L2 in mode cache, one host thread (goal >= 0.1).
+    "rtcore_speed_gpu8_vs_embree_showcase_primary": ratio("BM_RtCoreGpu8/0/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_showcase_bounce": ratio("BM_RtCoreGpu8/0/1/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_terrain1m_primary": ratio("BM_RtCoreGpu8/1/0/min_time:1.000/real_time", "BM_EmbreeIntersect1Scene/1/0/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_terrain1m_bounce": ratio("BM_RtCoreGpu8/1/1/min_time:1.000/real_time", "BM_EmbreeIntersect1Scene/1/1/min_time:1.000/real_time", rates),
     "rtcore_functional_vs_embree_primary": ratio("BM_RtCoreFunctional/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
     "rtcore_functional_vs_embree_bounce": ratio("BM_RtCoreFunctional/1/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
 }

@@ -16,6 +16,29 @@ NodeCache::NodeCache(const CacheParams& params) : params_(params) {
     tags_.assign(lines, kInvalid);
     ready_.assign(lines, 0);
     used_.assign(lines, 0);
+    prefetched_.assign(lines, 0);
+}
+
+void NodeCache::prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port) {
+    ++prefetchRequests;
+    const std::uint64_t first = range.address >> lineShift_;
+    const std::uint64_t last = (range.address + std::max<std::uint32_t>(range.bytes, 1) - 1) >> lineShift_;
+    for (std::uint64_t line = first; line <= last; ++line) {
+        const std::size_t base = std::size_t(line & (sets_ - 1)) * params_.ways;
+        std::size_t victim = base;
+        bool present = false;
+        for (std::size_t i = base; i < base + params_.ways && !present; ++i) {
+            present = tags_[i] == line;
+            if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
+        }
+        if (present) continue;
+        ++prefetchLines;
+        if (tags_[victim] != kInvalid) ++evictions;
+        tags_[victim] = line;
+        used_[victim] = ++stamp_;
+        prefetched_[victim] = 1;
+        ready_[victim] = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
+    }
 }
 
 void NodeCache::invalidate() {
@@ -23,7 +46,7 @@ void NodeCache::invalidate() {
     ++invalidations;
 }
 
-std::uint64_t NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryChannel& memory) {
+LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port) {
     ++accesses;
     const std::size_t base = std::size_t(line & (sets_ - 1)) * params_.ways;
     const std::uint64_t hitReady = now + params_.hitLatency;
@@ -32,11 +55,15 @@ std::uint64_t NodeCache::accessLine(std::uint64_t line, std::uint64_t now, Memor
         if (tags_[i] == line) {
             ++hits;
             used_[i] = ++stamp_;
+            if (prefetched_[i]) {
+                ++prefetchHits;
+                prefetched_[i] = 0;
+            }
             if (ready_[i] > hitReady) {
                 ++pendingHits;
-                return ready_[i];
+                return LineFill{ready_[i], 0, 0};
             }
-            return hitReady;
+            return LineFill{hitReady, 0, 0};
         }
         // Victim: the first empty way, else the least recently used one.
         if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
@@ -45,16 +72,102 @@ std::uint64_t NodeCache::accessLine(std::uint64_t line, std::uint64_t now, Memor
     if (tags_[victim] != kInvalid) ++evictions;
     tags_[victim] = line;
     used_[victim] = ++stamp_;
-    ready_[victim] = memory.read(now, params_.lineBytes);
-    return ready_[victim];
+    prefetched_[victim] = 0;
+    const LineFill fill = port.readLine(line << lineShift_, params_.lineBytes, now);
+    ready_[victim] = fill.ready;
+    return fill;
 }
 
-std::uint64_t NodeCache::fetch(const MemoryRange& range, std::uint64_t now, MemoryChannel& memory) {
+LineFill NodeCache::fetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port) {
     const std::uint64_t first = range.address >> lineShift_;
     const std::uint64_t last = (range.address + std::max<std::uint32_t>(range.bytes, 1) - 1) >> lineShift_;
-    std::uint64_t ready = now;
-    for (std::uint64_t line = first; line <= last; ++line) ready = std::max(ready, accessLine(line, now, memory));
-    return ready;
+    LineFill done{now, 0, 0};
+    for (std::uint64_t line = first; line <= last; ++line) {
+        const LineFill f = accessLine(line, now, port);
+        if (f.ready > done.ready) done = f;
+    }
+    return done;
+}
+
+SharedL2::SharedL2(const L2Params& l2, const DramParams& dram) : l2_(l2), dram_(dram) {
+    const std::uint64_t setBytes = std::uint64_t(l2.lineBytes) * l2.ways * l2.banks;
+    setsPerBank_ = static_cast<std::uint32_t>(std::max<std::uint64_t>(l2.sizeBytes / setBytes, 1));
+    if (!std::has_single_bit(setsPerBank_) || !std::has_single_bit(l2.lineBytes))
+        throw std::invalid_argument("SharedL2: sets per bank and line size must be powers of two");
+    lineShift_ = static_cast<std::uint32_t>(std::countr_zero(l2.lineBytes));
+    dramTransfer_ = (l2.lineBytes + dram.bytesPerCycle - 1) / dram.bytesPerCycle;
+    const std::size_t ways = std::size_t(l2.banks) * setsPerBank_ * l2.ways;
+    tags_.assign(ways, kInvalid);
+    ready_.assign(ways, 0);
+    used_.assign(ways, 0);
+    bankFree_.assign(l2.banks, 0);
+    channelFree_.assign(dram.channels, 0);
+    bankBusyCycles.assign(l2.banks, 0);
+    channelBusyCycles.assign(dram.channels, 0);
+}
+
+void SharedL2::invalidate() {
+    std::fill(tags_.begin(), tags_.end(), kInvalid);
+    ++invalidations;
+}
+
+void SharedL2::resetStats() {
+    accesses = hits = pendingHits = misses = evictions = invalidations = 0;
+    bankConflicts = bankWaitCycles = dramReads = dramReadBytes = dramQueueCycles = 0;
+    std::fill(bankBusyCycles.begin(), bankBusyCycles.end(), 0);
+    std::fill(channelBusyCycles.begin(), channelBusyCycles.end(), 0);
+}
+
+void SharedL2::resetTime() {
+    std::fill(bankFree_.begin(), bankFree_.end(), 0);
+    std::fill(channelFree_.begin(), channelFree_.end(), 0);
+}
+
+LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
+    ++accesses;
+    const std::uint64_t line = address >> lineShift_;
+    const std::uint32_t bank = static_cast<std::uint32_t>(line % l2_.banks);
+    // Step: the bank, first come first served in request order.
+    const std::uint64_t start = std::max(arrive, bankFree_[bank]);
+    if (start > arrive) {
+        ++bankConflicts;
+        bankWaitCycles += start - arrive;
+    }
+    bankFree_[bank] = start + l2_.bankCycles;
+    bankBusyCycles[bank] += l2_.bankCycles;
+    const std::uint64_t tagDone = start + l2_.hitLatency;
+
+    // Step: the tag lookup in the line's set of its bank.
+    const std::size_t set = std::size_t((line / l2_.banks) & (setsPerBank_ - 1));
+    const std::size_t base = (std::size_t(bank) * setsPerBank_ + set) * l2_.ways;
+    std::size_t victim = base;
+    for (std::size_t i = base; i < base + l2_.ways; ++i) {
+        if (tags_[i] == line) {
+            ++hits;
+            used_[i] = ++stamp_;
+            if (ready_[i] > tagDone) {  // still being filled: wait for DRAM
+                ++pendingHits;
+                return LineFill{ready_[i], tagDone - arrive, ready_[i] - tagDone};
+            }
+            return LineFill{tagDone, tagDone - arrive, 0};
+        }
+        if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
+    }
+    // Step: a miss reads the whole line from its DRAM channel.
+    ++misses;
+    if (tags_[victim] != kInvalid) ++evictions;
+    const std::uint32_t channel = static_cast<std::uint32_t>(line % dram_.channels);
+    const std::uint64_t dramStart = std::max(tagDone, channelFree_[channel]);
+    channelFree_[channel] = dramStart + dramTransfer_;
+    channelBusyCycles[channel] += dramTransfer_;
+    dramQueueCycles += dramStart - tagDone;
+    ++dramReads;
+    dramReadBytes += l2_.lineBytes;
+    const std::uint64_t filled = dramStart + dramTransfer_ + dram_.latency;
+    tags_[victim] = line;
+    used_[victim] = ++stamp_;
+    ready_[victim] = filled;
+    return LineFill{filled, tagDone - arrive, filled - tagDone};
 }
 
 }  // namespace rtlab::rtcore_sim

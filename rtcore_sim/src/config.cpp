@@ -48,6 +48,9 @@ void forEachSection(Fn&& fn) {
     fn("stack", &RtCoreConfig::stack, stackParamTable());
     fn("cache", &RtCoreConfig::cache, cacheParamTable());
     fn("memory", &RtCoreConfig::memory, memoryParamTable());
+    fn("gpu", &RtCoreConfig::gpu, gpuParamTable());
+    fn("l2", &RtCoreConfig::l2, l2ParamTable());
+    fn("dram", &RtCoreConfig::dram, dramParamTable());
 }
 
 std::string knownSections() {
@@ -174,12 +177,17 @@ const ParamTable<SchedulerParams>& schedulerParamTable() {
         ParamTable<SchedulerParams> t;
         t.addRegistryChoice("policy", &SchedulerParams::policy,
                             "which ready ray issues next: fifo, oldestFirst, treelet (Aila & Karras 2010 treelet "
-                            "queues) or a policy registered with registerSchedulerPolicy",
+                            "queues), treeletPrefetch (fifo + treelet prefetch into the L1, Chou et al. 2023) or a "
+                            "policy registered with registerSchedulerPolicy",
                             &schedulerPolicyNames);
         t.addUnsigned("issueWidth", &SchedulerParams::issueWidth, "traversal steps the scheduler issues per cycle", 1, 64);
         t.addUnsigned("treeletBytes", &SchedulerParams::treeletBytes,
                       "treelet policy: BVH memory per treelet (a treelet = an aligned block of this many bytes)", 64,
                       1u << 24);
+        t.addUnsigned("prefetchBytes", &SchedulerParams::prefetchBytes,
+                      "treeletPrefetch policy: bytes read into the node cache from the address where a ray enters a "
+                      "treelet (at most to the treelet's end)",
+                      16, 1u << 24);
         return t;
     }();
     return table;
@@ -265,9 +273,80 @@ const ParamTable<MemoryParams>& memoryParamTable() {
     static const ParamTable<MemoryParams> table = [] {
         ParamTable<MemoryParams> t;
         t.addUnsigned("latency", &MemoryParams::latency,
-                      "cycles from the end of a request's transfer slot until its data arrives", 1, 100000);
+                      "cycles from the end of a request's transfer slot until its data arrives (l2 mode cache: "
+                      "plus the L2 and DRAM time)",
+                      1, 100000);
         t.addUnsigned("bytesPerCycle", &MemoryParams::bytesPerCycle,
-                      "memory channel bandwidth (a request of B bytes occupies it ceil(B / this) cycles)", 1, 4096);
+                      "bandwidth of each core's memory port (a request of B bytes occupies it ceil(B / this) cycles)",
+                      1, 4096);
+        return t;
+    }();
+    return table;
+}
+
+std::string toString(WarpDispatch dispatch) {
+    return dispatch == WarpDispatch::RoundRobin ? "roundRobin" : "contiguous";
+}
+
+std::string toString(L2Mode mode) { return mode == L2Mode::Ideal ? "ideal" : "cache"; }
+
+std::string toString(RayOrder order) { return order == RayOrder::Submission ? "submission" : "directionOrigin"; }
+
+const ParamTable<GpuParams>& gpuParamTable() {
+    static const ParamTable<GpuParams> table = [] {
+        ParamTable<GpuParams> t;
+        t.addUnsigned("cores", &GpuParams::cores,
+                      "RT cores, each with its own queues, units, node cache (L1) and memory port, sharing l2 and dram",
+                      1, 256);
+        t.addChoice("dispatch", &GpuParams::dispatch,
+                    "warp -> core rule: roundRobin = warp w to core w mod cores; contiguous = the batch's warps in "
+                    "`cores` contiguous runs",
+                    std::vector<std::pair<std::string, WarpDispatch>>{{"roundRobin", WarpDispatch::RoundRobin},
+                                                                      {"contiguous", WarpDispatch::Contiguous}});
+        t.addChoice("rayOrder", &GpuParams::rayOrder,
+                    "ray reordering before warp formation: submission = as submitted; directionOrigin = stable sort "
+                    "by direction octant, then origin and direction Morton codes (src/policies/order_direction_origin.cpp)",
+                    std::vector<std::pair<std::string, RayOrder>>{{"submission", RayOrder::Submission},
+                                                                  {"directionOrigin", RayOrder::DirectionOrigin}});
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<L2Params>& l2ParamTable() {
+    static const ParamTable<L2Params> table = [] {
+        ParamTable<L2Params> t;
+        t.addChoice("mode", &L2Params::mode,
+                    "ideal = every access hits at the cost of the core's port alone (the single-core model); cache = "
+                    "banked set-associative LRU cache in front of dram",
+                    std::vector<std::pair<std::string, L2Mode>>{{"ideal", L2Mode::Ideal}, {"cache", L2Mode::Cache}});
+        t.addUnsigned("sizeBytes", &L2Params::sizeBytes,
+                      "L2 capacity over all banks (a power-of-two number of sets of `ways` lines per bank)", 1024,
+                      1u << 30);
+        t.addUnsignedOneOf("lineBytes", &L2Params::lineBytes, "L2 line size (at least cache.lineBytes in mode cache)",
+                           {32, 64, 128, 256});
+        t.addUnsigned("ways", &L2Params::ways, "associativity (lines per set, LRU replacement)", 1, 64);
+        t.addUnsigned("banks", &L2Params::banks, "independent banks; line l is in bank l mod banks", 1, 256);
+        t.addUnsigned("bankCycles", &L2Params::bankCycles,
+                      "cycles one access occupies its bank (a later access to a busy bank waits: a bank conflict)", 1,
+                      1000);
+        t.addUnsigned("hitLatency", &L2Params::hitLatency,
+                      "cycles from the bank access to the data leaving the L2 on a hit (the tag check before a miss)",
+                      0, 100000);
+        return t;
+    }();
+    return table;
+}
+
+const ParamTable<DramParams>& dramParamTable() {
+    static const ParamTable<DramParams> table = [] {
+        ParamTable<DramParams> t;
+        t.addUnsigned("channels", &DramParams::channels, "DRAM channels; L2 line l is served by channel l mod channels",
+                      1, 64);
+        t.addUnsigned("bytesPerCycle", &DramParams::bytesPerCycle,
+                      "bandwidth per channel (an L2 line fill occupies it ceil(l2.lineBytes / this) cycles)", 1, 4096);
+        t.addUnsigned("latency", &DramParams::latency,
+                      "cycles from the end of a request's transfer slot until its line is in the L2", 1, 100000);
         return t;
     }();
     return table;
@@ -288,6 +367,20 @@ void RtCoreConfig::validate(const std::string& where) const {
         fail(where, "cache.sizeBytes",
              "must be a power-of-two multiple of cache.lineBytes x cache.ways (" + std::to_string(setBytes) +
                  " bytes) (got " + std::to_string(cache.sizeBytes) + ")");
+    const std::uint64_t l2SetBytes = std::uint64_t(l2.lineBytes) * l2.ways * l2.banks;
+    const std::uint64_t l2Sets = l2.sizeBytes / l2SetBytes;
+    if (l2.sizeBytes % l2SetBytes != 0 || l2Sets == 0 || (l2Sets & (l2Sets - 1)) != 0)
+        fail(where, "l2.sizeBytes",
+             "must be a power-of-two multiple of l2.lineBytes x l2.ways x l2.banks (" + std::to_string(l2SetBytes) +
+                 " bytes) (got " + std::to_string(l2.sizeBytes) + ")");
+    if (l2.mode == L2Mode::Cache && l2.hitLatency < l2.bankCycles)
+        fail(where, "l2.hitLatency",
+             "must be at least l2.bankCycles (" + std::to_string(l2.bankCycles) + ") in l2 mode cache (got " +
+                 std::to_string(l2.hitLatency) + ")");
+    if (l2.mode == L2Mode::Cache && l2.lineBytes < cache.lineBytes)
+        fail(where, "l2.lineBytes",
+             "must be at least cache.lineBytes (" + std::to_string(cache.lineBytes) + ") in l2 mode cache (got " +
+                 std::to_string(l2.lineBytes) + ")");
 }
 
 RtCoreConfig RtCoreConfig::fromJson(const nlohmann::json& json, const std::string& where) {

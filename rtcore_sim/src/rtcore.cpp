@@ -1,5 +1,6 @@
-// The event-driven timing model of the RT core (docs/rtcore-model.md,
-// "Timing model"). Every simulated cycle runs five phases in this order:
+// The event-driven timing model of the RT cores of a GPU (docs/rtcore-model.md,
+// "Timing model", "GPU level"). The cores share one clock; every simulated
+// cycle runs, for each core in index order, five phases in this order:
 //   1. events due this cycle (fetch done -> unit, stack traffic, step done)
 //   2. completion: up to completionPerCycle results leave the completion
 //      queue; blocked finished rays move into the freed entries
@@ -7,8 +8,9 @@
 //   4. admission: up to admitPerCycle rays move from the input queue into
 //      free ray slots (and are ready at once)
 //   5. issue: the scheduler issues up to issueWidth ready rays' next steps
-// Cycles in which none of phases 2-5 can do anything are skipped: the clock
-// jumps to the next event.
+// Cycles in which no core can do anything in phases 2-5 are skipped: the
+// clock jumps to the next event of any core. Misses of a core's node cache go
+// through its memory port and, in l2 mode cache, to the shared L2 and DRAM.
 #include <rtlab/core/error.hpp>
 #include <rtlab/rtcore_sim/cache.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
@@ -16,10 +18,14 @@
 #include <rtlab/rtcore_sim/scheduler.hpp>
 #include <rtlab/rtcore_sim/stats.hpp>
 
+#include "ray_order.hpp"
+
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <deque>
+#include <memory>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -167,11 +173,118 @@ struct RayTypeStats {
     std::uint64_t inFlight = 0, activeSince = 0, activeCycles = 0;
 };
 
-}  // namespace
+// ---------------------------------------------------------------------------
+// Raw counters of one core; the GPU's aggregate is their sum over the cores.
+
+#define RTCORE_SIM_CORE_COUNTERS(X)                                                                                  \
+    X(warps) X(raysSubmitted) X(raysCompleted) X(inputQueue) X(scheduler) X(fetch) X(l2) X(dram) X(boxUnitWait)    \
+    X(boxUnit) X(triangleUnitWait) X(triangleUnit) X(transformUnitWait) X(transformUnit) X(shader) X(stackRefill)    \
+    X(completionBlocked) X(completionQueue) X(fetchBeyondHit) X(inputQueueFull) X(noFreeRaySlot)                     \
+    X(completionQueueFull) X(issued) X(issueCycles) X(nodes) X(boxes) X(leaves) X(triangleTestCount)                 \
+    X(proceduralTestCount) X(transforms) X(fetches) X(fetchBytes) X(anyHitCalls) X(intersectionCalls) X(pushes)      \
+    X(pops) X(spilledEntries) X(spillWrites) X(refills) X(refilledEntries) X(warpsCompleted) X(warpSteps)            \
+    X(warpLanes) X(raySteps)
+#define RTCORE_SIM_CORE_HISTOGRAMS(X)                                                                                \
+    X(latency) X(steps) X(nodeVisits) X(leafVisits) X(boxTests) X(triangleTests) X(proceduralTests)                  \
+    X(instanceTransitions) X(maxStackDepth) X(activeRaysPerWarpStep)
+
+struct CoreStats {
+    // Ray latency breakdown (ray-cycles; the parts sum to the latencies): inputQueue, scheduler, fetch, l2, dram,
+    // boxUnitWait ... completionQueue. fetchBeyondHit is part of fetch + l2 + dram (cycles beyond the hit latency).
+#define X(name) std::uint64_t name = 0;
+    RTCORE_SIM_CORE_COUNTERS(X)
+#undef X
+    Histogram latency{Histogram::Scheme::Log2};
+    Histogram steps = workHistogram(), nodeVisits = workHistogram(), leafVisits = workHistogram(),
+              boxTests = workHistogram(), triangleTests = workHistogram(), proceduralTests = workHistogram(),
+              instanceTransitions = workHistogram(), maxStackDepth = workHistogram();
+    Histogram activeRaysPerWarpStep{Histogram::Scheme::Linear, 65};
+
+    void merge(const CoreStats& o) {
+#define X(name) name += o.name;
+        RTCORE_SIM_CORE_COUNTERS(X)
+#undef X
+#define X(name) name.merge(o.name);
+        RTCORE_SIM_CORE_HISTOGRAMS(X)
+#undef X
+    }
+};
+
+struct UnitCounters {
+    std::uint64_t requests = 0, busyCycles = 0, waitCycles = 0;
+    void merge(const UnitCounters& o) {
+        requests += o.requests;
+        busyCycles += o.busyCycles;
+        waitCycles += o.waitCycles;
+    }
+};
+
+// What the stats tree of one core (or of all cores, merged) is dumped from.
+struct CoreSnapshot {
+    CoreStats stats;
+    UnitCounters box, triangle, transform;
+    std::uint64_t cacheAccesses = 0, cacheHits = 0, cachePendingHits = 0, cacheMisses = 0, cacheEvictions = 0,
+                  cacheInvalidations = 0, prefetchRequests = 0, prefetchLines = 0, prefetchHits = 0;
+    std::uint64_t memReads = 0, memReadBytes = 0, memWrites = 0, memWriteBytes = 0, memBusy = 0, memQueue = 0;
+    Histogram inputQueueOcc, slotOcc, readyOcc, completionOcc;
+    nlohmann::json policyStats = nlohmann::json::object();
+
+    void merge(const CoreSnapshot& o) {
+        stats.merge(o.stats);
+        box.merge(o.box);
+        triangle.merge(o.triangle);
+        transform.merge(o.transform);
+        cacheAccesses += o.cacheAccesses;
+        cacheHits += o.cacheHits;
+        cachePendingHits += o.cachePendingHits;
+        cacheMisses += o.cacheMisses;
+        cacheEvictions += o.cacheEvictions;
+        cacheInvalidations += o.cacheInvalidations;
+        prefetchRequests += o.prefetchRequests;
+        prefetchLines += o.prefetchLines;
+        prefetchHits += o.prefetchHits;
+        memReads += o.memReads;
+        memReadBytes += o.memReadBytes;
+        memWrites += o.memWrites;
+        memWriteBytes += o.memWriteBytes;
+        memBusy += o.memBusy;
+        memQueue += o.memQueue;
+        inputQueueOcc.merge(o.inputQueueOcc);
+        slotOcc.merge(o.slotOcc);
+        readyOcc.merge(o.readyOcc);
+        completionOcc.merge(o.completionOcc);
+        // Policy counters add up; the configuration echo (treeletBytes) and non-numbers stay.
+        for (const auto& [key, value] : o.policyStats.items()) {
+            nlohmann::json& mine = policyStats[key];
+            if (key != "treeletBytes" && value.is_number_integer() && mine.is_number_integer())
+                mine = mine.get<std::uint64_t>() + value.get<std::uint64_t>();
+            else if (mine.is_null())
+                mine = value;
+        }
+    }
+};
+
+// The batch being simulated and what the cores share about it.
+struct BatchState {
+    std::span<const SimRay> rays;
+    ProgrammableSide* side = nullptr;
+    std::span<SimRayResult> results;
+    std::vector<std::uint64_t> warpSubmit;
+    std::vector<std::uint32_t> warpRemaining;
+    std::uint32_t delivered = 0;
+    std::vector<RayTypeStats> rayTypes;  // over the whole GPU (a type's activity is a union over cores)
+    // gpu.rayOrder other than submission: rays/results above are the reordered
+    // copies; order[i] = index in the caller's batch (side callbacks get it).
+    std::vector<std::uint32_t> order;
+    std::uint32_t sideIndex(std::uint32_t i) const { return order.empty() ? i : order[i]; }
+};
 
 // ---------------------------------------------------------------------------
+// One RT core: input queue, ray slots, scheduler, units, node cache (L1) and
+// memory port. Its clock is the GPU's: the GPU runs every core's phases for
+// a cycle, cores in index order, before moving on.
 
-struct RtCore::Impl {
+struct Core {
     // The small fields first: with the traversal state's header right after
     // them, a step touches a few consecutive cache lines of its slot.
     struct Slot {
@@ -192,77 +305,56 @@ struct RtCore::Impl {
         std::uint64_t enterCycle;
     };
 
-    RtCoreConfig config;
+    const RtCoreConfig config;  // a copy: read on every step, never aliased by the counters
     const ModelScene& scene;
-    MemoryLayout layout;
-    std::uint64_t layoutGeneration = ~std::uint64_t(0);
+    const MemoryLayout& layout;
+    BatchState& batch;
     NodeCache cache;
-    MemoryChannel memory;
+    MemoryPort port;
     UnitPool boxUnits, triangleUnits, transformUnits;
     std::unique_ptr<SchedulerPolicy> policy;
     bool policyUsesAddress = true;
+    bool policyPrefetches = true;
     std::size_t readyCount = 0;  // rays held by the policy
-    bool everyCycle = false;     // debug: visit every cycle instead of jumping to the next event
     EventWheel wheel;
     std::vector<Slot> slots;
     std::vector<std::uint32_t> freeSlots;  // LIFO
     std::deque<Delivery> completionQueue;
     std::deque<std::uint32_t> blockedFinishers;  // finished rays waiting for a completion-queue entry (slots)
-    std::uint64_t now = 0;    // the clock between batches
-    std::uint64_t clock = 0;  // the cycle being simulated during a batch
     std::uint64_t nextAge = 0;
 
-    // The batch being simulated.
-    std::span<const SimRay> rays;
-    ProgrammableSide* side = nullptr;
-    std::span<SimRayResult> results;
-    std::uint32_t submitted = 0, admitted = 0, delivered = 0;
-    std::vector<std::uint64_t> warpSubmit;
-    std::vector<std::uint32_t> warpRemaining;
+    // This core's share of the batch: its warps (indices into the batch) in order.
+    std::vector<std::uint32_t> warps;
+    std::uint32_t rayCount = 0, submitted = 0, admitted = 0;  // positions in the core's ray sequence
 
-    // Statistics (raw; rates at dump time).
-    struct Stats {
-        std::uint64_t frameStart = 0, batches = 0, warps = 0, raysSubmitted = 0, raysCompleted = 0;
-        Histogram latency{Histogram::Scheme::Log2};
-        Histogram steps = workHistogram(), nodeVisits = workHistogram(), leafVisits = workHistogram(),
-                  boxTests = workHistogram(), triangleTests = workHistogram(), proceduralTests = workHistogram(),
-                  instanceTransitions = workHistogram(), maxStackDepth = workHistogram();
-        // Ray latency breakdown (ray-cycles); the parts sum to the latencies.
-        std::uint64_t inputQueue = 0, scheduler = 0, fetch = 0, boxUnitWait = 0, boxUnit = 0, triangleUnitWait = 0,
-                      triangleUnit = 0, transformUnitWait = 0, transformUnit = 0, shader = 0, stackRefill = 0,
-                      completionBlocked = 0, completionQueue = 0;
-        std::uint64_t fetchBeyondHit = 0;  // part of fetch: cycles beyond the hit latency (misses, memory queueing)
-        // Core-level blocked cycles.
-        std::uint64_t inputQueueFull = 0, noFreeRaySlot = 0, completionQueueFull = 0;
-        // Scheduler.
-        std::uint64_t issued = 0, issueCycles = 0;
-        // Work by unit.
-        std::uint64_t nodes = 0, boxes = 0, leaves = 0, triangleTestCount = 0, proceduralTestCount = 0, transforms = 0,
-                      fetches = 0, fetchBytes = 0;
-        std::uint64_t anyHitCalls = 0, intersectionCalls = 0;
-        // Stack.
-        std::uint64_t pushes = 0, pops = 0, spilledEntries = 0, spillWrites = 0, refills = 0, refilledEntries = 0;
-        // SIMD (lockstep warp) efficiency.
-        std::uint64_t warpsCompleted = 0, warpSteps = 0, warpLanes = 0, raySteps = 0;
-        Histogram activeRaysPerWarpStep{Histogram::Scheme::Linear, 65};
-        std::vector<RayTypeStats> rayTypes;
-    } stats;
+    CoreStats stats;
     OccupancyTracker inputQueueOcc, slotOcc, readyOcc, completionOcc;
 
-    Impl(const RtCoreConfig& cfg, const ModelScene& s)
-        : config(cfg), scene(s), cache(cfg.cache), memory(cfg.memory),
-          boxUnits(cfg.traversal.units, cfg.traversal.latency),
+    Core(const RtCoreConfig& cfg, const ModelScene& s, const MemoryLayout& l, BatchState& b, SharedL2* l2)
+        : config(cfg), scene(s), layout(l), batch(b), cache(cfg.cache),
+          port(cfg.memory, l2, cfg.l2.hitLatency), boxUnits(cfg.traversal.units, cfg.traversal.latency),
           triangleUnits(cfg.triangle.units, cfg.triangle.latency),
           transformUnits(cfg.transform.units, cfg.transform.latency), policy(makeSchedulerPolicy(cfg.scheduler)),
           slots(cfg.core.raySlots), inputQueueOcc(cfg.core.inputQueueRays), slotOcc(cfg.core.raySlots),
           readyOcc(cfg.core.raySlots), completionOcc(cfg.core.completionQueueRays) {
         policyUsesAddress = policy->usesAddress();
+        policyPrefetches = !isBuiltinNonPrefetching(cfg.scheduler.policy);  // saves a virtual call per cycle
         resetSlots();
+    }
+
+    static bool isBuiltinNonPrefetching(const std::string& name) {
+        return name == "fifo" || name == "oldestFirst" || name == "treelet";
     }
 
     void resetSlots() {
         freeSlots.clear();
         for (std::uint32_t i = static_cast<std::uint32_t>(slots.size()); i-- > 0;) freeSlots.push_back(i);
+    }
+
+    // The batch index of the k-th ray of this core's sequence.
+    std::uint32_t rayAt(std::uint32_t k) const {
+        const std::uint32_t w = config.core.warpWidth;
+        return warps[k / w] * w + k % w;
     }
 
     // ---- addresses ----------------------------------------------------------
@@ -303,7 +395,7 @@ struct RtCore::Impl {
         Slot& s = slots[slot];
         stats.scheduler += c - s.readyCycle;
         StepInfo& st = s.step;
-        s.trav.step(*side, s.rayIndex, st);
+        s.trav.step(*batch.side, batch.sideIndex(s.rayIndex), st);
 
         // Step: the short stack — pushes spill the bottom entries once it is
         // full, pops from an empty short stack refill from memory.
@@ -331,14 +423,18 @@ struct RtCore::Impl {
         stats.spilledEntries += s.spillEntries;
         stats.refilledEntries += s.refillEntries;
 
-        // Step: fetch the node, leaf or instance through the node cache.
+        // Step: fetch the node, leaf or instance through the node cache (and
+        // below it the port, the L2 and DRAM).
         const MemoryRange range = stepRange(st);
-        const std::uint64_t fetched = cache.fetch(range, c, memory);
+        const LineFill fetched = cache.fetch(range, c, port);
+        const std::uint64_t waited = fetched.ready - c;
         ++stats.fetches;
         stats.fetchBytes += range.bytes;
-        stats.fetch += fetched - c;
-        stats.fetchBeyondHit += fetched - c > config.cache.hitLatency ? fetched - c - config.cache.hitLatency : 0;
-        wheel.schedule(fetched, makeEvent(slot, kFetchDone));
+        stats.fetch += waited - fetched.l2Cycles - fetched.dramCycles;
+        stats.l2 += fetched.l2Cycles;
+        stats.dram += fetched.dramCycles;
+        stats.fetchBeyondHit += waited > config.cache.hitLatency ? waited - config.cache.hitLatency : 0;
+        wheel.schedule(fetched.ready, makeEvent(slot, kFetchDone));
     }
 
     void onFetchDone(std::uint32_t slot, std::uint64_t c) {
@@ -387,14 +483,14 @@ struct RtCore::Impl {
 
     void onStackTraffic(std::uint32_t slot, std::uint64_t c) {
         Slot& s = slots[slot];
-        // Spills are writes (they occupy the channel, nobody waits); the
-        // step's refills are one read the ray waits for.
+        // Spills are writes (they occupy the port, nobody waits); the step's
+        // refills are one read the ray waits for.
         if (s.spillEntries) {
-            memory.write(c, s.spillEntries * config.stack.entryBytes);
+            port.writeStack(c, s.spillEntries * config.stack.entryBytes);
             ++stats.spillWrites;
         }
         std::uint64_t r = c;
-        if (s.refillEntries) r = memory.read(c, s.refillEntries * config.stack.entryBytes);
+        if (s.refillEntries) r = port.readStack(c, s.refillEntries * config.stack.entryBytes);
         stats.stackRefill += r - c;
         wheel.schedule(r, makeEvent(slot, kStepDone));
     }
@@ -402,7 +498,7 @@ struct RtCore::Impl {
     void finish(std::uint32_t slot, std::uint64_t c) {
         Slot& s = slots[slot];
         s.finishCycle = c;
-        SimRayResult& r = results[s.rayIndex];
+        SimRayResult& r = batch.results[s.rayIndex];
         r.hit = s.trav.hit();
         r.work = s.trav.counters();
         r.stackSpills = s.spills;
@@ -419,7 +515,7 @@ struct RtCore::Impl {
         stats.maxStackDepth.add(w.maxStackDepth);
         stats.triangleTestCount += w.triangleTests;
         stats.proceduralTestCount += w.proceduralTests;
-        RayTypeStats& type = stats.rayTypes[rays[s.rayIndex].rayType];
+        RayTypeStats& type = batch.rayTypes[batch.rays[s.rayIndex].rayType];
         type.nodeVisits += w.nodeVisits;
         type.triangleTests += w.triangleTests;
         type.instanceTransitions += w.instanceTransitions;
@@ -438,17 +534,17 @@ struct RtCore::Impl {
 
     void deliver(const Delivery& d, std::uint64_t c) {
         const std::uint32_t warp = d.rayIndex / config.core.warpWidth;
-        const std::uint64_t latency = c - warpSubmit[warp];
+        const std::uint64_t latency = c - batch.warpSubmit[warp];
         stats.completionQueue += c - d.enterCycle;
-        results[d.rayIndex].cycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(latency, UINT32_MAX));
+        batch.results[d.rayIndex].cycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(latency, UINT32_MAX));
         stats.latency.add(latency);
         ++stats.raysCompleted;
-        RayTypeStats& type = stats.rayTypes[rays[d.rayIndex].rayType];
+        RayTypeStats& type = batch.rayTypes[batch.rays[d.rayIndex].rayType];
         ++type.rays;
         type.latency.add(latency);
         if (--type.inFlight == 0) type.activeCycles += c - type.activeSince;
-        ++delivered;
-        if (--warpRemaining[warp] == 0) warpDone(warp);
+        ++batch.delivered;
+        if (--batch.warpRemaining[warp] == 0) warpDone(warp);
     }
 
     // SIMD efficiency of a lockstep traversal of this warp: warp step k has
@@ -456,10 +552,10 @@ struct RtCore::Impl {
     void warpDone(std::uint32_t warp) {
         const std::uint32_t width = config.core.warpWidth;
         const std::uint32_t first = warp * width;
-        const std::uint32_t last = std::min<std::uint32_t>(first + width, static_cast<std::uint32_t>(rays.size()));
+        const std::uint32_t last = std::min<std::uint32_t>(first + width, static_cast<std::uint32_t>(batch.rays.size()));
         std::array<std::uint32_t, 64> steps;
         const std::uint32_t m = last - first;
-        for (std::uint32_t i = 0; i < m; ++i) steps[i] = results[first + i].work.steps;
+        for (std::uint32_t i = 0; i < m; ++i) steps[i] = batch.results[first + i].work.steps;
         std::sort(steps.begin(), steps.begin() + m);
         std::uint32_t previous = 0;
         for (std::uint32_t j = 0; j < m; ++j) {
@@ -474,7 +570,7 @@ struct RtCore::Impl {
         stats.warpLanes += std::uint64_t(width) * previous;
     }
 
-    // ---- the cycle loop ----------------------------------------------------
+    // ---- one cycle -----------------------------------------------------------
 
     void processEvents(std::uint64_t c) {
         std::vector<std::uint32_t>& bucket = wheel.bucket(c);
@@ -505,22 +601,24 @@ struct RtCore::Impl {
     }
 
     std::uint32_t pendingWarpSize() const {
-        return std::min<std::uint32_t>(config.core.warpWidth, static_cast<std::uint32_t>(rays.size()) - submitted);
+        const std::uint32_t first = warps[submitted / config.core.warpWidth] * config.core.warpWidth;
+        return std::min<std::uint32_t>(config.core.warpWidth, static_cast<std::uint32_t>(batch.rays.size()) - first);
     }
     bool pendingWarpFits() const {
-        return submitted < rays.size() && config.core.inputQueueRays - (submitted - admitted) >= pendingWarpSize();
+        return submitted < rayCount && config.core.inputQueueRays - (submitted - admitted) >= pendingWarpSize();
     }
 
     void submission(std::uint64_t c) {
-        if (submitted == rays.size()) return;
+        if (submitted == rayCount) return;
         if (!pendingWarpFits()) {
             ++stats.inputQueueFull;
             return;
         }
         const std::uint32_t size = pendingWarpSize();
-        warpSubmit[submitted / config.core.warpWidth] = c;
-        for (std::uint32_t i = submitted; i < submitted + size; ++i) {
-            RayTypeStats& type = stats.rayTypes[rays[i].rayType];
+        const std::uint32_t warp = warps[submitted / config.core.warpWidth];
+        batch.warpSubmit[warp] = c;
+        for (std::uint32_t i = warp * config.core.warpWidth; i < warp * config.core.warpWidth + size; ++i) {
+            RayTypeStats& type = batch.rayTypes[batch.rays[i].rayType];
             if (type.inFlight++ == 0) type.activeSince = c;
         }
         submitted += size;
@@ -534,13 +632,13 @@ struct RtCore::Impl {
             const std::uint32_t slot = freeSlots.back();
             freeSlots.pop_back();
             Slot& s = slots[slot];
-            s.rayIndex = admitted++;
+            s.rayIndex = rayAt(admitted++);
             s.warp = s.rayIndex / config.core.warpWidth;
             s.age = nextAge++;
             s.admitCycle = c;
             s.onChip = s.spilled = s.spills = s.refills = 0;
-            s.trav.begin(scene, rays[s.rayIndex]);
-            stats.inputQueue += c - warpSubmit[s.warp];
+            s.trav.begin(scene, batch.rays[s.rayIndex]);
+            stats.inputQueue += c - batch.warpSubmit[s.warp];
             slotOcc.set(slots.size() - freeSlots.size(), c);
             makeReady(slot, c);
         }
@@ -560,100 +658,65 @@ struct RtCore::Impl {
             ++stats.issueCycles;
             readyOcc.set(readyCount, c);
         }
+        // Prefetches the policy asked for, after this cycle's demand fetches.
+        if (policyPrefetches) {
+            PrefetchRequest p;
+            while (policy->takePrefetch(p)) cache.prefetch(MemoryRange{p.address, p.bytes}, c, port);
+        }
     }
 
-    void run(std::span<const SimRay> batch, ProgrammableSide& programmable, std::span<SimRayResult> out) {
-        if (batch.size() != out.size()) throw std::invalid_argument("RtCore::run: rays and results differ in size");
-        if (batch.size() > UINT32_MAX / 2) throw std::invalid_argument("RtCore::run: batch too large");
-        for (const SimRay& r : batch)
-            if (r.rayType >= kMaxRayTypes)
-                throw std::invalid_argument("RtCore::run: rayType " + std::to_string(r.rayType) + " >= " +
-                                            std::to_string(kMaxRayTypes));
-        if (scene.generation() != layoutGeneration) {
-            if (layoutGeneration != ~std::uint64_t(0)) cache.invalidate();
-            layout.build(scene);
-            layoutGeneration = scene.generation();
-        }
-        if (batch.empty()) return;
-        rays = batch;
-        side = &programmable;
-        results = out;
-        submitted = admitted = delivered = 0;
-        const std::uint32_t warps = static_cast<std::uint32_t>((batch.size() + config.core.warpWidth - 1) / config.core.warpWidth);
-        warpSubmit.assign(warps, 0);
-        warpRemaining.assign(warps, config.core.warpWidth);
-        warpRemaining.back() = static_cast<std::uint32_t>(batch.size()) - (warps - 1) * config.core.warpWidth;
-        std::uint32_t maxType = 0;
-        for (const SimRay& r : batch) maxType = std::max(maxType, r.rayType);
-        if (stats.rayTypes.size() <= maxType) stats.rayTypes.resize(maxType + 1);
-        ++stats.batches;
-
-        try {
-            std::uint64_t& c = clock;
-            c = now;
-            wheel.advance(c);
-            for (;;) {
-                processEvents(c);
-                completion(c);
-                submission(c);
-                admission(c);
-                issueRays(c);
-                if (delivered == rays.size()) break;
-                // Step: the next cycle with something to do.
-                const bool busy = readyCount > 0 || !completionQueue.empty() ||
-                                  (admitted < submitted && !freeSlots.empty()) || pendingWarpFits();
-                std::uint64_t next = c + 1;
-                if (!busy && !everyCycle && !wheel.nextAfter(c, next))
-                    throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
-                if (everyCycle && !busy && wheel.empty())
-                    throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
-                // Step: conditions that hold through the skipped cycles.
-                if (submitted < rays.size() && !pendingWarpFits()) stats.inputQueueFull += next - c - 1;
-                if (admitted < submitted && freeSlots.empty()) stats.noFreeRaySlot += next - c;
-                if (!blockedFinishers.empty()) stats.completionQueueFull += next - c;
-                c = next;
-                wheel.advance(c);
-            }
-            now = std::max(c, memory.nextFree());  // spill writes drain before the batch ends
-        } catch (...) {
-            abortBatch();
-            throw;
-        }
-        rays = {};
-        results = {};
-        side = nullptr;
+    // The five phases of cycle c.
+    void cycle(std::uint64_t c) {
+        processEvents(c);
+        completion(c);
+        submission(c);
+        admission(c);
+        issueRays(c);
+    }
+    // Whether one of phases 2-5 can act in the next cycle.
+    bool busy() const {
+        return readyCount > 0 || !completionQueue.empty() || (admitted < submitted && !freeSlots.empty()) ||
+               pendingWarpFits();
+    }
+    // Conditions that hold through the cycles after c up to next (exclusive), skipped or not.
+    void accountUntil(std::uint64_t c, std::uint64_t next) {
+        if (submitted < rayCount && !pendingWarpFits()) stats.inputQueueFull += next - c - 1;
+        if (admitted < submitted && freeSlots.empty()) stats.noFreeRaySlot += next - c;
+        if (!blockedFinishers.empty()) stats.completionQueueFull += next - c;
     }
 
-    // A side callback threw: drop the batch's rays; the clock stays at the cycle reached.
-    void abortBatch() {
-        now = std::max(clock, memory.nextFree());
+    void beginBatch() {
+        warps.clear();
+        rayCount = submitted = admitted = 0;
+    }
+    void addWarp(std::uint32_t warp, std::uint32_t size) {
+        warps.push_back(warp);
+        rayCount += size;
+    }
+
+    // A side callback threw: drop the batch's rays.
+    void abortBatch(std::uint64_t now) {
         wheel.clear();
         policy = makeSchedulerPolicy(config.scheduler);
         readyCount = 0;
         completionQueue.clear();
         blockedFinishers.clear();
         resetSlots();
-        for (RayTypeStats& t : stats.rayTypes) t.inFlight = 0;
+        beginBatch();
         inputQueueOcc.set(0, now);
         slotOcc.set(0, now);
         readyOcc.set(0, now);
         completionOcc.set(0, now);
-        rays = {};
-        results = {};
-        side = nullptr;
     }
 
-    void resetStats() {
-        const std::size_t types = stats.rayTypes.size();
-        stats = Stats{};
-        stats.rayTypes.resize(types);
-        stats.frameStart = now;
+    void resetStats(std::uint64_t now) {
+        stats = CoreStats{};
         boxUnits.resetStats();
         triangleUnits.resetStats();
         transformUnits.resetStats();
         cache.resetStats();
         cache.invalidations = 0;
-        memory.resetStats();
+        port.channel.resetStats();
         policy->resetStats();
         inputQueueOcc.reset(now);
         slotOcc.reset(now);
@@ -661,17 +724,58 @@ struct RtCore::Impl {
         completionOcc.reset(now);
     }
 
-    nlohmann::json statsJson() const;
+    void resetTime() {
+        nextAge = 0;
+        wheel.clear();
+        wheel.advance(0);
+        cache.invalidate();
+        port.channel.resetTime();
+        boxUnits.resetTime();
+        triangleUnits.resetTime();
+        transformUnits.resetTime();
+    }
+
+    CoreSnapshot snapshot(std::uint64_t now) const {
+        CoreSnapshot s;
+        s.stats = stats;
+        s.box = UnitCounters{boxUnits.requests, boxUnits.busyCycles, boxUnits.waitCycles};
+        s.triangle = UnitCounters{triangleUnits.requests, triangleUnits.busyCycles, triangleUnits.waitCycles};
+        s.transform = UnitCounters{transformUnits.requests, transformUnits.busyCycles, transformUnits.waitCycles};
+        s.cacheAccesses = cache.accesses;
+        s.cacheHits = cache.hits;
+        s.cachePendingHits = cache.pendingHits;
+        s.cacheMisses = cache.misses;
+        s.cacheEvictions = cache.evictions;
+        s.cacheInvalidations = cache.invalidations;
+        s.prefetchRequests = cache.prefetchRequests;
+        s.prefetchLines = cache.prefetchLines;
+        s.prefetchHits = cache.prefetchHits;
+        const MemoryChannel& m = port.channel;
+        s.memReads = m.reads;
+        s.memReadBytes = m.readBytes;
+        s.memWrites = m.writes;
+        s.memWriteBytes = m.writeBytes;
+        s.memBusy = m.busyCycles;
+        s.memQueue = m.queueCycles;
+        s.inputQueueOcc = inputQueueOcc.histogram(now);
+        s.slotOcc = slotOcc.histogram(now);
+        s.readyOcc = readyOcc.histogram(now);
+        s.completionOcc = completionOcc.histogram(now);
+        policy->addStats(s.policyStats);
+        return s;
+    }
 };
 
-// ---------------------------------------------------------------------------
-// The stats tree.
-
-nlohmann::json RtCore::Impl::statsJson() const {
+// The stats tree of one core, or of `cores` cores merged: counters are sums;
+// unit counts are totals; capacities, slot counts, widths and occupancy
+// levels are per core, occupancy weights are core-cycles.
+nlohmann::json coreTreeJson(const CoreSnapshot& snap, const RtCoreConfig& config, std::uint32_t cores,
+                            std::uint64_t cycles, std::uint64_t batches) {
     using nlohmann::json;
-    const std::uint64_t cycles = now - stats.frameStart;
+    const CoreStats& stats = snap.stats;
     const auto rate = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
-    const auto unitJson = [&](const UnitPool& u, std::uint32_t count) {
+    const auto unitJson = [&](const UnitCounters& u, std::uint32_t perCore) {
+        const std::uint32_t count = perCore * cores;
         json j;
         j["units"] = count;
         j["requests"] = u.requests;
@@ -682,9 +786,8 @@ nlohmann::json RtCore::Impl::statsJson() const {
     };
 
     json out;
-    out["config"] = config.toJson();
     out["frame"] = {{"cycles", cycles},
-                    {"batches", stats.batches},
+                    {"batches", batches},
                     {"rays", stats.raysCompleted},
                     {"raysPerCycle", rate(double(stats.raysCompleted), double(cycles))}};
 
@@ -703,6 +806,8 @@ nlohmann::json RtCore::Impl::statsJson() const {
     raysJson["latencyBreakdown"] = {{"inputQueue", stats.inputQueue},
                                     {"scheduler", stats.scheduler},
                                     {"fetch", stats.fetch},
+                                    {"l2", stats.l2},
+                                    {"dram", stats.dram},
                                     {"boxUnitWait", stats.boxUnitWait},
                                     {"boxUnit", stats.boxUnit},
                                     {"triangleUnitWait", stats.triangleUnitWait},
@@ -715,52 +820,35 @@ nlohmann::json RtCore::Impl::statsJson() const {
                                     {"completionQueue", stats.completionQueue}};
     out["rays"] = std::move(raysJson);
 
-    json types = json::object();
-    for (std::size_t t = 0; t < stats.rayTypes.size(); ++t) {
-        const RayTypeStats& r = stats.rayTypes[t];
-        if (r.rays == 0 && r.inFlight == 0) continue;
-        json j;
-        j["rays"] = r.rays;
-        j["activeCycles"] = r.activeCycles + (r.inFlight ? now - r.activeSince : 0);
-        j["latency"] = r.latency.toJson();
-        j["nodeVisitsPerRay"] = rate(double(r.nodeVisits), double(r.rays));
-        j["triangleTestsPerRay"] = rate(double(r.triangleTests), double(r.rays));
-        j["instanceTransitionsPerRay"] = rate(double(r.instanceTransitions), double(r.rays));
-        types[std::to_string(t)] = std::move(j);
-    }
-    out["rayTypes"] = std::move(types);
-
     out["submission"] = {{"warpWidth", config.core.warpWidth},
                          {"warps", stats.warps},
                          {"blockedCycles", {{"inputQueueFull", stats.inputQueueFull}}},
-                         {"inputQueue",
-                          {{"capacity", config.core.inputQueueRays}, {"occupancy", inputQueueOcc.toJson(now)}}}};
-    out["raySlots"] = {{"count", slots.size()},
-                       {"occupancy", slotOcc.toJson(now)},
-                       {"utilization", rate(slotOcc.toJson(now)["mean"].get<double>(), double(slots.size()))},
+                         {"inputQueue", {{"capacity", config.core.inputQueueRays}, {"occupancy", snap.inputQueueOcc.toJson()}}}};
+    out["raySlots"] = {{"count", config.core.raySlots},
+                       {"occupancy", snap.slotOcc.toJson()},
+                       {"utilization", rate(snap.slotOcc.mean(), double(config.core.raySlots))},
                        {"blockedCycles", {{"noFreeRaySlot", stats.noFreeRaySlot}}}};
 
-    json sched;
+    json sched = snap.policyStats;
     sched["policy"] = config.scheduler.policy;
     sched["issueWidth"] = config.scheduler.issueWidth;
     sched["issued"] = stats.issued;
     sched["issueCycles"] = stats.issueCycles;
-    sched["utilization"] = rate(double(stats.issued), double(cycles) * config.scheduler.issueWidth);
-    sched["readyRays"] = readyOcc.toJson(now);
+    sched["utilization"] = rate(double(stats.issued), double(cycles) * (config.scheduler.issueWidth * cores));
+    sched["readyRays"] = snap.readyOcc.toJson();
     sched["waitCycles"] = stats.scheduler;
-    policy->addStats(sched);
     out["scheduler"] = std::move(sched);
 
-    json traversal = unitJson(boxUnits, config.traversal.units);
+    json traversal = unitJson(snap.box, config.traversal.units);
     traversal["nodes"] = stats.nodes;
     traversal["boxTests"] = stats.boxes;
     out["traversalUnits"] = std::move(traversal);
-    json triangle = unitJson(triangleUnits, config.triangle.units);
+    json triangle = unitJson(snap.triangle, config.triangle.units);
     triangle["leaves"] = stats.leaves;
     triangle["triangleTests"] = stats.triangleTestCount;
     triangle["proceduralTests"] = stats.proceduralTestCount;
     out["triangleUnits"] = std::move(triangle);
-    json transform = unitJson(transformUnits, config.transform.units);
+    json transform = unitJson(snap.transform, config.transform.units);
     transform["transforms"] = stats.transforms;
     out["transformUnits"] = std::move(transform);
     out["shader"] = {{"anyHitCalls", stats.anyHitCalls},
@@ -778,23 +866,28 @@ nlohmann::json RtCore::Impl::statsJson() const {
     out["cache"] = {{"sizeBytes", config.cache.sizeBytes},
                     {"fetches", stats.fetches},
                     {"fetchBytes", stats.fetchBytes},
-                    {"accesses", cache.accesses},
-                    {"hits", cache.hits},
-                    {"pendingHits", cache.pendingHits},
-                    {"misses", cache.misses},
-                    {"evictions", cache.evictions},
-                    {"invalidations", cache.invalidations},
-                    {"hitRate", rate(double(cache.hits), double(cache.accesses))}};
-    out["memory"] = {{"reads", memory.reads},
-                     {"readBytes", memory.readBytes},
-                     {"writes", memory.writes},
-                     {"writeBytes", memory.writeBytes},
-                     {"busyCycles", memory.busyCycles},
-                     {"queueCycles", memory.queueCycles},
-                     {"utilization", rate(double(memory.busyCycles), double(cycles))},
-                     {"bytesPerCycle", rate(double(memory.readBytes + memory.writeBytes), double(cycles))}};
+                    {"accesses", snap.cacheAccesses},
+                    {"hits", snap.cacheHits},
+                    {"pendingHits", snap.cachePendingHits},
+                    {"misses", snap.cacheMisses},
+                    {"evictions", snap.cacheEvictions},
+                    {"invalidations", snap.cacheInvalidations},
+                    {"hitRate", rate(double(snap.cacheHits), double(snap.cacheAccesses))}};
+    if (snap.prefetchRequests > 0)  // only policies that prefetch (treeletPrefetch)
+        out["cache"]["prefetch"] = {{"requests", snap.prefetchRequests},
+                                    {"lines", snap.prefetchLines},
+                                    {"usefulLines", snap.prefetchHits},
+                                    {"accuracy", rate(double(snap.prefetchHits), double(snap.prefetchLines))}};
+    out["memory"] = {{"reads", snap.memReads},
+                     {"readBytes", snap.memReadBytes},
+                     {"writes", snap.memWrites},
+                     {"writeBytes", snap.memWriteBytes},
+                     {"busyCycles", snap.memBusy},
+                     {"queueCycles", snap.memQueue},
+                     {"utilization", rate(double(snap.memBusy), double(cycles) * cores)},
+                     {"bytesPerCycle", rate(double(snap.memReadBytes + snap.memWriteBytes), double(cycles))}};
     out["completion"] = {{"capacity", config.core.completionQueueRays},
-                         {"occupancy", completionOcc.toJson(now)},
+                         {"occupancy", snap.completionOcc.toJson()},
                          {"blockedCycles", {{"completionQueueFull", stats.completionQueueFull}}}};
     out["stalls"] = {{"blockedCycles",
                       {{"inputQueueFull", stats.inputQueueFull},
@@ -817,6 +910,259 @@ nlohmann::json RtCore::Impl::statsJson() const {
                    {"activeRaysPerWarpStep", stats.activeRaysPerWarpStep.toJson()},
                    {"efficiency", rate(double(stats.raySteps), double(stats.warpLanes))},
                    {"laneFill", rate(double(stats.raysCompleted), double(stats.warpsCompleted) * config.core.warpWidth)}};
+    return out;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// The GPU: cores in lock step on one clock, the shared L2 and DRAM.
+
+struct RtCore::Impl {
+    RtCoreConfig config;
+    const ModelScene& scene;
+    MemoryLayout layout;
+    std::uint64_t layoutGeneration = ~std::uint64_t(0);
+    BatchState batch;
+    std::vector<SimRay> orderedRays;  // the batch in gpu.rayOrder (when not submission)
+    std::vector<SimRayResult> orderedResults;
+    std::unique_ptr<SharedL2> l2;  // l2 mode cache only
+    std::vector<std::unique_ptr<Core>> cores;
+    std::vector<std::uint64_t> visit;  // per core: its next active cycle during a batch
+    bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
+    std::uint64_t now = 0;    // the clock between batches
+    std::uint64_t clock = 0;  // the cycle being simulated during a batch
+    std::uint64_t frameStart = 0, batches = 0;
+
+    Impl(const RtCoreConfig& cfg, const ModelScene& s) : config(cfg), scene(s) {
+        if (config.l2.mode == L2Mode::Cache) l2 = std::make_unique<SharedL2>(config.l2, config.dram);
+        for (std::uint32_t k = 0; k < config.gpu.cores; ++k)
+            cores.push_back(std::make_unique<Core>(config, scene, layout, batch, l2.get()));
+    }
+
+    // The dispatch rule: which core each warp of the batch goes to.
+    void dispatch(std::uint32_t warpCount) {
+        const std::uint32_t n = static_cast<std::uint32_t>(cores.size());
+        const std::uint32_t w = config.core.warpWidth;
+        const auto size = [&](std::uint32_t warp) {
+            return std::min<std::uint32_t>(w, static_cast<std::uint32_t>(batch.rays.size()) - warp * w);
+        };
+        for (auto& core : cores) core->beginBatch();
+        for (std::uint32_t warp = 0; warp < warpCount; ++warp) {
+            const std::uint32_t k =
+                config.gpu.dispatch == WarpDispatch::RoundRobin
+                    ? warp % n
+                    : static_cast<std::uint32_t>((std::uint64_t(warp) * n) / warpCount);  // contiguous runs
+            cores[k]->addWarp(warp, size(warp));
+        }
+    }
+
+    std::uint64_t portsFree(std::uint64_t c) const {
+        for (const auto& core : cores) c = std::max(c, core->port.channel.nextFree());
+        return c;
+    }
+
+    void run(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out) {
+        if (rays.size() != out.size()) throw std::invalid_argument("RtCore::run: rays and results differ in size");
+        if (rays.size() > UINT32_MAX / 2) throw std::invalid_argument("RtCore::run: batch too large");
+        for (const SimRay& r : rays)
+            if (r.rayType >= kMaxRayTypes)
+                throw std::invalid_argument("RtCore::run: rayType " + std::to_string(r.rayType) + " >= " +
+                                            std::to_string(kMaxRayTypes));
+        if (scene.generation() != layoutGeneration) {
+            if (layoutGeneration != ~std::uint64_t(0)) {
+                for (auto& core : cores) core->cache.invalidate();
+                if (l2) l2->invalidate();
+            }
+            layout.build(scene);
+            layoutGeneration = scene.generation();
+        }
+        if (rays.empty()) return;
+        // Step: the ray order before warp formation (gpu.rayOrder).
+        batch.order.clear();
+        if (config.gpu.rayOrder == RayOrder::DirectionOrigin) {
+            batch.order = directionOriginOrder(rays);
+            orderedRays.resize(rays.size());
+            for (std::size_t i = 0; i < rays.size(); ++i) orderedRays[i] = rays[batch.order[i]];
+            orderedResults.assign(rays.size(), SimRayResult{});
+            rays = orderedRays;
+        }
+        batch.rays = rays;
+        batch.side = &programmable;
+        batch.results = batch.order.empty() ? out : std::span<SimRayResult>(orderedResults);
+        batch.delivered = 0;
+        const std::uint32_t w = config.core.warpWidth;
+        const std::uint32_t warps = static_cast<std::uint32_t>((rays.size() + w - 1) / w);
+        batch.warpSubmit.assign(warps, 0);
+        batch.warpRemaining.assign(warps, w);
+        batch.warpRemaining.back() = static_cast<std::uint32_t>(rays.size()) - (warps - 1) * w;
+        std::uint32_t maxType = 0;
+        for (const SimRay& r : rays) maxType = std::max(maxType, r.rayType);
+        if (batch.rayTypes.size() <= maxType) batch.rayTypes.resize(maxType + 1);
+        ++batches;
+        dispatch(warps);
+
+        try {
+            std::uint64_t& c = clock;
+            c = now;
+            // Each core is visited only in its own active cycles (a ready ray, a
+            // result to return, a ray to admit, a warp that fits, or an event):
+            // a core's future depends only on its own state, since L2 and DRAM
+            // times are computed when a request is made. Cores visited in the
+            // same cycle run in index order.
+            constexpr std::uint64_t kNever = ~std::uint64_t(0);
+            visit.assign(cores.size(), c);
+            for (;;) {
+                for (std::size_t k = 0; k < cores.size(); ++k)
+                    if (visit[k] == c) {
+                        cores[k]->wheel.advance(c);
+                        cores[k]->cycle(c);
+                    }
+                if (batch.delivered == rays.size()) break;
+                // Step: each visited core's next active cycle; the GPU's is the earliest.
+                std::uint64_t next = kNever;
+                bool anyBusy = false, anyEvent = false;
+                for (std::size_t k = 0; k < cores.size(); ++k) {
+                    Core& core = *cores[k];
+                    if (visit[k] == c) {
+                        const bool busy = core.busy();
+                        anyBusy = anyBusy || busy;
+                        std::uint64_t n = c + 1;
+                        if (!busy && !everyCycle && !core.wheel.nextAfter(c, n)) n = kNever;
+                        if (n != kNever) core.accountUntil(c, n);
+                        visit[k] = n;
+                    }
+                    anyEvent = anyEvent || !core.wheel.empty();
+                    next = std::min(next, visit[k]);
+                }
+                if (next == kNever || (everyCycle && !anyBusy && !anyEvent))
+                    throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
+                c = next;
+            }
+            now = portsFree(c);  // spill writes drain before the batch ends
+            for (std::size_t i = 0; i < batch.order.size(); ++i) out[batch.order[i]] = orderedResults[i];
+        } catch (...) {
+            abortBatch();
+            throw;
+        }
+        batch.rays = {};
+        batch.results = {};
+        batch.side = nullptr;
+    }
+
+    // A side callback threw: drop the batch's rays; the clock stays at the cycle reached.
+    void abortBatch() {
+        now = portsFree(clock);
+        for (auto& core : cores) core->abortBatch(now);
+        for (RayTypeStats& t : batch.rayTypes) t.inFlight = 0;
+        batch.rays = {};
+        batch.results = {};
+        batch.side = nullptr;
+    }
+
+    void resetStats() {
+        const std::size_t types = batch.rayTypes.size();
+        batch.rayTypes.assign(types, RayTypeStats{});
+        frameStart = now;
+        batches = 0;
+        for (auto& core : cores) core->resetStats(now);
+        if (l2) l2->resetStats();
+    }
+
+    void reset() {
+        now = 0;
+        for (auto& core : cores) core->resetTime();
+        if (l2) {
+            l2->invalidate();
+            l2->resetTime();
+        }
+        resetStats();
+    }
+
+    nlohmann::json statsJson() const;
+};
+
+nlohmann::json RtCore::Impl::statsJson() const {
+    using nlohmann::json;
+    const std::uint64_t cycles = now - frameStart;
+    const auto rate = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
+    const std::uint32_t n = static_cast<std::uint32_t>(cores.size());
+
+    std::vector<CoreSnapshot> snaps;
+    for (const auto& core : cores) snaps.push_back(core->snapshot(now));
+    CoreSnapshot all = snaps[0];
+    for (std::uint32_t k = 1; k < n; ++k) all.merge(snaps[k]);
+
+    json out = coreTreeJson(all, config, n, cycles, batches);
+    out["config"] = config.toJson();
+
+    json types = json::object();
+    for (std::size_t t = 0; t < batch.rayTypes.size(); ++t) {
+        const RayTypeStats& r = batch.rayTypes[t];
+        if (r.rays == 0 && r.inFlight == 0) continue;
+        json j;
+        j["rays"] = r.rays;
+        j["activeCycles"] = r.activeCycles + (r.inFlight ? now - r.activeSince : 0);
+        j["latency"] = r.latency.toJson();
+        j["nodeVisitsPerRay"] = rate(double(r.nodeVisits), double(r.rays));
+        j["triangleTestsPerRay"] = rate(double(r.triangleTests), double(r.rays));
+        j["instanceTransitionsPerRay"] = rate(double(r.instanceTransitions), double(r.rays));
+        types[std::to_string(t)] = std::move(j);
+    }
+    out["rayTypes"] = std::move(types);
+
+    out["gpu"] = {{"cores", n}, {"dispatch", toString(config.gpu.dispatch)}, {"rayOrder", toString(config.gpu.rayOrder)}};
+    json perCore = json::array();
+    for (std::uint32_t k = 0; k < n; ++k) perCore.push_back(coreTreeJson(snaps[k], config, 1, cycles, batches));
+    out["cores"] = std::move(perCore);
+
+    // The shared L2 and DRAM. Mode ideal: every L1 miss is an L2 hit with no bank and no DRAM.
+    json l2j;
+    l2j["mode"] = toString(config.l2.mode);
+    json dram;
+    dram["channels"] = config.dram.channels;
+    dram["peakBytesPerCycle"] = std::uint64_t(config.dram.channels) * config.dram.bytesPerCycle;
+    if (l2) {
+        const std::uint64_t bankBusy = std::accumulate(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end(), std::uint64_t(0));
+        const std::uint64_t bankMax = *std::max_element(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end());
+        l2j["sizeBytes"] = config.l2.sizeBytes;
+        l2j["banks"] = config.l2.banks;
+        l2j["accesses"] = l2->accesses;
+        l2j["hits"] = l2->hits;
+        l2j["pendingHits"] = l2->pendingHits;
+        l2j["misses"] = l2->misses;
+        l2j["evictions"] = l2->evictions;
+        l2j["invalidations"] = l2->invalidations;
+        l2j["hitRate"] = rate(double(l2->hits), double(l2->accesses));
+        l2j["bankConflicts"] = l2->bankConflicts;
+        l2j["bankWaitCycles"] = l2->bankWaitCycles;
+        l2j["bankBusyCycles"] = bankBusy;
+        l2j["busiestBankBusyCycles"] = bankMax;
+        l2j["bankUtilization"] = rate(double(bankBusy), double(cycles) * config.l2.banks);
+        l2j["busiestBankUtilization"] = rate(double(bankMax), double(cycles));
+        const std::uint64_t chBusy =
+            std::accumulate(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end(), std::uint64_t(0));
+        const std::uint64_t chMax = *std::max_element(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end());
+        dram["reads"] = l2->dramReads;
+        dram["readBytes"] = l2->dramReadBytes;
+        dram["busyCycles"] = chBusy;
+        dram["busiestChannelBusyCycles"] = chMax;
+        dram["queueCycles"] = l2->dramQueueCycles;
+        dram["utilization"] = rate(double(chBusy), double(cycles) * config.dram.channels);
+        dram["bytesPerCycle"] = rate(double(l2->dramReadBytes), double(cycles));
+    } else {
+        l2j["accesses"] = all.cacheMisses;
+        l2j["hits"] = all.cacheMisses;
+        l2j["misses"] = 0;
+        l2j["hitRate"] = all.cacheMisses ? 1.0 : 0.0;
+        l2j["bankConflicts"] = 0;
+        l2j["bankWaitCycles"] = 0;
+        for (const char* key : {"reads", "readBytes", "busyCycles", "queueCycles"}) dram[key] = 0;
+        dram["utilization"] = 0.0;
+        dram["bytesPerCycle"] = 0.0;
+    }
+    out["l2"] = std::move(l2j);
+    out["dram"] = std::move(dram);
     return out;
 }
 
@@ -848,20 +1194,7 @@ void RtCore::run(std::span<const SimRay> rays, ProgrammableSide& side, std::span
 
 nlohmann::json RtCore::statsJson() const { return impl_->statsJson(); }
 void RtCore::resetStats() { impl_->resetStats(); }
-
-void RtCore::reset() {
-    impl_->now = 0;
-    impl_->nextAge = 0;
-    impl_->wheel.clear();
-    impl_->wheel.advance(0);
-    impl_->cache.invalidate();
-    impl_->memory.resetTime();
-    impl_->boxUnits.resetTime();
-    impl_->triangleUnits.resetTime();
-    impl_->transformUnits.resetTime();
-    impl_->resetStats();
-}
-
+void RtCore::reset() { impl_->reset(); }
 std::uint64_t RtCore::cycle() const { return impl_->now; }
 void RtCore::simulateEveryCycle(bool on) { impl_->everyCycle = on; }
 const RtCoreConfig& RtCore::config() const { return impl_->config; }

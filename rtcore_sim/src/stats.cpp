@@ -25,6 +25,20 @@ void Histogram::add(std::uint64_t value, std::uint64_t weight) {
     sum_ += double(value) * double(weight);
 }
 
+void Histogram::merge(const Histogram& other) {
+    if (other.count_ == 0) return;
+    for (std::size_t b = 0; b < buckets_.size() && b < other.buckets_.size(); ++b) buckets_[b] += other.buckets_[b];
+    if (count_ == 0) {
+        min_ = other.min_;
+        max_ = other.max_;
+    } else {
+        min_ = std::min(min_, other.min_);
+        max_ = std::max(max_, other.max_);
+    }
+    count_ += other.count_;
+    sum_ += other.sum_;
+}
+
 void Histogram::clear() {
     std::fill(buckets_.begin(), buckets_.end(), 0);
     count_ = 0;

@@ -139,7 +139,8 @@ TEST(RtCoreConfig, EveryTimingSectionHasDescribedDefaultsAndChecksRanges) {
     const json dumped = RtCoreConfig{}.toJson();
     const json described = RtCoreConfig::describe();
     for (const char* section :
-         {"bvh", "core", "scheduler", "traversal", "triangle", "transform", "shader", "stack", "cache", "memory"}) {
+         {"bvh", "core", "scheduler", "traversal", "triangle", "transform", "shader", "stack", "cache", "memory", "gpu",
+          "l2", "dram"}) {
         ASSERT_TRUE(dumped.contains(section)) << section;
         ASSERT_TRUE(described.contains(section)) << section;
         EXPECT_EQ(dumped[section].size(), described[section].size()) << section;
@@ -149,7 +150,7 @@ TEST(RtCoreConfig, EveryTimingSectionHasDescribedDefaultsAndChecksRanges) {
             EXPECT_TRUE(d.contains("range") || d.contains("allowed")) << section << "." << field;
         }
     }
-    EXPECT_EQ(dumped.size(), 10u);
+    EXPECT_EQ(dumped.size(), 13u);  // + gpu, l2, dram (issue 14)
     EXPECT_EQ(dumped["core"]["warpWidth"], 32);
     EXPECT_EQ(dumped["scheduler"]["policy"], "fifo");
     EXPECT_EQ(dumped["cache"]["lineBytes"], 64);

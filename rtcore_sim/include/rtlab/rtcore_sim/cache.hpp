@@ -1,9 +1,10 @@
 #pragma once
 // The timing model's memory side (docs/rtcore-model.md, "Node cache and
-// memory"): a set-associative LRU node cache in front of one memory channel.
-// Requests must arrive in non-decreasing cycle order (the simulator issues
-// them in event order), which makes the channel's first-come-first-served
-// schedule exact.
+// memory" and "GPU level"): per core a set-associative LRU node cache (L1)
+// in front of the core's memory port; in l2 mode cache the port leads to a
+// banked L2 shared by all cores, backed by DRAM channels. Every resource
+// serves its requests in the order they are made (cycle, then core index),
+// each starting when both the request and the resource are there.
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
 
@@ -28,6 +29,14 @@ public:
         readBytes += bytes;
         return reserve(now, bytes) + params_.latency;
     }
+    // A read requested at `now` whose data comes from further down: the end
+    // of its transfer slot (the latency is added by the caller).
+    std::uint64_t transfer(std::uint64_t now, std::uint32_t bytes) {
+        ++reads;
+        readBytes += bytes;
+        return reserve(now, bytes);
+    }
+    std::uint32_t latency() const { return params_.latency; }
     // A write (fire and forget: it only occupies the channel).
     void write(std::uint64_t now, std::uint32_t bytes) {
         ++writes;
@@ -58,6 +67,82 @@ private:
     std::uint64_t nextFree_ = 0;
 };
 
+// When a line read below a node cache is there, and how many of its cycles
+// were spent in the L2 (bank wait + hit latency) and in DRAM (channel wait,
+// transfer, latency): the latency breakdown's l2 and dram terms.
+struct LineFill {
+    std::uint64_t ready = 0;
+    std::uint64_t l2Cycles = 0;
+    std::uint64_t dramCycles = 0;
+};
+
+// The L2 shared by all cores (l2 mode cache) with the DRAM channels behind it.
+// Banks: line l (address / l2.lineBytes) is in bank l mod banks, set
+// (l / banks) mod setsPerBank; an access occupies its bank l2.bankCycles
+// cycles from start = max(arrival, bank free); a hit's data leaves at
+// start + hitLatency (a line still being filled: at its fill cycle). A miss
+// allocates the line (LRU victim) and reads it from DRAM channel l mod channels
+// from max(start + hitLatency, channel free), for ceil(l2.lineBytes /
+// dram.bytesPerCycle) cycles; the line is there dram.latency cycles later.
+class SharedL2 {
+public:
+    SharedL2(const L2Params& l2, const DramParams& dram);
+
+    LineFill access(std::uint64_t address, std::uint64_t arrive);
+    void invalidate();
+    void resetStats();
+    void resetTime();
+    std::uint32_t banks() const { return l2_.banks; }
+    std::uint32_t channels() const { return dram_.channels; }
+
+    std::uint64_t accesses = 0, hits = 0, pendingHits = 0, misses = 0, evictions = 0, invalidations = 0;
+    std::uint64_t bankConflicts = 0;   // accesses that found their bank busy
+    std::uint64_t bankWaitCycles = 0;  // sum of their waits
+    std::vector<std::uint64_t> bankBusyCycles;
+    std::uint64_t dramReads = 0, dramReadBytes = 0, dramQueueCycles = 0;
+    std::vector<std::uint64_t> channelBusyCycles;
+
+private:
+    static constexpr std::uint64_t kInvalid = ~std::uint64_t(0);
+    L2Params l2_;
+    DramParams dram_;
+    std::uint32_t setsPerBank_ = 1;
+    std::uint32_t lineShift_ = 7;
+    std::uint32_t dramTransfer_ = 1;
+    std::vector<std::uint64_t> tags_, ready_, used_;  // per way, [bank][set][way]
+    std::vector<std::uint64_t> bankFree_, channelFree_;
+    std::uint64_t stamp_ = 0;
+};
+
+// A core's path below its node cache: its memory port (memory.*) and, in l2
+// mode cache, the shared L2. Mode ideal: a read's data is there memory.latency
+// cycles after its transfer slot (the single-core model). Mode cache: the
+// request reaches the L2 at the end of its transfer slot and its data is at
+// the core memory.latency cycles after it leaves the L2.
+class MemoryPort {
+public:
+    MemoryPort(const MemoryParams& memory, SharedL2* l2, std::uint32_t l2HitLatency)
+        : channel(memory), l2_(l2), l2HitLatency_(l2HitLatency) {}
+
+    LineFill readLine(std::uint64_t address, std::uint32_t bytes, std::uint64_t now) {
+        if (!l2_) return LineFill{channel.read(now, bytes), 0, 0};
+        LineFill f = l2_->access(address, channel.transfer(now, bytes));
+        f.ready += channel.latency();
+        return f;
+    }
+    // Stack refills: mode cache assumes they hit in the L2 (no bank, no allocation).
+    std::uint64_t readStack(std::uint64_t now, std::uint32_t bytes) {
+        return channel.read(now, bytes) + (l2_ ? l2HitLatency_ : 0);
+    }
+    void writeStack(std::uint64_t now, std::uint32_t bytes) { channel.write(now, bytes); }
+
+    MemoryChannel channel;
+
+private:
+    SharedL2* l2_;
+    std::uint32_t l2HitLatency_;
+};
+
 // Set-associative node cache with LRU replacement. Lines are allocated at
 // the miss (the data arrives later); a hit on a line still being filled waits
 // for its data (a "pending hit", merged into the outstanding miss).
@@ -66,13 +151,20 @@ public:
     explicit NodeCache(const CacheParams& params);
 
     // Reads `range` at cycle `now`: every line it touches is looked up in
-    // address order, misses go to `memory`; returns the cycle all its data is there.
-    std::uint64_t fetch(const MemoryRange& range, std::uint64_t now, MemoryChannel& memory);
+    // address order, misses go to `port`; returns the cycle all its data is
+    // there, with the L2 / DRAM parts of the line that came last.
+    LineFill fetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port);
     // One line (address / lineBytes) at `now`: the cycle its data is there.
-    std::uint64_t accessLine(std::uint64_t line, std::uint64_t now, MemoryChannel& memory);
+    LineFill accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port);
+
+    // Reads `range` ahead of demand at `now`: every line it touches that is
+    // not in the cache is allocated and filled through `port` (LRU victim);
+    // lines present or pending are left alone. A later demand hit on a line
+    // brought in this way counts as a prefetchHit.
+    void prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port);
 
     void invalidate();  // every line invalid (the BVHs changed)
-    void resetStats() { accesses = hits = pendingHits = misses = evictions = 0; }
+    void resetStats() { accesses = hits = pendingHits = misses = evictions = prefetchRequests = prefetchLines = prefetchHits = 0; }
     std::uint32_t lineBytes() const { return params_.lineBytes; }
     std::uint32_t sets() const { return sets_; }
 
@@ -82,10 +174,14 @@ public:
     std::uint64_t misses = 0;
     std::uint64_t evictions = 0;    // valid lines replaced
     std::uint64_t invalidations = 0;
+    std::uint64_t prefetchRequests = 0;  // prefetch() calls
+    std::uint64_t prefetchLines = 0;     // lines they read (not already present)
+    std::uint64_t prefetchHits = 0;      // first demand hits on prefetched lines
 
 private:
     static constexpr std::uint64_t kInvalid = ~std::uint64_t(0);
     CacheParams params_;
+    std::vector<std::uint8_t> prefetched_;  // per way: filled by prefetch(), not yet hit by demand
     std::uint32_t sets_ = 1;
     std::uint32_t lineShift_ = 6;
     std::vector<std::uint64_t> tags_;   // line number per way, kInvalid when empty

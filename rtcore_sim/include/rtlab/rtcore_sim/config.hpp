@@ -166,6 +166,7 @@ struct SchedulerParams {
     std::string policy = "fifo";        // a name in the policy registry (scheduler.hpp)
     std::uint32_t issueWidth = 2;       // traversal steps issued per cycle
     std::uint32_t treeletBytes = 4096;  // treelet policy: bytes of BVH memory per treelet
+    std::uint32_t prefetchBytes = 256;  // treeletPrefetch policy: bytes prefetched when a ray enters a treelet
 };
 const ParamTable<SchedulerParams>& schedulerParamTable();
 
@@ -225,6 +226,49 @@ struct MemoryParams {
 };
 const ParamTable<MemoryParams>& memoryParamTable();
 
+// The GPU level (section "gpu"): `cores` RT cores, each the core above with
+// its own queues, units and private node cache (L1) and memory port, sharing
+// the L2 and DRAM. Warps of a batch go to cores by `dispatch`.
+enum class WarpDispatch : std::uint8_t {
+    RoundRobin,  // warp w -> core w mod cores
+    Contiguous,  // the batch's warps in `cores` contiguous runs (neighbouring pixels on one core)
+};
+// The order in which a batch's rays are cut into warps (src/policies/order_*.cpp).
+enum class RayOrder : std::uint8_t {
+    Submission,       // as submitted
+    DirectionOrigin,  // sorted by direction octant, origin Morton code, direction Morton code
+};
+struct GpuParams {
+    std::uint32_t cores = 1;                          // RT cores
+    WarpDispatch dispatch = WarpDispatch::RoundRobin;  // warp -> core rule
+    RayOrder rayOrder = RayOrder::Submission;          // ray reordering before warp formation
+};
+const ParamTable<GpuParams>& gpuParamTable();
+
+// The shared L2 (section "l2"). Mode ideal: every access hits and costs only
+// the core's port (memory.*), exactly the single-core model; mode cache: a
+// banked set-associative LRU cache in front of DRAM.
+enum class L2Mode : std::uint8_t { Ideal, Cache };
+struct L2Params {
+    L2Mode mode = L2Mode::Ideal;
+    std::uint32_t sizeBytes = 4u << 20;  // capacity over all banks
+    std::uint32_t lineBytes = 128;       // line size (>= cache.lineBytes in mode cache)
+    std::uint32_t ways = 16;             // associativity
+    std::uint32_t banks = 16;            // independent banks, line-interleaved
+    std::uint32_t bankCycles = 1;        // cycles one access occupies its bank
+    std::uint32_t hitLatency = 100;      // cycles from bank access to data on a hit
+};
+const ParamTable<L2Params>& l2ParamTable();
+
+// DRAM behind the L2 (section "dram"): channels interleaved by L2 line, each
+// serving its requests in order.
+struct DramParams {
+    std::uint32_t channels = 4;
+    std::uint32_t bytesPerCycle = 16;  // per channel
+    std::uint32_t latency = 200;       // cycles from the end of a request's transfer until its data is in the L2
+};
+const ParamTable<DramParams>& dramParamTable();
+
 // ---------------------------------------------------------------------------
 // The whole configuration.
 
@@ -239,6 +283,9 @@ struct RtCoreConfig {
     StackParams stack;
     CacheParams cache;
     MemoryParams memory;
+    GpuParams gpu;
+    L2Params l2;
+    DramParams dram;
     // A unit's parameters: a struct and table above, a member here and one
     // section line in config.cpp (forEachSection).
 
@@ -257,7 +304,9 @@ struct RtCoreConfig {
     // Rules across fields (checked when an RtCore is built, and by the CLI
     // once all overrides are applied): core.inputQueueRays >= core.warpWidth,
     // stack.refillEntries <= stack.shortStackEntries, cache.sizeBytes a
-    // power-of-two number of sets of cache.ways lines. Throws InputError.
+    // power-of-two number of sets of cache.ways lines, l2.sizeBytes a
+    // power-of-two number of sets of l2.ways lines per bank, and in l2 mode
+    // cache l2.lineBytes >= cache.lineBytes. Throws InputError.
     void validate(const std::string& where) const;
 
     // The resolved configuration, every field present.
@@ -267,5 +316,8 @@ struct RtCoreConfig {
 };
 
 std::string toString(BuildQuality quality);
+std::string toString(WarpDispatch dispatch);
+std::string toString(L2Mode mode);
+std::string toString(RayOrder order);
 
 }  // namespace rtlab::rtcore_sim

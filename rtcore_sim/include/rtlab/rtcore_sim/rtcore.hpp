@@ -12,6 +12,12 @@
 // completion queue. Simulation is event driven (no cycle-by-cycle sweep over
 // rays), single threaded and deterministic: the same inputs give the same
 // cycles and stats.
+//
+// An RtCore object is the whole GPU (docs/rtcore-model.md, "GPU level"):
+// gpu.cores such cores on one clock, each with its own node cache (L1) and
+// memory port, sharing the L2 and DRAM (l2.mode = cache). Warps of a batch go
+// to cores by gpu.dispatch. One core with the ideal L2 (the defaults) is the
+// single-core model, cycle for cycle.
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/model_scene.hpp>
 #include <rtlab/rtcore_sim/traversal.hpp>
@@ -54,7 +60,8 @@ public:
     void run(std::span<const SimRay> rays, ProgrammableSide& side, std::span<SimRayResult> results);
 
     // The stats tree, with "config" = the resolved configuration; derived
-    // rates are computed here.
+    // rates are computed here. Top level = all cores; "cores" = one tree per
+    // core; "l2", "dram" = the shared memory.
     nlohmann::json statsJson() const;
     // Start of a frame: zeroes the statistics (the clock and the cache stay).
     void resetStats();

@@ -29,6 +29,14 @@ struct ReadyRay {
     std::uint64_t address = 0;  // byte address of the node, leaf or instance its next step fetches (0 unless usesAddress())
 };
 
+// Bytes a policy asks the core to read into its node cache ahead of demand
+// (treelet prefetching): lines not in the cache are allocated and filled
+// through the core's memory port; no ray waits for them.
+struct PrefetchRequest {
+    std::uint64_t address = 0;
+    std::uint32_t bytes = 0;
+};
+
 // Holds the ready rays; pop() chooses the next one to issue. Must be
 // deterministic: the same push/pop sequence gives the same choices.
 class SchedulerPolicy {
@@ -40,6 +48,12 @@ public:
     virtual std::size_t size() const = 0;
     // Whether push() needs ReadyRay::address (computing it costs a lookup per step).
     virtual bool usesAddress() const { return true; }
+    // The next prefetch the policy asks for; false when none. The core drains
+    // these after every issue phase, at that cycle.
+    virtual bool takePrefetch(PrefetchRequest& out) {
+        (void)out;
+        return false;
+    }
     // Policy-specific counters for the stats tree (may be empty).
     virtual void addStats(nlohmann::json& out) const { (void)out; }
     virtual void resetStats() {}

@@ -21,6 +21,8 @@ public:
 
     void add(std::uint64_t value, std::uint64_t weight = 1);
     void clear();
+    // Adds another histogram of the same scheme (the sum of both distributions).
+    void merge(const Histogram& other);
 
     std::uint64_t count() const { return count_; }
     std::uint64_t max() const { return count_ ? max_ : 0; }
@@ -59,11 +61,12 @@ public:
         since_ = now;
     }
     // The histogram including the current level up to `now`.
-    nlohmann::json toJson(std::uint64_t now) const {
+    Histogram histogram(std::uint64_t now) const {
         Histogram h = hist_;
         if (now > since_) h.add(level_, now - since_);
-        return h.toJson();
+        return h;
     }
+    nlohmann::json toJson(std::uint64_t now) const { return histogram(now).toJson(); }
 
 private:
     Histogram hist_;
