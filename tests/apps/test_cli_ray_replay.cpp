@@ -1,8 +1,9 @@
 // `rtlab render --record-rays DIR` and `rtlab replay` end to end: recording
 // changes no pixel and is the same for any thread count; replay finds every
 // recorded hit again on both back ends; on the RT-core model, replaying the
-// frames gives exactly the render's cycle counts and stats; a file recorded
-// on another scene, or damaged, exits 2 with one line; a differing hit exits 1.
+// frames gives exactly the render's cycle counts and stats (two cores sharing
+// an L2 here); a file recorded on another scene, or damaged, exits 2 with one
+// line; a differing hit exits 1.
 #include "cli_test_util.hpp"
 
 #include <rtlab/study/ray_trace_file.hpp>
@@ -58,7 +59,8 @@ TEST(CliRayReplay, RecordingChangesNoPixelAndIsTheSameOnOneAndTwoThreads) {
 
 TEST(CliRayReplay, ReplayOnTheModelGivesTheRendersCyclesAndStatsExactly) {
     const fs::path dir = freshDir("rec_rtcore");
-    const std::string config = " --backend rtcore --rtcore-set cache.sizeBytes=4096";
+    const std::string config =
+        " --backend rtcore --rtcore-set cache.sizeBytes=4096 --rtcore-set gpu.cores=2 --rtcore-set l2.mode=cache";
     const CliRun render = runCli(kRender + config + " --record-rays " + (dir / "rays").string() + " --out " + dir.string());
     ASSERT_EQ(render.exitCode, 0) << render.out;
     const fs::path out = dir / "replay";
