@@ -111,8 +111,13 @@ ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& ac
         for (std::size_t b = 0; b < batches.size(); ++b) replayBatch(engine, *backend, batches[b], b, true, outcomes[b]);
     } else {
         // Step: Embree: batches in parallel, outcomes reduced in order below.
-        tracer::EmbreeBackend embree;
-        parallelForEach(batches.size(), [&](std::size_t b) { replayBatch(engine, embree, batches[b], b, false, outcomes[b]); });
+        // Ray type 0 (rtlab's primary rays) as coherent packets, the rest
+        // (shadow, bounce, AO: scattered) as incoherent ones.
+        tracer::EmbreeBackend coherent(tracer::RayCoherence::Coherent), incoherent(tracer::RayCoherence::Incoherent);
+        parallelForEach(batches.size(), [&](std::size_t b) {
+            tracer::EmbreeBackend& embree = (batches[b].record->rayContribution & 0xf) == 0 ? coherent : incoherent;
+            replayBatch(engine, embree, batches[b], b, false, outcomes[b]);
+        });
     }
     ReplayResult r;
     r.milliseconds = clock.elapsedMs();

@@ -15,7 +15,7 @@ void EmbreeBackend::trace(const TraceEngine& engine, const TraceArgs& args, cons
     for (std::size_t base = 0; base < count; base += 8) {
         const std::size_t lanes = std::min<std::size_t>(8, count - base);
         if (lanes == 8) {
-            engine.trace8(args, rays + base, payloads + base, active + base, depth, out + base, counters);
+            engine.trace8(args, rays + base, payloads + base, active + base, depth, out + base, counters, coherence_);
             continue;
         }
         // Step: a partial group padded with inactive lanes.
@@ -28,7 +28,7 @@ void EmbreeBackend::trace(const TraceEngine& engine, const TraceArgs& args, cons
             p[i] = payloads[base + i];
             a[i] = active[base + i];
         }
-        engine.trace8(args, r.data(), p.data(), a.data(), depth, h.data(), counters);
+        engine.trace8(args, r.data(), p.data(), a.data(), depth, h.data(), counters, coherence_);
         for (std::size_t i = 0; i < lanes; ++i)
             if (a[i]) out[base + i] = h[i];
     }

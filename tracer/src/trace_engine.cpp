@@ -614,8 +614,9 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
 }
 
 void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
-                         std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const {
-    PipelineContext ctx(*this, args, depth, counters, rays, payloads, true);
+                         std::uint32_t depth, CommittedHit* out, TraceCounters& counters,
+                         RayCoherence coherence) const {
+    PipelineContext ctx(*this, args, depth, counters, rays, payloads, coherence == RayCoherence::Coherent);
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh;
     const bool any = setEmbreePacket(ctx, rays, active, args.instanceInclusionMask, valid, rh);

@@ -54,6 +54,10 @@ inline bool isValidRay(const RayDesc& r) {
 // Hit attributes: barycentrics for triangles (u = weight of vertex 1,
 // v = weight of vertex 2), or up to 8 floats from an intersection shader
 // (DXR's 32-byte attribute limit).
+// Coherent rays (camera rays of a tile) share their traversal; incoherent
+// ones (bounces) go their own ways. A hint to Embree; results are the same.
+enum class RayCoherence { Coherent, Incoherent };
+
 struct HitAttributes {
     std::array<float, 8> values{};
     vec2 barycentrics() const { return {values[0], values[1]}; }

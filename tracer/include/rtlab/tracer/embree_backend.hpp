@@ -12,11 +12,16 @@ namespace rtlab::tracer {
 
 class EmbreeBackend final : public TraversalBackend {
 public:
+    // `coherence`: the hint every packet of this back end gives Embree.
+    explicit EmbreeBackend(RayCoherence coherence = RayCoherence::Coherent) : coherence_(coherence) {}
     std::string_view name() const override { return "embree"; }
     bool orderDependent() const override { return false; }
     void trace(const TraceEngine& engine, const TraceArgs& args, const RayDesc* rays, void* const* payloads,
                const bool* active, std::size_t count, std::uint32_t depth, CommittedHit* out,
                TraceCounters& counters) override;
+
+private:
+    RayCoherence coherence_;
 };
 
 }  // namespace rtlab::tracer

@@ -139,8 +139,10 @@ public:
                        TraceCounters& counters) const;
     // Eight rays as one Embree packet (rtcIntersect8 / rtcOccluded8); lanes
     // with active[i] == false are left alone.
+    // `coherence` is a hint to Embree (RayCoherence); the hits are the same.
     void trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
-                std::uint32_t depth, CommittedHit* out, TraceCounters& counters) const;
+                std::uint32_t depth, CommittedHit* out, TraceCounters& counters,
+                RayCoherence coherence = RayCoherence::Coherent) const;
 
     // The hit-group record for a hit; throws PipelineError when out of range.
     std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex, std::uint32_t geometryIndex) const {

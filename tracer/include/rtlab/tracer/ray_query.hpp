@@ -22,10 +22,6 @@ struct QueryHit {
     std::uint32_t instance = 0, geometry = 0, primitive = 0;
 };
 
-// Coherent rays (camera rays of a tile) share their traversal; incoherent
-// ones (bounces) go their own ways. A hint to Embree; results are the same.
-enum class RayCoherence { Coherent, Incoherent };
-
 // Closest hits of up to 8 rays traced as one packet; lanes with
 // active[i] == false are left untouched, invalid rays (isValidRay) miss.
 void queryClosest8(const AccelManager& accel, const RayDesc* rays, const bool* active, QueryHit* out,
