@@ -42,6 +42,13 @@ void addRenderCommand(CLI::App& app, RenderOptions& options);
 void addEffectSettingOptions(CLI::App& command, float& reflectionRoughness, float& aoRadius);
 int runRender(const RenderOptions& options);
 
+// --backend embree|rtcore, --rtcore-config FILE and --rtcore-set k=v..., shared by render and replay.
+void addBackendOptions(CLI::App& command, std::string& backend, std::string& rtcoreConfig,
+                       std::vector<std::string>& rtcoreSet);
+// InputError (exit 2) when --rtcore-config or --rtcore-set come without --backend rtcore.
+void checkRtCoreOptionsNeedRtCore(const std::string& backend, const std::string& rtcoreConfig,
+                                  const std::vector<std::string>& rtcoreSet);
+
 // The RT-core configuration: defaults, then the JSON file (if any), then
 // each section.field=value in order, validated. Bad keys and values are
 // InputErrors (exit 2).

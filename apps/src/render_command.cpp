@@ -36,6 +36,23 @@ void addEffectSettingOptions(CLI::App& cmd, float& reflectionRoughness, float& a
         ->capture_default_str();
 }
 
+void addBackendOptions(CLI::App& cmd, std::string& backend, std::string& rtcoreConfig,
+                       std::vector<std::string>& rtcoreSet) {
+    cmd.add_option("--backend", backend, "Traversal back end")
+        ->check(CLI::IsMember({"embree", "rtcore"}))
+        ->capture_default_str();
+    cmd.add_option("--rtcore-config", rtcoreConfig, "RT-core model parameters (JSON; docs/rtcore-model.md)");
+    cmd.add_option("--rtcore-set", rtcoreSet, "Override one RT-core parameter: section.field=value (repeatable)")
+        ->allow_extra_args(false);
+}
+
+void checkRtCoreOptionsNeedRtCore(const std::string& backend, const std::string& rtcoreConfig,
+                                  const std::vector<std::string>& rtcoreSet) {
+    if (backend == "rtcore") return;
+    if (!rtcoreConfig.empty()) throw InputError("--rtcore-config", "only applies to --backend rtcore");
+    if (!rtcoreSet.empty()) throw InputError("--rtcore-set", "only applies to --backend rtcore");
+}
+
 void addRenderCommand(CLI::App& app, RenderOptions& o) {
     CLI::App* cmd = app.add_subcommand("render", "Render frames of a scene to EXR + PNG + stats.json");
     cmd->add_option("--scene", o.scene, "builtin:NAME, .gltf/.glb, or scene .json")->capture_default_str();
@@ -43,12 +60,7 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
     cmd->add_option("--height", o.height, "Image height in pixels")->check(CLI::Range(1, 16384))->capture_default_str();
     cmd->add_option("--spp", o.spp, "Samples per pixel per effect")->check(CLI::Range(1, 1 << 20))->capture_default_str();
     cmd->add_option("--frames", o.frames, "Number of frames")->check(CLI::Range(1, 100000))->capture_default_str();
-    cmd->add_option("--backend", o.backend, "Traversal back end")
-        ->check(CLI::IsMember({"embree", "rtcore"}))
-        ->capture_default_str();
-    cmd->add_option("--rtcore-config", o.rtcoreConfig, "RT-core model parameters (JSON; docs/rtcore-model.md)");
-    cmd->add_option("--rtcore-set", o.rtcoreSet, "Override one RT-core parameter: section.field=value (repeatable)")
-        ->allow_extra_args(false);
+    addBackendOptions(*cmd, o.backend, o.rtcoreConfig, o.rtcoreSet);
     cmd->add_flag("--verify", o.verify, "With --backend rtcore: trace every ray on Embree too and report mismatches");
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--seed", o.seed, "Random seed")->capture_default_str();
@@ -149,11 +161,8 @@ nlohmann::json writeHeatmaps(const std::filesystem::path& base, int width, int h
 
 int runRender(const RenderOptions& o) {
     // Step: options that only mean something for the RT-core model.
-    if (o.backend != "rtcore") {
-        if (!o.rtcoreConfig.empty()) throw InputError("--rtcore-config", "only applies to --backend rtcore");
-        if (!o.rtcoreSet.empty()) throw InputError("--rtcore-set", "only applies to --backend rtcore");
-        if (o.verify) throw InputError("--verify", "only applies to --backend rtcore");
-    }
+    checkRtCoreOptionsNeedRtCore(o.backend, o.rtcoreConfig, o.rtcoreSet);
+    if (o.backend != "rtcore" && o.verify) throw InputError("--verify", "only applies to --backend rtcore");
     // Step: options checked before anything is loaded.
     shaders::PlanOptions planOptions = app::planOptions(o.effects, o.gi);
     planOptions.reflectionMaxRoughness = o.reflectionRoughness;

@@ -75,12 +75,7 @@ void addReplayCommand(CLI::App& app, ReplayOptions& o) {
     CLI::App* cmd = app.add_subcommand("replay", "Trace recorded rays again without shading (docs/ray-trace-format.md)");
     cmd->add_option("--scene", o.scene, "The scene the rays were recorded on (builtin:NAME, .gltf/.glb, .json)")->required();
     cmd->add_option("--rays", o.rays, "A .rays file, or a directory of them (rtlab render --record-rays DIR)")->required();
-    cmd->add_option("--backend", o.backend, "Traversal back end")
-        ->check(CLI::IsMember({"embree", "rtcore"}))
-        ->capture_default_str();
-    cmd->add_option("--rtcore-config", o.rtcoreConfig, "RT-core model parameters (JSON; docs/rtcore-model.md)");
-    cmd->add_option("--rtcore-set", o.rtcoreSet, "Override one RT-core parameter: section.field=value (repeatable)")
-        ->allow_extra_args(false);
+    addBackendOptions(*cmd, o.backend, o.rtcoreConfig, o.rtcoreSet);
     cmd->add_option("--ray-types", o.rayTypes,
                     "all, or the recorded batches of these ray types only: primary,shadow,reflection,ao,gi,"
                     "translucency,pathBounce")
@@ -91,10 +86,7 @@ void addReplayCommand(CLI::App& app, ReplayOptions& o) {
 
 int runReplay(const ReplayOptions& o) {
     // Step: options and files, checked before the scene is loaded.
-    if (o.backend != "rtcore") {
-        if (!o.rtcoreConfig.empty()) throw InputError("--rtcore-config", "only applies to --backend rtcore");
-        if (!o.rtcoreSet.empty()) throw InputError("--rtcore-set", "only applies to --backend rtcore");
-    }
+    checkRtCoreOptionsNeedRtCore(o.backend, o.rtcoreConfig, o.rtcoreSet);
     const std::uint32_t typeMask = rayTypeMask(o.rayTypes);
     std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
     if (o.backend == "rtcore") rtcore = std::make_unique<rtcore_sim::RtCoreBackend>(resolveRtCoreConfig(o.rtcoreConfig, o.rtcoreSet));

@@ -224,8 +224,8 @@ TEST(Effects, ShowcaseEveryEffectTracesRays) {
 // White furnace: inside a closed sphere of albedo 1 emitting Le everywhere,
 // every GI ray hits emission Le, so the irradiance is exactly pi Le and the
 // composed radiance Le + albedo/pi x pi Le = 2 Le.
-TEST(Effects, WhiteFurnaceGiIsPiTimesEmission) {
-    ecs::World world;
+// A closed white rough sphere emitting Le = 0.5 around the camera.
+static void buildWhiteFurnace(ecs::World& world) {
     ecs::Material m;
     m.baseColor = vec4(1.f);
     m.roughness = 1.f;
@@ -233,6 +233,11 @@ TEST(Effects, WhiteFurnaceGiIsPiTimesEmission) {
     const ecs::MaterialId mat = world.addMaterial(m);
     place(world, world.addMesh(ecs::load::makeMesh("furnace", ecs::load::makeIcosphere(5.f, 3, mat))), vec3(0.f));
     addCamera(world, vec3(0.f), vec3(0.f, 0.f, -1.f));
+}
+
+TEST(Effects, WhiteFurnaceGiIsPiTimesEmission) {
+    ecs::World world;
+    buildWhiteFurnace(world);
     RenderSettings s;
     s.width = 32;
     s.height = 24;
@@ -251,13 +256,7 @@ TEST(Effects, WhiteFurnaceGiIsPiTimesEmission) {
 TEST(Effects, PathTraceFurnaceSumsOneEmissionPerBounce) {
     const auto render = [](int depth) {
         ecs::World world;  // a fresh world per render: a second update would report nothing new
-        ecs::Material m;
-        m.baseColor = vec4(1.f);
-        m.roughness = 1.f;
-        m.emissive = vec3(0.5f);
-        const ecs::MaterialId mat = world.addMaterial(m);
-        place(world, world.addMesh(ecs::load::makeMesh("furnace", ecs::load::makeIcosphere(5.f, 3, mat))), vec3(0.f));
-        addCamera(world, vec3(0.f), vec3(0.f, 0.f, -1.f));
+        buildWhiteFurnace(world);
         PlanOptions o;
         o.requested = parseEffectList("pathtrace");
         RenderSettings s;
