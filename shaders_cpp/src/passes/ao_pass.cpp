@@ -26,7 +26,8 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
                 ++tally.tested[i];
                 return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, radius};
             },
-            [&](int x, int y, const HitPayload& p) { tally.record(ctx.pixelIndex(x, y), p); }));
+            [&](int x, int y, const HitPayload& p) { tally.record(ctx.pixelIndex(x, y), p); },
+            tracer::RayCoherence::Incoherent));
     for (std::size_t i = 0; i < n; ++i) {
         if (!tally.tested[i]) continue;
         visibility[i] = tally.visibility(i);

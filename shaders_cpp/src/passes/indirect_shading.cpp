@@ -15,7 +15,7 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
             if (!r.active) return std::nullopt;
             return r.ray;
         },
-        [&](int x, int y, const HitPayload& p) { hits[index(x, y)] = p; }));
+        [&](int x, int y, const HitPayload& p) { hits[index(x, y)] = p; }, tracer::RayCoherence::Incoherent));
 }
 
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
@@ -55,7 +55,8 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         [&](int x, int y, const HitPayload& p) {
             const std::size_t i = index(x, y);
             if (p.missed) radiance[i] += lightContribution[i];
-        }));
+        },
+        tracer::RayCoherence::Incoherent));
 }
 
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,

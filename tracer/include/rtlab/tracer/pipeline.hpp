@@ -295,9 +295,12 @@ public:
     // then run per lane; done(x, y, payload) receives the result. With a
     // back end, each 16x16 tile's rays are traced as one batch. makeRay may
     // return std::optional<RayDesc>: a pixel without a ray (nullopt) is not
-    // traced, not counted, and done is not called for it.
+    // traced, not counted, and done is not called for it. `coherence` tells
+    // Embree whether neighbouring pixels' rays travel together (camera rays)
+    // or scatter (bounces, AO): a speed hint, the hits are the same.
     template <class MakeRay, class Done>
-    TraceCounters dispatchCoherent(int width, int height, const TraceArgs& args, MakeRay&& makeRay, Done&& done) const {
+    TraceCounters dispatchCoherent(int width, int height, const TraceArgs& args, MakeRay&& makeRay, Done&& done,
+                                   RayCoherence coherence = RayCoherence::Coherent) const {
         if (args.missIndex >= desc_.missShaders.size())
             throw PipelineError("miss shader index " + std::to_string(args.missIndex) + " out of range");
         if (backend_) return dispatchBatches(width, height, args, makeRay, done);
@@ -322,7 +325,8 @@ public:
                         any = any || active[lane];
                     }
                     if (!any) continue;
-                    engine_.trace8(args, rays.data(), payloadPtrs.data(), active.data(), 1, hits.data(), counters);
+                    engine_.trace8(args, rays.data(), payloadPtrs.data(), active.data(), 1, hits.data(), counters,
+                                   coherence);
                     const DepthGuard guard(scope, 1);
                     for (int lane = 0; lane < 8; ++lane) {
                         if (!active[lane]) continue;
