@@ -173,7 +173,7 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     if (plan.has(Pass::GlobalIllumination))
         run(Pass::GlobalIllumination, [&](tracer::TraceCounters& c) {
             return plan.gi == GiTechnique::Ddgi
-                       ? detail::runDdgiPass(ctx, history, out.image, irradiance, out.ddgiAtlas, c)
+                       ? detail::runDdgiPass(ctx, history, out.image, irradiance, out.ddgiAtlas, out.ddgi, c)
                        : detail::runGlobalIlluminationPass(ctx, out.image, irradiance, c);
         });
     if (plan.has(Pass::Volumes) && !ctx.media.empty())

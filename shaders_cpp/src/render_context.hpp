@@ -169,7 +169,7 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
 // DDGI (--gi ddgi): probe rays, probe update with hysteresis, irradiance
 // at every G-buffer surface; the probes persist in `history`.
 std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out, std::vector<vec3>& irradiance,
-                          Image& atlas, tracer::TraceCounters& counters);
+                          Image& atlas, DdgiUpdateStats& stats, tracer::TraceCounters& counters);
 // Primary-ray transmittance and single scattering of the fog volumes.
 std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& primaryTransmittance,
                             std::vector<vec3>& inscatter, tracer::TraceCounters& counters);

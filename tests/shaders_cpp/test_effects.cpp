@@ -522,9 +522,13 @@ TEST(Effects, DdgiFurnaceIsPiTimesEmission) {
     for (std::size_t i = 0; i < out.image.pixelCount(); ++i) EXPECT_NEAR(gi[i], kPi * 0.5f, 0.02f * kPi * 0.5f) << i;
 }
 
-// DDGI's irradiance on Cornell after a few frames matches the path-traced
-// estimate on average: no less than 5% below it (energy loss would show
-// here) and at most 15% above (DDGI adds bounces through its feedback).
+// DDGI's irradiance on Cornell after a few frames against path tracing: no
+// less than 5% below the one-bounce path GI pass (energy loss would show
+// here), and the beauty (direct + DDGI) no brighter than the path tracer's
+// (8 bounces): DDGI adds bounces through its feedback, never more than all
+// of them. Measured (mean G): gi pass 0.0735, DDGI 0.104 (relocated probes
+// keep more of the multi-bounce light; 0.075 without relocation); beauty
+// direct only 0.0290, direct + DDGI 0.0485, path tracer 0.0574.
 TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     ecs::World world;
     ecs::load::loadScene(world, "builtin:cornell");
@@ -535,11 +539,15 @@ TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     s.width = 48;
     s.height = 36;
     PlanOptions o;
+    o.requested = {Pass::PathTrace};
+    s.spp = 64;
+    s.pathMaxDepth = 8;
+    const FrameOutput reference = renderFrame(accel, scene, planFrame(scene, o), s);
     o.requested = {Pass::GlobalIllumination};
     s.spp = 16;
     const FrameOutput path = renderFrame(accel, scene, planFrame(scene, o), s);
+    o.requested = {Pass::Shadows, Pass::GlobalIllumination};
     o.gi = GiTechnique::Ddgi;
-    s.spp = 1;
     FrameHistory history;
     FrameOutput ddgi;
     for (std::uint32_t f = 0; f < 6; ++f) {
@@ -548,9 +556,10 @@ TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     }
     const double p = meanOf(path.image, "gi.G"), d = meanOf(ddgi.image, "gi.G");
     EXPECT_GT(p, 0.0);
-    // Measured: path 0.0736, DDGI 0.0750 (more bounces through the probes' feedback).
     EXPECT_GE(d, 0.95 * p);
-    EXPECT_LE(d, 1.15 * p);
+    const double beauty = meanOf(ddgi.image, "G"), all = meanOf(reference.image, "G");
+    EXPECT_LE(beauty, 1.02 * all);
+    EXPECT_GE(beauty, 0.8 * all);
     EXPECT_EQ(ddgi.nonFiniteValuesRepaired, 0u);
 }
 
