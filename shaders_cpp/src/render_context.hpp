@@ -44,6 +44,9 @@ struct HitPayload {
     std::uint32_t instance = 0;
     std::uint32_t mesh = 0;
     std::uint32_t entity = 0;    // entity index of the instance
+    std::uint32_t geometry = 0;  // geometry index in the mesh
+    std::uint32_t primitive = 0; // triangle index in the geometry
+    vec2 barycentrics{0.f};      // of the hit in that triangle (DXR: weights of vertices 1 and 2)
     vec3 position{0.f};
     vec3 geometricNormal{0.f};   // unit, facing the incoming ray
     vec3 shadingNormal{0.f};     // unit, on the geometric normal's side

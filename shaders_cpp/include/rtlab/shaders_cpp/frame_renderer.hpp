@@ -52,14 +52,19 @@ struct RenderSettings {
     int pathMaxDepth = 4;         // pathtrace: bounce rays after the primary hit (each with its next-event ray)
 };
 
-// What persists from frame to frame: the previous camera and instance
-// transforms (motion vectors) and the DDGI probes (hysteresis). renderFrame
+// What persists from frame to frame: the previous camera, instance
+// transforms and deformed vertices (motion vectors) and the DDGI probes
+// (hysteresis). renderFrame
 // reads and then updates it.
 struct FrameHistory {
     bool valid = false;
     ecs::CameraSnapshot camera;
     std::vector<mat4> worldFromObject;  // by entity index
     std::vector<bool> present;          // by entity index
+    // Object-space vertex positions of deforming meshes (morph targets,
+    // skinning) as they were, by mesh id then geometry; empty for rigid
+    // meshes. Motion vectors interpolate the hit triangle's previous vertices.
+    std::vector<std::vector<std::vector<vec3>>> deformedPositions;
     std::shared_ptr<DdgiVolume> ddgi;   // created by the first DDGI frame
     // DDGI probe classification follows the geometry (ddgi_pass.cpp): each
     // instance's world bounds at the last DDGI frame, by entity index (empty =
