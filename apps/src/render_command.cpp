@@ -327,6 +327,19 @@ int runRender(const RenderOptions& o) {
                                     {"shadowRays", frame.pathVertices[d].shadowRays}});
             fj["pathtrace"] = {{"maxDepth", o.maxDepth}, {"vertices", vertices}};
         }
+        if (plan.has(shaders::Pass::GlobalIllumination) && plan.gi == shaders::GiTechnique::Ddgi) {
+            const shaders::DdgiUpdateStats& d = frame.ddgi;
+            fj["ddgi"] = {{"probes", {{"active", d.activeProbes},
+                                      {"relocating", d.relocatingProbes},
+                                      {"inside", d.insideProbes},
+                                      {"idle", d.idleProbes},
+                                      {"traced", d.tracedProbes},
+                                      {"moved", d.movedProbes},
+                                      {"offset", d.offsetProbes}}},
+                          {"rays", d.rays},
+                          {"misses", d.misses},
+                          {"backfaceHits", d.backfaceHits}};
+        }
         fj["passes"] = nlohmann::json::object();
         for (std::size_t p = 0; p < shaders::kPassCount; ++p)
             fj["passes"][std::string(shaders::passName(static_cast<shaders::Pass>(p)))] = {

@@ -106,6 +106,10 @@ StackParams StackParams::reflection() {
     p.svgf.varianceOfMean = true;
     p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
     p.footprint.floorPx = 8.f;
+    // Mirrors and near-mirrors (roughness < 0.05: a lobe alpha below 0.0025,
+    // a 10 m reflected distance spreads < 5 cm) stay sharp: no floor, no
+    // neighbours' footprint; temporal accumulation removes their noise.
+    p.footprint.sharpBelowRoughness = 0.05f;
     p.svgf.atrous.sigmaL = 10.f;
     return p;
 }

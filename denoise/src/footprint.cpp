@@ -100,7 +100,17 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
         const float lobeWorld = hitT[i] > 0.f ? lobeScale * alpha * hitT[i] : kInfinity;
         px[i] = std::isinf(lobeWorld) ? params.maxPx : toPixels(lobeWorld, pixelWorld[i], params.maxPx);
     });
-    return smoothAndClamp(width, height, px, meshId, params);
+    std::vector<float> out = smoothAndClamp(width, height, px, meshId, params);
+    // Near-mirrors: their own lobe, nothing from the neighbours or the floor.
+    if (params.sharpBelowRoughness > 0.f)
+        detail::forEachIndex(out.size(), [&](std::size_t i) {
+            if (meshId[i] < 0) return;
+            const float r = detail::clampNaNLow(roughness[i], 0.f, 1.f);
+            if (!(r < params.sharpBelowRoughness)) return;
+            const float own = hitT[i] > 0.f ? px[i] : 0.f;
+            out[i] = own < params.minPx ? 0.f : std::min(own, params.maxPx);
+        });
+    return out;
 }
 
 std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> pixelWorld,

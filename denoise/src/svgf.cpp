@@ -46,7 +46,17 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
         reprojected_.resize(w, h);
         valid_.assign(n, 0);
     }
+    // Pixels the footprint keeps sharp (0: no spatial filter, e.g. mirrors)
+    // keep their history unclamped: the clamp's box comes from the noisy
+    // neighbourhood, and pulling a sharp, converged history into it would
+    // blur the detail the footprint protects. Their noise is averaged by the
+    // temporal accumulation alone.
+    std::vector<std::pair<std::size_t, vec3>> sharp;
+    if (params_.historyClamp.mode != HistoryClampMode::None && !footprintPx.empty())
+        for (std::size_t i = 0; i < n; ++i)
+            if (!(footprintPx[i] > 0.f) && !curGuides_.isSky(i)) sharp.emplace_back(i, reprojected_.color[i]);
     clampHistory(w, h, input_, reprojected_.color, reprojected_.length, params_.historyClamp);
+    for (const auto& [i, c] : sharp) reprojected_.color[i] = c;
 
     // Temporal accumulation (in place in reprojected_), variance, a-trous.
     accumulateTemporal(input_, reprojected_, params_.temporal, reprojected_);

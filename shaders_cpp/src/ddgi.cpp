@@ -90,6 +90,9 @@ void validate(const DdgiSettings& s) {
     if (!inRange(s.hysteresis, 0.f, 1.f)) reject("hysteresis outside [0, 1]");
     if (!inRange(s.depthSharpness, 1.f, 1000.f)) reject("depthSharpness outside [1, 1000]");
     if (!inRange(s.irradianceGamma, 1.f, 16.f)) reject("irradianceGamma outside [1, 16]");
+    if (!inRange(s.backfaceFractionInactive, 0.f, 1.f)) reject("backfaceFractionInactive outside [0, 1]");
+    if (!inRange(s.relocationMaxOffset, 0.f, 0.5f)) reject("relocationMaxOffset outside [0, 0.5]");
+    if (!inRange(s.relocationMinFrontDistance, 0.f, 0.5f)) reject("relocationMinFrontDistance outside [0, 0.5]");
     if (s.normalBias && !inRange(*s.normalBias, 0.f, kMaxCoordinate)) reject("normalBias negative or not finite");
     if (s.viewBias && !inRange(*s.viewBias, 0.f, kMaxCoordinate)) reject("viewBias negative or not finite");
     if (s.maxRayDistance && !(inRange(*s.maxRayDistance, 0.f, kMaxRayDistanceLimit) && *s.maxRayDistance > 0.f))
@@ -121,10 +124,38 @@ T sampleTile(const T* tile, int n, vec3 dir) {
 // One ray's result after classification.
 struct Sample {
     vec3 radiance{0.f};
-    float distance = 0.f;
-    bool valid = false;       // false: rejected (non-finite)
+    float distance = 0.f;      // clamped to maxRayDistance
+    float hitDistance = 0.f;   // unclamped |t| of a hit; +inf for a miss
+    bool valid = false;        // false: rejected (non-finite)
     bool useRadiance = false;  // false for back faces
+    bool backface = false;
 };
+
+// Scales `offset` back onto the ellipsoid with semi-axes `limit` when it
+// lies outside it; a zero limit on an axis zeroes that component.
+vec3 clampToEllipsoid(vec3 offset, vec3 limit) {
+    vec3 q(0.f);
+    for (int a = 0; a < 3; ++a) {
+        if (!(limit[a] > 0.f)) offset[a] = 0.f;
+        else q[a] = offset[a] / limit[a];
+    }
+    const float len2 = glm::dot(q, q);
+    if (!(len2 > 1.f)) return offset;
+    return offset / std::sqrt(len2);
+}
+
+bool insideEllipsoid(vec3 offset, vec3 limit) {
+    float len2 = 0.f;
+    for (int a = 0; a < 3; ++a) {
+        if (!(limit[a] > 0.f)) {
+            if (offset[a] != 0.f) return false;
+            continue;
+        }
+        const float q = offset[a] / limit[a];
+        len2 += q * q;
+    }
+    return len2 <= 1.f;
+}
 
 }  // namespace
 
@@ -162,14 +193,60 @@ void DdgiVolume::reset() {
     std::fill(distance_.begin(), distance_.end(), vec2(maxRayDistance_, maxRayDistance_ * maxRayDistance_));
     updates_ = 0;
     lastStats_ = {};
-    probeActive_.assign(probeCount_, 1);
+    states_.assign(probeCount_, DdgiProbeState::Relocating);
+    offsets_.assign(probeCount_, vec3(0.f));
+    fresh_.assign(probeCount_, 1);
+    moved_.assign(probeCount_, 0);
 }
 
-vec3 DdgiVolume::probePosition(std::uint32_t probe) const {
+vec3 DdgiVolume::probeGridPosition(std::uint32_t probe) const {
     const int nx = counts_.x, ny = counts_.y;
     const int p = static_cast<int>(std::min(probe, probeCount_ - 1));
     const int x = p % nx, y = (p / nx) % ny, z = p / (nx * ny);
     return bounds_.lo + vec3(static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)) * spacing_;
+}
+
+vec3 DdgiVolume::probeOffset(std::uint32_t probe) const { return offsets_[std::min(probe, probeCount_ - 1)]; }
+
+vec3 DdgiVolume::probePosition(std::uint32_t probe) const { return probeGridPosition(probe) + probeOffset(probe); }
+
+DdgiProbeState DdgiVolume::probeState(std::uint32_t probe) const {
+    return probe < probeCount_ ? states_[probe] : DdgiProbeState::Active;
+}
+
+bool DdgiVolume::probeTraced(std::uint32_t probe) const {
+    if (!settings_.classification) return true;
+    const DdgiProbeState st = probeState(probe);
+    return st == DdgiProbeState::Active || st == DdgiProbeState::Relocating;
+}
+
+std::uint32_t DdgiVolume::tracedProbeCount() const {
+    std::uint32_t n = 0;
+    for (std::uint32_t p = 0; p < probeCount_; ++p) n += probeTraced(p) ? 1u : 0u;
+    return n;
+}
+
+Aabb DdgiVolume::probeInfluenceBox(std::uint32_t probe) const {
+    const vec3 c = probeGridPosition(probe);
+    const vec3 reach = spacing_ + vec3(normalBias_ + viewBias_);
+    Aabb b;
+    b.lo = c - reach;
+    b.hi = c + reach;
+    return b;
+}
+
+std::uint32_t DdgiVolume::wakeProbes(const Aabb& region) {
+    if (region.empty()) return 0;
+    std::uint32_t woken = 0;
+    for (std::uint32_t p = 0; p < probeCount_; ++p) {
+        if (states_[p] != DdgiProbeState::Idle && states_[p] != DdgiProbeState::Inside) continue;
+        const Aabb b = probeInfluenceBox(p);
+        if (glm::any(glm::lessThan(b.hi, region.lo)) || glm::any(glm::greaterThan(b.lo, region.hi))) continue;
+        states_[p] = DdgiProbeState::Relocating;
+        fresh_[p] = 1;
+        ++woken;
+    }
+    return woken;
 }
 
 mat3 DdgiVolume::frameRotation(std::uint32_t frameIndex, std::uint32_t seed) {
@@ -226,16 +303,21 @@ void DdgiVolume::update(std::span<const DdgiRayResult> results, std::uint32_t fr
             distanceWeights_[t * rays + r] = c > 0.f ? std::pow(c, settings_.depthSharpness) : 0.f;
         }
 
-    const bool history = updates_ > 0;
     const float h = settings_.hysteresis;
     const float invGamma = 1.f / settings_.irradianceGamma;
     const int nIrr = settings_.irradianceTexels, nDist = settings_.distanceTexels;
     const std::size_t irrTile = static_cast<std::size_t>(nIrr + 2) * static_cast<std::size_t>(nIrr + 2);
     const std::size_t distTile = static_cast<std::size_t>(nDist + 2) * static_cast<std::size_t>(nDist + 2);
     const float maxDist = maxRayDistance_;
+    const float minFront = settings_.relocationMinFrontDistance * minComponent(spacing_);
+    const vec3 offsetLimit = settings_.relocationMaxOffset * spacing_;
     probeStats_.assign(probeCount_, DdgiUpdateStats{});
+    moved_.assign(probeCount_, 0);
+    std::vector<std::uint8_t> traced(probeCount_);
+    for (std::uint32_t p = 0; p < probeCount_; ++p) traced[p] = probeTraced(p) ? 1 : 0;
 
     parallelForEach(probeCount_, [&](std::size_t p) {
+        if (!traced[p]) return;  // Idle / Inside: nothing traced, nothing changes
         DdgiUpdateStats& stats = probeStats_[p];
         const DdgiRayResult* in = results.data() + p * rays;
         std::vector<Sample> samples(rays);
@@ -254,82 +336,155 @@ void DdgiVolume::update(std::span<const DdgiRayResult> results, std::uint32_t fr
             if (std::isinf(res.distance)) {
                 ++stats.misses;
                 s.distance = maxDist;
+                s.hitDistance = kInfinity;
                 s.useRadiance = true;
             } else if (res.distance < 0.f) {
                 ++stats.backfaceHits;
                 s.distance = std::fmin(-res.distance, maxDist);
+                s.hitDistance = -res.distance;
                 s.useRadiance = false;
+                s.backface = true;
             } else {
                 s.distance = std::fmin(res.distance, maxDist);
+                s.hitDistance = res.distance;
                 s.useRadiance = true;
             }
         }
+        const bool inside = static_cast<double>(stats.backfaceHits) >
+                            static_cast<double>(settings_.backfaceFractionInactive) * static_cast<double>(stats.rays);
 
-        // Irradiance: pi x cosine-weighted mean radiance around each texel.
-        std::span<vec3> irr(irradiance_.data() + p * irrTile, irrTile);
-        for (int j = 0; j < nIrr; ++j) {
-            for (int i = 0; i < nIrr; ++i) {
-                const float* w = irradianceWeights_.data() + (static_cast<std::size_t>(j) * nIrr + i) * rays;
-                double sr = 0.0, sg = 0.0, sb = 0.0, sw = 0.0;
-                for (std::uint32_t r = 0; r < rays; ++r) {
-                    const Sample& s = samples[r];
-                    if (!s.useRadiance || !(w[r] > 0.f)) continue;
-                    sr += static_cast<double>(w[r]) * s.radiance.x;
-                    sg += static_cast<double>(w[r]) * s.radiance.y;
-                    sb += static_cast<double>(w[r]) * s.radiance.z;
-                    sw += w[r];
-                }
-                if (!(sw > 0.0)) continue;  // nothing seen around this texel: keep the old value
-                vec3 value(static_cast<float>(kPiD * sr / sw), static_cast<float>(kPiD * sg / sw),
-                           static_cast<float>(kPiD * sb / sw));
-                if (invGamma != 1.f)
-                    value = vec3(std::pow(value.x, invGamma), std::pow(value.y, invGamma), std::pow(value.z, invGamma));
-                vec3& texel = irr[ddgiTileIndex(i + 1, j + 1, nIrr)];
-                texel = history ? texel * h + value * (1.f - h) : value;
+        // What the rays saw: the closest back and front faces, and whether a
+        // surface lies in the probe's influence box (hit points from the
+        // position the rays were traced from).
+        const vec3 origin = probePosition(static_cast<std::uint32_t>(p));
+        const Aabb influence = probeInfluenceBox(static_cast<std::uint32_t>(p));
+        float closestBack = kInfinity, closestFront = kInfinity;
+        int backRay = -1, frontRay = -1;
+        bool surfaceNear = false;
+        for (std::uint32_t r = 0; r < rays; ++r) {
+            const Sample& s = samples[r];
+            if (!s.valid || std::isinf(s.hitDistance)) continue;
+            if (s.backface && s.hitDistance < closestBack) closestBack = s.hitDistance, backRay = static_cast<int>(r);
+            if (!s.backface && s.hitDistance < closestFront) closestFront = s.hitDistance, frontRay = static_cast<int>(r);
+            if (!surfaceNear) {
+                const vec3 hit = origin + rayDirs_[r] * s.hitDistance;
+                surfaceNear = glm::all(glm::greaterThanEqual(hit, influence.lo)) &&
+                              glm::all(glm::lessThanEqual(hit, influence.hi));
             }
         }
-        ddgiFillTileBorder(irr, nIrr);
 
-        // Distance moments with the sharp lobe; back faces count with |d|.
-        std::span<vec2> dist(distance_.data() + p * distTile, distTile);
-        for (int j = 0; j < nDist; ++j) {
-            for (int i = 0; i < nDist; ++i) {
-                const float* w = distanceWeights_.data() + (static_cast<std::size_t>(j) * nDist + i) * rays;
-                double sd = 0.0, sd2 = 0.0, sw = 0.0;
-                for (std::uint32_t r = 0; r < rays; ++r) {
-                    const Sample& s = samples[r];
-                    if (!s.valid || !(w[r] > 0.f)) continue;
-                    const double d = s.distance;
-                    sd += w[r] * d;
-                    sd2 += w[r] * d * d;
-                    sw += w[r];
+        if (!inside) {
+            const bool history = fresh_[p] == 0;
+            // Irradiance: pi x cosine-weighted mean radiance around each texel.
+            std::span<vec3> irr(irradiance_.data() + p * irrTile, irrTile);
+            for (int j = 0; j < nIrr; ++j) {
+                for (int i = 0; i < nIrr; ++i) {
+                    const float* w = irradianceWeights_.data() + (static_cast<std::size_t>(j) * nIrr + i) * rays;
+                    double sr = 0.0, sg = 0.0, sb = 0.0, sw = 0.0;
+                    for (std::uint32_t r = 0; r < rays; ++r) {
+                        const Sample& s = samples[r];
+                        if (!s.useRadiance || !(w[r] > 0.f)) continue;
+                        sr += static_cast<double>(w[r]) * s.radiance.x;
+                        sg += static_cast<double>(w[r]) * s.radiance.y;
+                        sb += static_cast<double>(w[r]) * s.radiance.z;
+                        sw += w[r];
+                    }
+                    if (!(sw > 0.0)) continue;  // nothing seen around this texel: keep the old value
+                    vec3 value(static_cast<float>(kPiD * sr / sw), static_cast<float>(kPiD * sg / sw),
+                               static_cast<float>(kPiD * sb / sw));
+                    if (invGamma != 1.f)
+                        value = vec3(std::pow(value.x, invGamma), std::pow(value.y, invGamma), std::pow(value.z, invGamma));
+                    vec3& texel = irr[ddgiTileIndex(i + 1, j + 1, nIrr)];
+                    texel = history ? texel * h + value * (1.f - h) : value;
                 }
-                if (!(sw > 0.0)) continue;
-                const vec2 value(static_cast<float>(sd / sw), static_cast<float>(sd2 / sw));
-                vec2& texel = dist[ddgiTileIndex(i + 1, j + 1, nDist)];
-                texel = history ? texel * h + value * (1.f - h) : value;
+            }
+            ddgiFillTileBorder(irr, nIrr);
+
+            // Distance moments with the sharp lobe; back faces count with |d|.
+            std::span<vec2> dist(distance_.data() + p * distTile, distTile);
+            for (int j = 0; j < nDist; ++j) {
+                for (int i = 0; i < nDist; ++i) {
+                    const float* w = distanceWeights_.data() + (static_cast<std::size_t>(j) * nDist + i) * rays;
+                    double sd = 0.0, sd2 = 0.0, sw = 0.0;
+                    for (std::uint32_t r = 0; r < rays; ++r) {
+                        const Sample& s = samples[r];
+                        if (!s.valid || !(w[r] > 0.f)) continue;
+                        const double d = s.distance;
+                        sd += w[r] * d;
+                        sd2 += w[r] * d * d;
+                        sw += w[r];
+                    }
+                    if (!(sw > 0.0)) continue;
+                    const vec2 value(static_cast<float>(sd / sw), static_cast<float>(sd2 / sw));
+                    vec2& texel = dist[ddgiTileIndex(i + 1, j + 1, nDist)];
+                    texel = history ? texel * h + value * (1.f - h) : value;
+                }
+            }
+            ddgiFillTileBorder(dist, nDist);
+            fresh_[p] = 0;
+        }
+
+        // Relocation and classification (DdgiSettings::relocation, ::classification).
+        vec3 offset = offsets_[p];
+        DdgiProbeState state;
+        if (inside) {
+            fresh_[p] = 1;  // what it saw from inside is no history for where it goes
+            state = DdgiProbeState::Inside;
+            if (settings_.relocation && backRay >= 0) {
+                const vec3 candidate = offset + rayDirs_[static_cast<std::size_t>(backRay)] * (closestBack + minFront);
+                if (isFinite(candidate) && insideEllipsoid(candidate, offsetLimit)) {
+                    offset = candidate;
+                    state = DdgiProbeState::Relocating;
+                }
+            }
+        } else {
+            state = !settings_.classification || surfaceNear ? DdgiProbeState::Active : DdgiProbeState::Idle;
+            if (settings_.relocation) {
+                if (frontRay >= 0 && closestFront < minFront) {
+                    // Too close: away from the closest front face, along the
+                    // ray most opposite to it, at most half its free distance.
+                    const vec3 away = -rayDirs_[static_cast<std::size_t>(frontRay)];
+                    std::uint32_t best = 0;
+                    float bestCos = -2.f;
+                    for (std::uint32_t r = 0; r < rays; ++r) {
+                        const float c = glm::dot(rayDirs_[r], away);
+                        if (samples[r].valid && c > bestCos) bestCos = c, best = r;
+                    }
+                    const float freeDistance = std::fmin(samples[best].hitDistance, maxDist);
+                    const float step = std::fmin(minFront - closestFront, 0.5f * freeDistance);
+                    const vec3 candidate = clampToEllipsoid(offset + rayDirs_[best] * step, offsetLimit);
+                    if (isFinite(candidate)) offset = candidate;
+                } else if (offset != vec3(0.f) && std::fmin(closestFront, closestBack) > 1.25f * minFront) {
+                    // Clear: back toward the grid point, keeping 1.25 minFront from everything seen.
+                    const float len = glm::length(offset);
+                    const float step = std::fmin(std::fmin(closestFront, closestBack) - 1.25f * minFront, len);
+                    offset = step >= len ? vec3(0.f) : offset - offset * (step / len);
+                }
             }
         }
-        ddgiFillTileBorder(dist, nDist);
+        moved_[p] = offset != offsets_[p] ? 1 : 0;
+        offsets_[p] = offset;
+        states_[p] = state;
     });
 
-    // Classification: mostly back faces -> the probe is inside geometry.
-    probeActive_.assign(probeCount_, 1);
-    for (std::uint32_t p = 0; p < probeCount_; ++p) {
-        const DdgiUpdateStats& s = probeStats_[p];
-        probeActive_[p] = static_cast<double>(s.backfaceHits) <=
-                                  static_cast<double>(settings_.backfaceFractionInactive) * static_cast<double>(s.rays)
-                              ? 1
-                              : 0;
-    }
     // Fixed-order reduction of the per-probe counters.
     lastStats_ = {};
-    for (const DdgiUpdateStats& s : probeStats_) {
+    for (std::uint32_t p = 0; p < probeCount_; ++p) {
+        const DdgiUpdateStats& s = probeStats_[p];
         lastStats_.rays += s.rays;
         lastStats_.misses += s.misses;
         lastStats_.backfaceHits += s.backfaceHits;
         lastStats_.rejectedSamples += s.rejectedSamples;
         lastStats_.clampedSamples += s.clampedSamples;
+        lastStats_.tracedProbes += traced[p];
+        lastStats_.movedProbes += moved_[p];
+        lastStats_.offsetProbes += offsets_[p] != vec3(0.f) ? 1u : 0u;
+        switch (states_[p]) {
+            case DdgiProbeState::Active: ++lastStats_.activeProbes; break;
+            case DdgiProbeState::Relocating: ++lastStats_.relocatingProbes; break;
+            case DdgiProbeState::Inside: ++lastStats_.insideProbes; break;
+            case DdgiProbeState::Idle: ++lastStats_.idleProbes; break;
+        }
     }
     ++updates_;
 }
@@ -444,7 +599,8 @@ std::size_t DdgiVolume::bytesAllocated() const {
     return irradiance_.capacity() * sizeof(vec3) + distance_.capacity() * sizeof(vec2) +
            (irradianceTexelDirs_.capacity() + distanceTexelDirs_.capacity() + rayDirs_.capacity()) * sizeof(vec3) +
            (irradianceWeights_.capacity() + distanceWeights_.capacity()) * sizeof(float) +
-           probeStats_.capacity() * sizeof(DdgiUpdateStats);
+           probeStats_.capacity() * sizeof(DdgiUpdateStats) + states_.capacity() * sizeof(DdgiProbeState) +
+           offsets_.capacity() * sizeof(vec3) + fresh_.capacity() + moved_.capacity();
 }
 
 }  // namespace rtlab::shaders

@@ -3,6 +3,7 @@
 
 #include <rtlab/core/timer.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -19,6 +20,22 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
     for (const ecs::InstanceSnapshot& inst : scene.instances) {
         worldFromObject[inst.entity.index] = inst.worldFromObject;
         present[inst.entity.index] = true;
+    }
+    // Deformed vertices (outputs of the ECS deformation systems, overwritten
+    // by the next update): copied, for deforming meshes only.
+    const std::size_t meshCount = scene.meshes ? scene.meshes->size() : 0;
+    deformedPositions.resize(meshCount);
+    for (std::size_t m = 0; m < meshCount; ++m) {
+        const ecs::MeshAsset& mesh = (*scene.meshes)[m];
+        const bool deforming = std::any_of(mesh.geometries.begin(), mesh.geometries.end(),
+                                           [](const ecs::Geometry& g) { return g.deformable(); });
+        auto& copy = deformedPositions[m];
+        if (!deforming) {
+            copy.clear();
+            continue;
+        }
+        copy.resize(mesh.geometries.size());
+        for (std::size_t g = 0; g < mesh.geometries.size(); ++g) copy[g] = mesh.geometries[g].positions;
     }
 }
 
@@ -173,7 +190,7 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     if (plan.has(Pass::GlobalIllumination))
         run(Pass::GlobalIllumination, [&](tracer::TraceCounters& c) {
             return plan.gi == GiTechnique::Ddgi
-                       ? detail::runDdgiPass(ctx, history, out.image, irradiance, out.ddgiAtlas, c)
+                       ? detail::runDdgiPass(ctx, history, out.image, irradiance, out.ddgiAtlas, out.ddgi, c)
                        : detail::runGlobalIlluminationPass(ctx, out.image, irradiance, c);
         });
     if (plan.has(Pass::Volumes) && !ctx.media.empty())

@@ -17,6 +17,9 @@ void surfaceClosestHit(const RenderContext& ctx, const tracer::HitContext& hc, H
     p.instance = hc.instanceIndex;
     p.mesh = hc.instance->mesh;
     p.entity = hc.instance->entity.index;
+    p.geometry = hc.geometryIndex;
+    p.primitive = hc.primitiveIndex;
+    p.barycentrics = attr.barycentrics();
     p.position = sp.position;
     p.frontFace = glm::dot(sp.geometricNormal, hc.worldRayDirection) < 0.f;
     p.geometricNormal = p.frontFace ? sp.geometricNormal : -sp.geometricNormal;

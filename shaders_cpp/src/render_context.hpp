@@ -23,7 +23,7 @@ inline constexpr std::uint32_t kAmbientOcclusion = 0x300;  // direction (0, 1)
 inline constexpr std::uint32_t kGiBounce = 0x400;          // direction (0, 1)
 inline constexpr std::uint32_t kGiHit = 0x410;             // light pick and point at the GI hit (0, 1, 2)
 inline constexpr std::uint32_t kReflection = 0x500;        // visible normal (0, 1)
-inline constexpr std::uint32_t kReflectionHit = 0x510;     // light at the reflection hit (0, 1, 2)
+inline constexpr std::uint32_t kReflectionHit = 0x510;     // light l's point at the reflection hit (3 + 2l, 4 + 2l)
 inline constexpr std::uint32_t kTranslucency = 0x600;      // + event depth: Fresnel choice (0)
 inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;   // light at the opaque end (0, 1, 2)
 inline constexpr std::uint32_t kVolumeScatter = 0x700;     // distance, light pick, light point (0 .. 3)
@@ -44,6 +44,9 @@ struct HitPayload {
     std::uint32_t instance = 0;
     std::uint32_t mesh = 0;
     std::uint32_t entity = 0;    // entity index of the instance
+    std::uint32_t geometry = 0;  // geometry index in the mesh
+    std::uint32_t primitive = 0; // triangle index in the geometry
+    vec2 barycentrics{0.f};      // of the hit in that triangle (DXR: weights of vertices 1 and 2)
     vec3 position{0.f};
     vec3 geometricNormal{0.f};   // unit, facing the incoming ray
     vec3 shadingNormal{0.f};     // unit, on the geometric normal's side
@@ -169,7 +172,7 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
 // DDGI (--gi ddgi): probe rays, probe update with hysteresis, irradiance
 // at every G-buffer surface; the probes persist in `history`.
 std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out, std::vector<vec3>& irradiance,
-                          Image& atlas, tracer::TraceCounters& counters);
+                          Image& atlas, DdgiUpdateStats& stats, tracer::TraceCounters& counters);
 // Primary-ray transmittance and single scattering of the fog volumes.
 std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& primaryTransmittance,
                             std::vector<vec3>& inscatter, tracer::TraceCounters& counters);

@@ -358,6 +358,12 @@ TEST(Cli, ShowcaseEffectsAndDdgiRender) {
     EXPECT_GT(stats["frames"][1]["shaders"]["anyHit"].get<std::uint64_t>(), 0u);
     EXPECT_EQ(stats["frames"][1]["nonFiniteValuesRepaired"].get<int>(), 0);
     EXPECT_EQ(stats["plan"]["gi"], "ddgi");
+    // The probe states sum to the probe count; only traced probes cost rays.
+    const auto& probes = stats["frames"][1]["ddgi"]["probes"];
+    const auto count = [&](const char* k) { return probes[k].get<std::uint64_t>(); };
+    EXPECT_GT(count("active"), 0u);
+    EXPECT_EQ(stats["frames"][1]["ddgi"]["rays"].get<std::uint64_t>(), count("traced") * 128u);
+    EXPECT_LE(count("traced"), count("active") + count("relocating") + count("inside") + count("idle"));
 }
 
 // --denoise auto filters every effect's signal (SVGF per layer) and composes

@@ -11,14 +11,17 @@
 #include <rtlab/shaders_cpp/ddgi.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
+#include <rtlab/shaders_cpp/preview_shading.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <optional>
 
 using namespace rtlab;
 using namespace rtlab::shaders;
@@ -521,9 +524,13 @@ TEST(Effects, DdgiFurnaceIsPiTimesEmission) {
     for (std::size_t i = 0; i < out.image.pixelCount(); ++i) EXPECT_NEAR(gi[i], kPi * 0.5f, 0.02f * kPi * 0.5f) << i;
 }
 
-// DDGI's irradiance on Cornell after a few frames matches the path-traced
-// estimate on average: no less than 5% below it (energy loss would show
-// here) and at most 15% above (DDGI adds bounces through its feedback).
+// DDGI's irradiance on Cornell after a few frames against path tracing: no
+// less than 5% below the one-bounce path GI pass (energy loss would show
+// here), and the beauty (direct + DDGI) no brighter than the path tracer's
+// (8 bounces): DDGI adds bounces through its feedback, never more than all
+// of them. Measured (mean G): gi pass 0.0735, DDGI 0.104 (relocated probes
+// keep more of the multi-bounce light; 0.075 without relocation); beauty
+// direct only 0.0290, direct + DDGI 0.0485, path tracer 0.0574.
 TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     ecs::World world;
     ecs::load::loadScene(world, "builtin:cornell");
@@ -534,11 +541,15 @@ TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     s.width = 48;
     s.height = 36;
     PlanOptions o;
+    o.requested = {Pass::PathTrace};
+    s.spp = 64;
+    s.pathMaxDepth = 8;
+    const FrameOutput reference = renderFrame(accel, scene, planFrame(scene, o), s);
     o.requested = {Pass::GlobalIllumination};
     s.spp = 16;
     const FrameOutput path = renderFrame(accel, scene, planFrame(scene, o), s);
+    o.requested = {Pass::Shadows, Pass::GlobalIllumination};
     o.gi = GiTechnique::Ddgi;
-    s.spp = 1;
     FrameHistory history;
     FrameOutput ddgi;
     for (std::uint32_t f = 0; f < 6; ++f) {
@@ -547,9 +558,10 @@ TEST(Effects, DdgiCornellAgreesWithPathGiOnAverage) {
     }
     const double p = meanOf(path.image, "gi.G"), d = meanOf(ddgi.image, "gi.G");
     EXPECT_GT(p, 0.0);
-    // Measured: path 0.0736, DDGI 0.0750 (more bounces through the probes' feedback).
     EXPECT_GE(d, 0.95 * p);
-    EXPECT_LE(d, 1.15 * p);
+    const double beauty = meanOf(ddgi.image, "G"), all = meanOf(reference.image, "G");
+    EXPECT_LE(beauty, 1.02 * all);
+    EXPECT_GE(beauty, 0.8 * all);
     EXPECT_EQ(ddgi.nonFiniteValuesRepaired, 0u);
 }
 
@@ -575,17 +587,25 @@ TEST(Effects, MotionVectorsBackProjectMovingInstances) {
         s.frame = static_cast<std::uint32_t>(f);
         out = renderFrame(accel, scene, planFrame(scene, o), s, history);
     }
-    // Which instance is the moving box? The only one whose pixels move.
+    // Which instance is the moving box? The only one whose pixels move,
+    // besides the waving cloth (deforming: MotionVectorsFollowDeformingVertices).
     const float* mx = out.image.channel("motion.X");
     const float* my = out.image.channel("motion.Y");
     const float* inst = out.image.channel("id.instance");
-    std::size_t moving = 0, still = 0;
+    const float* mesh = out.image.channel("id.mesh");
+    float clothMesh = -1.f;
+    for (std::size_t m = 0; m < world.meshes().size(); ++m)
+        if (world.meshes()[m].name == "waving cloth") clothMesh = float(m);
+    ASSERT_GE(clothMesh, 0.f);
+    std::size_t moving = 0, still = 0, clothMoving = 0;
     float movingInstance = -1.f;
     for (std::size_t i = 0; i < out.image.pixelCount(); ++i) {
         const bool moved = std::abs(mx[i]) > 0.05f || std::abs(my[i]) > 0.05f;
-        if (moved) {
+        if (moved && mesh[i] == clothMesh) {
+            ++clothMoving;
+        } else if (moved) {
             if (movingInstance < 0.f) movingInstance = inst[i];
-            EXPECT_EQ(inst[i], movingInstance) << "only one instance moves";
+            EXPECT_EQ(inst[i], movingInstance) << "only one rigid instance moves";
             ++moving;
         } else {
             ++still;
@@ -593,6 +613,7 @@ TEST(Effects, MotionVectorsBackProjectMovingInstances) {
         EXPECT_TRUE(std::isfinite(mx[i]) && std::isfinite(my[i]));
     }
     EXPECT_GT(moving, 20u);
+    EXPECT_GT(clothMoving, 20u);
     EXPECT_GT(still, out.image.pixelCount() / 2);
     // The box moves right on screen (+x world, camera looking down -z): its
     // previous position lies to the left, so motion.x < 0.
@@ -600,6 +621,73 @@ TEST(Effects, MotionVectorsBackProjectMovingInstances) {
     for (std::size_t i = 0; i < out.image.pixelCount(); ++i)
         if (inst[i] == movingInstance) sumX += mx[i];
     EXPECT_LT(sumX, 0.0);
+}
+
+// A 2 x 2 grid facing the camera 3 units away, deformed by one morph target
+// that shifts each vertex along x by 0.2 + 0.2 z (object space: a shear, so
+// different rows move by different amounts). Frame 0 at weight 0, frame 1 at
+// weight 1, camera and instance still: every grid pixel's motion vector
+// must point to where the same material point (rest position r with r + delta(r)
+// = the hit) was projected in frame 0. The deformation is linear, so the
+// triangles interpolate it exactly and the answer is exact up to float.
+TEST(Effects, MotionVectorsFollowDeformingVertices) {
+    ecs::World world;
+    ecs::Material mat;
+    const ecs::MaterialId id = world.addMaterial(mat);
+    ecs::Geometry grid = ecs::load::makeGrid(2.f, 8, id);
+    ecs::MorphTarget shear;
+    for (const vec3& p : grid.positions) shear.positionDeltas.emplace_back(0.2f + 0.2f * p.z, 0.f, 0.f);
+    grid.restPositions = grid.positions;
+    grid.restNormals = grid.normals;
+    grid.morphTargets.push_back(std::move(shear));
+    const quat facing = glm::angleAxis(0.5f * kPi, vec3(1.f, 0.f, 0.f));  // object +y (the grid's normal) -> world +z
+    const ecs::Entity e = place(world, world.addMesh(ecs::load::makeMesh("sheared grid", std::move(grid))), vec3(0.f), facing);
+    world.emplace(e, ecs::MorphWeights{{0.f}});
+    addCamera(world, vec3(0.f, 0.f, 3.f), vec3(0.f));
+    tracer::AccelManager accel;
+    RenderSettings s;
+    s.width = 48;
+    s.height = 36;
+    PlanOptions o;
+    o.requested = {Pass::GBuffer};
+    FrameHistory history;
+    FrameOutput out;
+    ecs::CameraSnapshot camera;
+    mat4 worldFromObject(1.f);
+    for (int f = 0; f < 2; ++f) {
+        if (f == 1) world.patch<ecs::MorphWeights>(e, [](ecs::MorphWeights& w) { w.weights = {1.f}; });
+        const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(f == 0 ? 0.f : 0.1f));
+        accel.update(scene);
+        camera = scene.camera;
+        worldFromObject = scene.instances.at(0).worldFromObject;
+        s.frame = static_cast<std::uint32_t>(f);
+        out = renderFrame(accel, scene, planFrame(scene, o), s, history);
+    }
+    const float* mx = out.image.channel("motion.X");
+    const float* my = out.image.channel("motion.Y");
+    const float* mesh = out.image.channel("id.mesh");
+    const mat4 objectFromWorld = glm::inverse(worldFromObject);
+    const PinholeCamera pinhole(camera, s.width, s.height);
+    std::size_t checked = 0;
+    float worst = 0.f;
+    for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x) {
+            const std::size_t i = std::size_t(y) * s.width + x;
+            if (mesh[i] < 0.f) continue;
+            const CameraRay r = pinhole.ray(x + 0.5f, y + 0.5f);
+            const vec3 hit = r.origin + r.direction * (-r.origin.z / r.direction.z);  // the plane z = 0
+            const vec3 c = vec3(objectFromWorld * vec4(hit, 1.f));
+            const vec3 rest(c.x - 0.2f - 0.2f * c.z, 0.f, c.z);
+            const std::optional<vec2> before = pinhole.project(vec3(worldFromObject * vec4(rest, 1.f)));
+            ASSERT_TRUE(before.has_value());
+            const vec2 expected = *before - vec2(x + 0.5f, y + 0.5f);
+            worst = std::max({worst, std::abs(mx[i] - expected.x), std::abs(my[i] - expected.y)});
+            ++checked;
+        }
+    EXPECT_GT(checked, 200u);
+    // Rows move by 0.2 .. 0.4 world units, 3.6 .. 7.3 pixels: a wrong answer
+    // (0 from the instance transform alone) misses by pixels.
+    EXPECT_LT(worst, 0.02f);
 }
 
 // ---- light units -------------------------------------------------------------------

@@ -8,44 +8,87 @@
 
 #include <rtlab/shaders_cpp/ddgi.hpp>
 
+#include <algorithm>
+
 namespace rtlab::shaders::detail {
 namespace {
 
-// World bounds of the instanced geometry.
-Aabb instanceBounds(const ecs::SceneSnapshot& scene) {
-    Aabb bounds;
-    for (const ecs::InstanceSnapshot& inst : scene.instances)
+// World bounds of each instance's geometry, in snapshot order.
+std::vector<Aabb> instanceBounds(const ecs::SceneSnapshot& scene) {
+    std::vector<Aabb> out;
+    out.reserve(scene.instances.size());
+    for (const ecs::InstanceSnapshot& inst : scene.instances) {
+        Aabb bounds;
         for (const ecs::Geometry& g : (*scene.meshes)[inst.mesh].geometries) {
             for (const vec3& p : g.positions) bounds.extend(vec3(inst.worldFromObject * vec4(p, 1.f)));
-            for (const Aabb& b : g.proceduralBoxes)
-                for (int c = 0; c < 8; ++c)
-                    bounds.extend(vec3(inst.worldFromObject *
-                                       vec4(c & 1 ? b.hi.x : b.lo.x, c & 2 ? b.hi.y : b.lo.y, c & 4 ? b.hi.z : b.lo.z, 1.f)));
+            for (const Aabb& b : g.proceduralBoxes) bounds.extend(b.transformed(inst.worldFromObject));
         }
-    return bounds;
+        out.push_back(bounds);
+    }
+    return out;
 }
 
 bool contains(const Aabb& outer, const Aabb& inner) {
     return glm::all(glm::lessThanEqual(outer.lo, inner.lo)) && glm::all(glm::greaterThanEqual(outer.hi, inner.hi));
 }
 
+bool sameBox(const Aabb& a, const Aabb& b) { return (a.empty() && b.empty()) || (a.lo == b.lo && a.hi == b.hi); }
+
+// Probe classification follows the geometry: Idle and Inside probes trace
+// nothing, so wake those around every instance that appeared, disappeared,
+// moved or deformed since the previous DDGI frame (its old and new bounds).
+void wakeAroundChanges(const ecs::SceneSnapshot& scene, const std::vector<Aabb>& bounds, FrameHistory& history,
+                       DdgiVolume& volume) {
+    std::vector<Aabb> now;
+    for (std::size_t i = 0; i < scene.instances.size(); ++i) {
+        const std::uint32_t e = scene.instances[i].entity.index;
+        if (now.size() <= e) now.resize(e + 1);
+        now[e] = bounds[i];
+    }
+    // Deformation (refit) or new topology: the mesh's instances, even if
+    // their bounds happen to stay the same; only on a new World update.
+    const bool newUpdate = !history.ddgiSeenUpdate || *history.ddgiSeenUpdate != scene.update.frame;
+    for (std::size_t i = 0; i < scene.instances.size() && newUpdate; ++i) {
+        const ecs::MeshId mesh = scene.instances[i].mesh;
+        const auto listed = [&](const std::vector<ecs::MeshId>& v) { return std::find(v.begin(), v.end(), mesh) != v.end(); };
+        if (listed(scene.update.refitMeshes) || listed(scene.update.rebuiltMeshes)) volume.wakeProbes(bounds[i]);
+    }
+    const std::vector<Aabb>& before = history.ddgiInstanceBounds;
+    for (std::size_t e = 0; e < std::max(now.size(), before.size()); ++e) {
+        const Aabb a = e < before.size() ? before[e] : Aabb{}, b = e < now.size() ? now[e] : Aabb{};
+        if (sameBox(a, b)) continue;
+        volume.wakeProbes(a);
+        volume.wakeProbes(b);
+    }
+    history.ddgiInstanceBounds = std::move(now);
+    history.ddgiSeenUpdate = scene.update.frame;
+}
+
 }  // namespace
 
 std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out, std::vector<vec3>& irradiance,
-                          Image& atlas, tracer::TraceCounters& counters) {
+                          Image& atlas, DdgiUpdateStats& stats, tracer::TraceCounters& counters) {
     // Step: the probe volume (kept while the scene stays inside it).
-    const Aabb bounds = instanceBounds(ctx.scene);
-    if (!history.ddgi || !contains(history.ddgi->bounds(), bounds)) history.ddgi = std::make_shared<DdgiVolume>(bounds);
+    const std::vector<Aabb> perInstance = instanceBounds(ctx.scene);
+    Aabb bounds;
+    for (const Aabb& b : perInstance) bounds.extend(b);
+    if (!history.ddgi || !contains(history.ddgi->bounds(), bounds)) {
+        history.ddgi = std::make_shared<DdgiVolume>(bounds);
+        history.ddgiInstanceBounds.clear();
+    }
     DdgiVolume& volume = *history.ddgi;
+    wakeAroundChanges(ctx.scene, perInstance, history, volume);
     const RayGrid grid{static_cast<int>(volume.raysPerProbe()), static_cast<int>(volume.probeCount())};
     const std::uint32_t frame = ctx.settings.frame, seed = ctx.settings.seed;
 
-    // Step: probe rays.
+    // Step: probe rays, from the relocated positions of the probes
+    // classification keeps (Idle and Inside probes trace nothing).
     std::vector<SecondaryRay> rays(grid.size());
     for (std::uint32_t probe = 0; probe < volume.probeCount(); ++probe)
         for (std::uint32_t r = 0; r < volume.raysPerProbe(); ++r) {
             SecondaryRay& ray = rays[std::size_t(probe) * volume.raysPerProbe() + r];
-            ray.active = true;
+            ray.active = volume.probeTraced(probe);
+            if (!ray.active) continue;
             // Unbounded: a ray that stops early would count as a miss (sky);
             // the volume clamps distances to maxRayDistance for the moments itself.
             ray.ray = tracer::RayDesc{volume.probePosition(probe), 0.f, volume.rayDirection(probe, r, frame, seed),
@@ -82,6 +125,7 @@ std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out,
         results[i].distance = !h.hit ? kInfinity : (seenFromFront(h) ? h.t : -h.t);
     }
     volume.update(results, frame, seed);
+    stats = volume.lastUpdateStats();
 
     // Step: irradiance at every surface.
     for (std::size_t i = 0; i < ctx.gbuffer.size(); ++i) {

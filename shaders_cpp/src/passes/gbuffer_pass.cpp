@@ -5,7 +5,32 @@
 
 #include <rtlab/tracer/instance_transform.hpp>
 
+#include <optional>
+
 namespace rtlab::shaders::detail {
+namespace {
+
+// The hit's object-space point on its triangle as the vertices were in the
+// previous frame, for meshes whose vertices deform (morph targets,
+// skinning); nullopt for rigid or procedural geometry, or when the topology
+// changed since (vertex count differs).
+std::optional<vec3> previousDeformedPoint(const RenderContext& ctx, const FrameHistory& previous, const HitPayload& p) {
+    if (p.mesh >= previous.deformedPositions.size()) return std::nullopt;
+    const auto& geometries = previous.deformedPositions[p.mesh];
+    if (p.geometry >= geometries.size()) return std::nullopt;
+    const std::vector<vec3>& before = geometries[p.geometry];
+    const ecs::Geometry& g = (*ctx.scene.meshes)[p.mesh].geometries[p.geometry];
+    if (g.procedural() || before.size() != g.positions.size() || 3 * std::size_t(p.primitive) + 2 >= g.indices.size())
+        return std::nullopt;
+    const std::uint32_t i0 = g.indices[3 * p.primitive], i1 = g.indices[3 * p.primitive + 1],
+                        i2 = g.indices[3 * p.primitive + 2];
+    if (i0 >= before.size() || i1 >= before.size() || i2 >= before.size()) return std::nullopt;
+    const vec2 b = p.barycentrics;
+    const vec3 point = (1.f - b.x - b.y) * before[i0] + b.x * before[i1] + b.y * before[i2];
+    return isFinite(point) ? std::optional<vec3>(point) : std::nullopt;
+}
+
+}  // namespace
 
 std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, Image& out,
                              std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters) {
@@ -52,8 +77,11 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
                 vec3 prevWorld = p.position;
                 if (p.entity < previous.present.size() && previous.present[p.entity]) {
                     // The instance transform the tracer caches (instance_transform.hpp).
-                    const vec3 object =
+                    vec3 object =
                         tracer::objectSpacePoint(ctx.accel.instanceFacts(p.instance).objectFromWorld, p.position);
+                    // A deforming mesh: the same barycentric point of the
+                    // triangle's previous (deformed) vertices.
+                    if (const auto prevObject = previousDeformedPoint(ctx, previous, p)) object = *prevObject;
                     prevWorld = vec3(previous.worldFromObject[p.entity] * vec4(object, 1.f));
                 }
                 const std::optional<vec2> prev = previousCamera->project(prevWorld);

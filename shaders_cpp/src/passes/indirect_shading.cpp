@@ -20,14 +20,55 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
 
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
-               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters) {
+               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters,
+               bool everyLight) {
     const std::size_t n = hits.size();
     std::vector<vec3> lightContribution(n, vec3(0.f));
     const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
+    const auto args = ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader);
+    // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
+    const auto unoccluded = [&](int x, int y, const HitPayload& p) {
+        const std::size_t i = index(x, y);
+        if (p.missed) radiance[i] += lightContribution[i];
+    };
+    if (everyLight) {
+        // Every emitting light, one sample and one shadow ray each (no pick:
+        // the primary hit's direct light, without its stratified unshadowed
+        // estimate): light l uses dimensions 3 + 2l and 4 + 2l of the key.
+        for (std::size_t i = 0; i < n; ++i)
+            if (hits[i].hit) radiance[i] += weight[i] * ctx.material(hits[i].material).emissive;
+        for (std::size_t l = 0; l < ctx.scene.lights.size(); ++l) {
+            const ecs::LightSnapshot& light = ctx.scene.lights[l];
+            if (!emits(light)) continue;
+            const auto dim = static_cast<std::uint32_t>(3 + 2 * l);
+            counters.add(ctx.pipeline().dispatchCoherent(
+                grid.width, grid.height, args,
+                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                    const std::size_t i = index(x, y);
+                    lightContribution[i] = vec3(0.f);
+                    const HitPayload& h = hits[i];
+                    if (!h.hit) return std::nullopt;
+                    const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
+                    const SampleKey key = ctx.key(i, sample, hitStream);
+                    const LightSample ls = light.light.isArea()
+                                               ? sampleAreaLight(light, sp.position,
+                                                                 vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
+                                               : pointLightSample(light, sp.position);
+                    if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
+                    const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
+                    lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf *
+                                           ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
+                                                             stream::transmittance(hitStream, 0));
+                    if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
+                    return ray;
+                },
+                unoccluded, tracer::RayCoherence::Incoherent));
+        }
+        return;
+    }
     // Step: emission at the hit, and one light picked by importance with its shadow query.
     counters.add(ctx.pipeline().dispatchCoherent(
-        grid.width, grid.height,
-        ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
+        grid.width, grid.height, args,
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
             const std::size_t i = index(x, y);
             const HitPayload& h = hits[i];
@@ -51,17 +92,12 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             if (!isFinite(lightContribution[i])) return std::nullopt;
             return ray;
         },
-        // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
-        [&](int x, int y, const HitPayload& p) {
-            const std::size_t i = index(x, y);
-            if (p.missed) radiance[i] += lightContribution[i];
-        },
-        tracer::RayCoherence::Incoherent));
+        unoccluded, tracer::RayCoherence::Incoherent));
 }
 
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
                             std::uint32_t sample, std::uint32_t hitStream, SecondaryResult& result,
-                            tracer::TraceCounters& counters) {
+                            tracer::TraceCounters& counters, bool everyLight) {
     std::vector<HitPayload> hits;
     const RayGrid grid = imageGrid(ctx);
     traceSecondary(ctx, grid, rays, rayType, hits, counters);
@@ -75,7 +111,7 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
         weight[i] = vec3(ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
                                            stream::transmittance(hitStream, 1)));
     }
-    shadeHits(ctx, grid, hits, incoming, weight, sample, hitStream, result.radiance, counters);
+    shadeHits(ctx, grid, hits, incoming, weight, sample, hitStream, result.radiance, counters, everyLight);
 }
 
 }  // namespace rtlab::shaders::detail

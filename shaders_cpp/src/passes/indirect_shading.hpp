@@ -40,14 +40,16 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
 // Outgoing radiance toward -incoming[i] at every hit: emission + one light
 // picked by importance with its shadow ray (type kRayShadow), times
 // weight[i], added to radiance[i]. `hitStream` (namespace stream) keys the
-// random numbers.
+// random numbers. everyLight: every emitting light instead, one sample and
+// one shadow ray each (no pick noise, one shadow dispatch per light).
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
-               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters);
+               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters,
+               bool everyLight = false);
 
 // traceSecondary + shadeHits, adding radiance and hit distance to `result`.
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
                             std::uint32_t sample, std::uint32_t hitStream, SecondaryResult& result,
-                            tracer::TraceCounters& counters);
+                            tracer::TraceCounters& counters, bool everyLight = false);
 
 }  // namespace rtlab::shaders::detail

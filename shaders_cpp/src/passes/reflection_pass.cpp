@@ -43,8 +43,11 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
             ++validSamples[i];
             rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
         }
+        // The reflected hit's direct light like the primary hit's: every
+        // light with its own shadow ray, not one picked (whose 1/pdf weight
+        // made the fireflies a sharp mirror cannot filter away spatially).
         traceAndShadeSecondary(ctx, rays, kRayReflection, static_cast<std::uint32_t>(s), stream::kReflectionHit, result,
-                               counters);
+                               counters, /*everyLight=*/true);
     }
     std::vector<vec3> radiance(n);
     float* hitT = out.addChannel("reflection.hitT", 0.f);

@@ -26,6 +26,12 @@ struct FootprintParams {
     // the quantity the footprint follows: a mirror's reflection is sharp,
     // but the light sampled at the reflected surface is noisy. Source: rtlab.
     float floorPx = 0.f;
+    // Reflections only: pixels with roughness below this keep their own lobe
+    // footprint - not smoothed with their neighbours', no floorPx, 0 below
+    // minPx - so a mirror or near-mirror is not blurred beyond what its lobe
+    // and hit distance allow (the footprint goes to 0 as roughness -> 0);
+    // its noise is left to the temporal history. 0 = off. Source: rtlab.
+    float sharpBelowRoughness = 0.f;
 };
 
 // Shadows: the PCSS penumbra width (world units, the shadow pass's
@@ -41,7 +47,9 @@ std::vector<float> shadowFootprint(int width, int height, std::span<const float>
 // Reflections: the GGX lobe (alpha = roughness^2) widens to about
 // lobeScale x alpha x hit distance at the reflected surface; over the
 // pixel's world width. A mirror (roughness 0) gets 0: no spatial filter. A
-// miss (hitT 0) counts as maxPx away. Source of lobeScale (2): rtlab, the
+// miss (hitT 0) counts as maxPx away (except below
+// params.sharpBelowRoughness, where a miss of a mirror reflects the sky
+// sharply: 0). Source of lobeScale (2): rtlab, the
 // lobe's half-width at half maximum is about alpha radians.
 std::vector<float> reflectionFootprint(int width, int height, std::span<const float> roughness,
                                        std::span<const float> hitT, std::span<const float> pixelWorld,

@@ -59,10 +59,52 @@ struct DdgiSettings {
     // Weight of the previous value when blending in a new frame, in [0, 1]
     // (paper: 0.97). 0 = no history.
     float hysteresis = 0.97f;
-    // Probe classification (as in RTXGI): a probe whose latest rays hit back
-    // faces more often than this fraction sits inside geometry and is left
-    // out of irradiance() (unless all eight around a point are).
+    // A probe whose latest rays hit back faces more often than this fraction
+    // sits inside geometry: its results are not blended and it is left out of
+    // irradiance() (unless all eight around a point are), see relocation.
+    // In [0, 1].
     float backfaceFractionInactive = 0.25f;
+    // Probe relocation (Majercik et al. 2021, "Scaling Probe-Based Real-Time
+    // Dynamic Global Illumination for Production", JCGT 10(2), sec. 5; the
+    // RTXGI SDK's relocation pass). After each update a traced probe's offset
+    // from its grid point changes, from its own rays (origin = the offset
+    // position they were traced from):
+    //   * inside (back-face fraction above backfaceFractionInactive): it
+    //     moves through the closest back face it saw, to minFrontDistance
+    //     beyond it: offset += dir * (|t| + minFrontDistance). If that would
+    //     leave the bound below, it stays where it is and is classified
+    //     Inside (see DdgiProbeState).
+    //   * too close (closest front-face hit t_f < minFrontDistance): it moves
+    //     away from that hit, along the ray most opposite to it, by
+    //     min(minFrontDistance - t_f, half that ray's free distance).
+    //   * clear (every hit farther than 1.25 minFrontDistance): it moves back
+    //     toward its grid point by min(closest hit - 1.25 minFrontDistance,
+    //     |offset|) - never closer than 1.25 minFrontDistance to what it saw,
+    //     so it does not re-enter the geometry it left (the 1.25 keeps the
+    //     too-close and move-back rules from alternating).
+    // The offset is bounded: offset / (relocationMaxOffset x spacing) has
+    // length <= 1 (an ellipsoid inside the half-cell around the grid point,
+    // so a probe never passes a neighbour). Moves that would leave it are
+    // scaled back onto it (too close, move back) or refused (inside).
+    bool relocation = true;
+    // Semi-axes of the offset bound, fraction of the spacing per axis, in [0, 0.5].
+    float relocationMaxOffset = 0.45f;
+    // minFrontDistance as a fraction of the smallest spacing, in [0, 0.5]:
+    // 0.2 s_min is about the total self-shadow bias (0.225 s_min), so a probe
+    // sits at least as far from a surface as the biased query points do.
+    float relocationMinFrontDistance = 0.2f;
+    // Probe classification (Majercik et al. 2021 sec. 5; RTXGI's
+    // classification pass): after an update a traced, not-inside probe stays
+    // Active only if one of its rays hit a surface (front or back face)
+    // inside its influence box: its grid point +- one spacing per axis (the
+    // eight cells whose queries use it) grown by normalBias + viewBias (a
+    // biased query point may move into those cells). Otherwise no surface it
+    // can see uses it: it becomes Idle. Idle and Inside probes trace no rays
+    // (probeTraced() is false, update() ignores their results) and are left
+    // out of queries, until wakeProbes() marks them for a new look (the DDGI
+    // pass does so around geometry that moved, deformed, appeared or
+    // disappeared). Off: every probe is traced every update.
+    bool classification = true;
     // Exponent of max(0, dot(texel, ray)) weighting distance samples (paper:
     // 50: the lobe's half-weight angle is ~9.5 degrees, so occluders stay sharp).
     // In [0, 1000].
@@ -114,7 +156,25 @@ struct DdgiRayResult {
 // far below FLT_MAX, so sums and blends never overflow.
 inline constexpr float kDdgiMaxRadiance = 1e30f;
 
+// What a probe is after the latest update (see DdgiSettings::relocation and
+// ::classification). Only Active probes take part in irradiance() queries.
+enum class DdgiProbeState : std::uint8_t {
+    Active,      // traced, blended, queried
+    Relocating,  // new, woken, or just moved out of geometry: traced next update, not yet queried
+    Inside,      // inside geometry and cannot move out within the bound: not traced, not queried
+    Idle,        // no surface in its influence box: not traced, not queried
+};
+
 struct DdgiUpdateStats {
+    // Per probe, after the update (they sum to the probe count).
+    std::uint32_t activeProbes = 0;
+    std::uint32_t relocatingProbes = 0;
+    std::uint32_t insideProbes = 0;
+    std::uint32_t idleProbes = 0;
+    std::uint32_t tracedProbes = 0;     // whose results this update consumed
+    std::uint32_t movedProbes = 0;      // whose offset changed in this update
+    std::uint32_t offsetProbes = 0;     // with a non-zero offset after it
+    // Per ray, over the traced probes.
     std::uint64_t rays = 0;             // results consumed
     std::uint64_t misses = 0;
     std::uint64_t backfaceHits = 0;
@@ -153,7 +213,23 @@ public:
     float viewBias() const { return viewBias_; }
     float maxRayDistance() const { return maxRayDistance_; }
 
+    // Where the probe is: its grid point plus its relocation offset. Rays are
+    // traced from here and queries measure directions and distances from here.
     vec3 probePosition(std::uint32_t probe) const;
+    vec3 probeGridPosition(std::uint32_t probe) const;
+    vec3 probeOffset(std::uint32_t probe) const;
+    DdgiProbeState probeState(std::uint32_t probe) const;
+    // Whether the caller must trace the probe's rays for the next update
+    // (Active or Relocating; every probe with classification off). update()
+    // ignores the results of the others (any value may be passed there).
+    bool probeTraced(std::uint32_t probe) const;
+    std::uint32_t tracedProbeCount() const;
+    // Idle and Inside probes whose influence box (see
+    // DdgiSettings::classification) overlaps `region` become Relocating: they
+    // are traced at the next update and start a fresh history. Returns how many.
+    std::uint32_t wakeProbes(const Aabb& region);
+    // The box of world space whose surfaces may use the probe.
+    Aabb probeInfluenceBox(std::uint32_t probe) const;
 
     // The paper's per-frame random rotation: randomRotation of three
     // sampleUniform dimensions keyed by (frame, seed) with
@@ -171,15 +247,19 @@ public:
     // w = max(0, dot(texel, ray)) over non-back-face samples, the new moments
     // are sum(w' (d, d^2)) / sum(w') with w' = w^depthSharpness; the stored
     // value becomes hysteresis * old + (1 - hysteresis) * new, or new on the
-    // first update after construction / reset(). A texel with sum of weights 0
-    // keeps its old value. Borders are refilled with ddgiFillTileBorder.
+    // probe's first blend after construction / reset() / wakeProbes() / moving
+    // out of geometry. A texel with sum of weights 0 keeps its old value.
+    // Borders are refilled with ddgiFillTileBorder. Only traced probes
+    // (probeTraced() before the call) are read; a probe found inside geometry
+    // is not blended. Then relocation and classification run per probe.
     void update(std::span<const DdgiRayResult> results, std::uint32_t frameIndex, std::uint32_t seed);
-    // Forget the history: irradiance 0, moments (maxRayDistance, maxRayDistance^2).
+    // Forget the history: irradiance 0, moments (maxRayDistance, maxRayDistance^2),
+    // offsets 0, every probe Relocating (traced at the next update).
     void reset();
     std::uint64_t updatesSinceReset() const { return updates_; }
     const DdgiUpdateStats& lastUpdateStats() const { return lastStats_; }
-    // Whether the latest update classified the probe as outside geometry.
-    bool probeActive(std::uint32_t probe) const { return probe >= probeActive_.size() || probeActive_[probe] != 0; }
+    // Whether the probe takes part in queries (state Active).
+    bool probeActive(std::uint32_t probe) const { return probeState(probe) == DdgiProbeState::Active; }
 
     // Irradiance E (see the header comment) at a surface point with normal
     // `normal` seen from direction `viewDir` (unit vector from the point toward
@@ -226,7 +306,10 @@ private:
     std::vector<vec3> rayDirs_;     // scratch: this frame's directions
     std::vector<float> irradianceWeights_, distanceWeights_;  // scratch: texel x ray weights
     std::vector<DdgiUpdateStats> probeStats_;  // scratch: per-probe counters
-    std::vector<std::uint8_t> probeActive_;    // classification of the latest update (1 = active)
+    std::vector<DdgiProbeState> states_;       // per probe
+    std::vector<vec3> offsets_;                // per probe, relocation offset
+    std::vector<std::uint8_t> fresh_;          // per probe: 1 = the next blend replaces instead of blending
+    std::vector<std::uint8_t> moved_;          // scratch: offset changed in this update
     std::uint64_t updates_ = 0;
     DdgiUpdateStats lastStats_;
 };

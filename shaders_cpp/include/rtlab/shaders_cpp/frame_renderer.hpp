@@ -10,6 +10,7 @@
 // Random numbers: SampleKey{pixel, frame, sample, bounce, seed} (core/rng.hpp).
 #include <rtlab/core/image.hpp>
 #include <rtlab/ecs/snapshot.hpp>
+#include <rtlab/shaders_cpp/ddgi.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 #include <rtlab/tracer/pipeline.hpp>
@@ -17,6 +18,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -50,17 +52,25 @@ struct RenderSettings {
     int pathMaxDepth = 4;         // pathtrace: bounce rays after the primary hit (each with its next-event ray)
 };
 
-class DdgiVolume;
-
-// What persists from frame to frame: the previous camera and instance
-// transforms (motion vectors) and the DDGI probes (hysteresis). renderFrame
+// What persists from frame to frame: the previous camera, instance
+// transforms and deformed vertices (motion vectors) and the DDGI probes
+// (hysteresis). renderFrame
 // reads and then updates it.
 struct FrameHistory {
     bool valid = false;
     ecs::CameraSnapshot camera;
     std::vector<mat4> worldFromObject;  // by entity index
     std::vector<bool> present;          // by entity index
+    // Object-space vertex positions of deforming meshes (morph targets,
+    // skinning) as they were, by mesh id then geometry; empty for rigid
+    // meshes. Motion vectors interpolate the hit triangle's previous vertices.
+    std::vector<std::vector<std::vector<vec3>>> deformedPositions;
     std::shared_ptr<DdgiVolume> ddgi;   // created by the first DDGI frame
+    // DDGI probe classification follows the geometry (ddgi_pass.cpp): each
+    // instance's world bounds at the last DDGI frame, by entity index (empty =
+    // absent), and the World update that frame came from.
+    std::vector<Aabb> ddgiInstanceBounds;
+    std::optional<std::uint32_t> ddgiSeenUpdate;
     // Remembers `scene` as the previous frame of the next render.
     void record(const ecs::SceneSnapshot& scene);
 };
@@ -88,6 +98,7 @@ struct FrameOutput {
     std::vector<std::uint32_t> primaryRayPixels;  // with RenderSettings::recordRayOrder
     std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
     Image ddgiAtlas;  // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
+    DdgiUpdateStats ddgi;  // --gi ddgi: the probe update's counters (probe states, rays, back faces)
     std::vector<PathVertexRays> pathVertices;  // --effects pathtrace: RenderSettings::pathMaxDepth + 1 entries
 };
 
