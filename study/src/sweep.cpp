@@ -153,7 +153,7 @@ int runSweep(const SweepOptions& options) {
 #ifdef RTLAB_STUDY_HAS_MPI
         return detail::runMpiSweep(options);
 #else
-        throw InputError("rtlab sweep", "started by an MPI launcher with several processes, but this rtlab was "
+        throw InputError("sweep", "started by an MPI launcher with several processes, but this rtlab was "
                                         "built without MPI (install libopenmpi-dev and rebuild); run it once, "
                                         "with --jobs N");
 #endif
