@@ -8,7 +8,7 @@
 //                          rtcIntersect8 / rtcOccluded8 (first-hit rays) on
 //                          Embree's native triangles: the floor
 // perf/summarize.py reports replay_vs_raw_embree_1t = replay / raw rays per second,
-// over all rays and per ray type.
+// over all rays and per ray type. RTLAB_REPLAY_SCENE=SRC measures another scene.
 #include "bench_scenes.hpp"
 
 #include <rtlab/core/parallel.hpp>
@@ -22,13 +22,15 @@
 #include <embree3/rtcore.h>
 
 #include <array>
+#include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
 
 namespace {
 
 using namespace rtlab;
-const std::string kSource = getenv("RTLAB_REPLAY_SCENE") ? getenv("RTLAB_REPLAY_SCENE") : "builtin:terrain?triangles=200000";
+const std::string kSource =
+    std::getenv("RTLAB_REPLAY_SCENE") ? std::getenv("RTLAB_REPLAY_SCENE") : "builtin:terrain?triangles=200000";
 
 const bench::LoadedScene& scene(bool watertight) {
     static const bench::LoadedScene watertightScene(kSource);

@@ -54,7 +54,11 @@ summary = {
     "refit_vs_rebuild_time_1M_native_triangles": ratio("BM_Refit1M/0/min_time:2.000/real_time", "BM_Rebuild1M/0/min_time:2.000/real_time", times),
     "one_moves_vs_full_build_1000": ratio("BM_OneMoves1000/min_time:1.000/real_time", "BM_FullBuild1000/min_time:1.000/real_time", times),
     # rtlab replay on Embree over raw rtcIntersect8/rtcOccluded8 on the same recorded rays, one thread (goal >= 0.8).
-    "replay_vs_raw_embree_1t": ratio("BM_ReplayEmbree/min_time:1.000/real_time", "BM_RawEmbreeSameRays/min_time:1.000/real_time", rates),
+    "replay_vs_raw_embree_1t": ratio("BM_ReplayEmbree/-1/min_time:1.000/real_time", "BM_RawEmbreeSameRays/-1/min_time:1.000/real_time", rates),
+    # The same rays through tracer::queryClosest8 / queryAny8: what the watertight triangles cost, apart from replay.
+    "query_api_vs_raw_embree_recorded_rays_1t": ratio("BM_QueryApiSameRays/-1/min_time:1.000/real_time", "BM_RawEmbreeSameRays/-1/min_time:1.000/real_time", rates),
+    **{f"replay_vs_raw_embree_1t_{name}": ratio(f"BM_ReplayEmbree/{t}/min_time:1.000/real_time", f"BM_RawEmbreeSameRays/{t}/min_time:1.000/real_time", rates)
+       for t, name in ((0, "primary"), (1, "shadow"), (3, "ao"), (6, "path_bounce"))},
     # RT-core model host speed: simulated rays/s over Embree rtcIntersect1 rays/s, one thread (goal >= 0.125).
     "rtcore_speed_vs_embree_primary": ratio("BM_RtCoreTimingModel/0/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
     "rtcore_speed_vs_embree_bounce": ratio("BM_RtCoreTimingModel/1/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),

@@ -81,16 +81,21 @@ double clusterCost(const ecs::Geometry& g, const std::vector<std::uint32_t>& ord
 // Clusters of up to kClusterTriangles triangles, grown along the Morton
 // curve `order`: a cluster starts at the first unassigned triangle and takes,
 // among the next kClusterLookAhead unassigned ones, the triangle that grows
-// its box least, until it is full. The look-ahead finds the neighbours a
-// Z-curve puts a few places away. History (docs/acceleration-structures.md):
-// an SAH-style cost rule (merge only while one callback, costed as 8
-// triangle tests, plus the members is cheaper than the boxes apart) kept the
-// showcase's walls apart but made terrain clusters of 1.7 triangles, and
-// large scenes traced at 0.4-0.6 of native Embree (replay benchmark, terrain
-// 200k); full clusters trace them at 0.65-0.7 and hairballs faster than
-// native, the showcase as before. Triangles with a non-finite vertex are left
-// out (Embree and the RT-core model skip them too).
+// its box least, while an SAH-style cost says merging pays: rays entering
+// the merged box pay one callback (kCallbackCost triangle tests) and one
+// triangle more, rays entering the two boxes apart pay a callback each and
+// their own triangles. So large triangles (walls, floors) are not lumped
+// into one box that every ray enters, and the look-ahead finds the
+// neighbours a Z-curve puts a few places away. Measured (make bench,
+// docs/acceleration-structures.md): the old rule (next Morton triangle only,
+// while the box's area stays below the sum of the triangles' boxes' areas)
+// made clusters of 1.6 triangles on the showcase and traced its bounce rays
+// at 0.76 of native Embree; this one at 0.83-0.93 over several runs, with
+// about 167 bytes per terrain triangle (Embree's BVH plus the clusters).
+// Triangles with a non-finite vertex are left out (Embree and the RT-core
+// model skip them too).
 constexpr std::size_t kClusterLookAhead = 16;
+constexpr float kCallbackCost = 8.f;  // an Embree callback, in triangle tests
 
 void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std::vector<std::uint32_t>& order) {
     data.clusters.clear();
@@ -128,13 +133,14 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
         // Step: a new cluster from the first unassigned triangle.
         TriangleCluster& c = data.clusters.emplace_back();
         Aabb clusterBox = boxes[head];
+        float clusterArea = clusterBox.surfaceArea();
         add(c, head);
         // Step: the next unassigned triangles within the look-ahead.
         std::size_t candidates[kClusterLookAhead];
         std::size_t candidateCount = 0;
         for (std::size_t k = head + 1; k < pending.size() && candidateCount < kClusterLookAhead; ++k)
             if (!assigned[k]) candidates[candidateCount++] = k;
-        // Step: grow by the candidate that enlarges the box least, until full.
+        // Step: grow by the candidate that enlarges the box least, while the rule holds.
         while (c.count < static_cast<std::uint32_t>(kClusterTriangles)) {
             std::size_t best = pending.size();
             float bestArea = 0.f;
@@ -144,10 +150,18 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
                 Aabb merged = clusterBox;
                 merged.extend(boxes[k]);
                 const float area = merged.surfaceArea();
+                // The SAH-style rule: rays entering the merged box pay one
+                // callback and one more triangle; kept apart, the rays entering
+                // each box pay a callback and their own triangles.
+                const float members = static_cast<float>(c.count);
+                const float mergedCost = area * (kCallbackCost + members + 1.f);
+                const float apartCost = clusterArea * (kCallbackCost + members) + boxes[k].surfaceArea() * (kCallbackCost + 1.f);
+                if (mergedCost > apartCost) continue;
                 if (best == pending.size() || area < bestArea) best = k, bestArea = area;
             }
             if (best == pending.size()) break;
             clusterBox.extend(boxes[best]);
+            clusterArea = clusterBox.surfaceArea();
             add(c, best);
         }
     }
