@@ -19,10 +19,10 @@ struct CliRun {
     std::string out;  // stdout + stderr
 };
 
-inline CliRun runCli(const std::string& args) {
+// Runs a shell command; stdout + stderr and the exit code.
+inline CliRun runCommand(const std::string& command) {
     CliRun r;
-    const std::string cmd = std::string(RTLAB_CLI) + " " + args + " 2>&1";
-    FILE* pipe = popen(cmd.c_str(), "r");
+    FILE* pipe = popen((command + " 2>&1").c_str(), "r");
     if (!pipe) return r;
     std::array<char, 4096> buf{};
     while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
@@ -30,6 +30,9 @@ inline CliRun runCli(const std::string& args) {
     r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return r;
 }
+
+// The rtlab executable with `args`.
+inline CliRun runCli(const std::string& args) { return runCommand(std::string(RTLAB_CLI) + " " + args); }
 
 inline fs::path freshDir(const std::string& name) {
     const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + name);

@@ -17,6 +17,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include "../apps/cli_test_util.hpp"
+
 #include <fstream>
 #include <set>
 #include <string>
@@ -27,21 +29,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-    int exitCode = -1;
-    std::string out;
-};
-
-Result run(const std::string& cmd) {
-    Result r;
-    FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-    if (!pipe) return r;
-    std::array<char, 4096> buf{};
-    while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
-    const int status = pclose(pipe);
-    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return r;
-}
+using Result = rtlab::test::CliRun;
+const auto run = rtlab::test::runCommand;
 
 std::string chromium() {
     for (const char* c : {"/usr/bin/chromium", "/usr/bin/chromium-browser"})
