@@ -728,8 +728,11 @@ std::string decadeLabel(int exponent) {
 }
 
 vec3 plotSeriesColour(std::size_t seriesIndex) {
-    const int* srgb = kPaletteSrgb8[seriesIndex % std::size(kPaletteSrgb8)];
-    return fromSrgb8(srgb[0], srgb[1], srgb[2]);
+    const std::size_t n = std::size(kPaletteSrgb8);
+    const int* srgb = kPaletteSrgb8[seriesIndex % n];
+    const vec3 colour = fromSrgb8(srgb[0], srgb[1], srgb[2]);
+    // Series 8..15: the same hues, darker (a study plots one line per workload x setting).
+    return (seriesIndex / n) % 2 == 1 ? colour * 0.3f : colour;
 }
 
 PlotFrame computePlotFrame(const std::vector<PlotSeries>& series, const PlotOptions& options) {

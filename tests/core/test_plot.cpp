@@ -191,10 +191,10 @@ TEST(PlotRender, EachSeriesIsDrawnInItsPaletteColour) {
         if (report.legendArea.contains(p.x, p.y)) continue;
         EXPECT_EQ(pixelAt(image, p.x, p.y), plotSeriesColour(s)) << series[s].name;
     }
-    // The palette has 8 distinct colours, then repeats.
-    for (std::size_t a = 0; a < 8; ++a)
-        for (std::size_t b = a + 1; b < 8; ++b) EXPECT_NE(plotSeriesColour(a), plotSeriesColour(b)) << a << " " << b;
-    EXPECT_EQ(plotSeriesColour(8), plotSeriesColour(0));
+    // The palette has 16 distinct colours (8 hues, then the same darker), then repeats.
+    for (std::size_t a = 0; a < 16; ++a)
+        for (std::size_t b = a + 1; b < 16; ++b) EXPECT_NE(plotSeriesColour(a), plotSeriesColour(b)) << a << " " << b;
+    EXPECT_EQ(plotSeriesColour(16), plotSeriesColour(0));
 }
 
 TEST(PlotRender, LinesJoinConsecutivePointsUnlessMarkersOnlyOrBroken) {

@@ -72,7 +72,8 @@ struct PlotReport {
 bool isLogPlottable(double value);
 // Decade tick label: "0.01" .. "10000" inside that range, else "1e-3", "1e5".
 std::string decadeLabel(int exponent);
-// The colour (linear RGB) of series `seriesIndex`; a fixed palette of 8, cycled.
+// The colour (linear RGB) of series `seriesIndex`: a fixed palette of 8 hues,
+// then the same 8 darker, cycled after 16.
 vec3 plotSeriesColour(std::size_t seriesIndex);
 
 // The layout and axis ranges renderLogLogPlot uses for these inputs.
