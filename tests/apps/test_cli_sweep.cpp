@@ -86,54 +86,53 @@ pid_t startSweep(const fs::path& study, const fs::path& out, const fs::path& log
     return pid;
 }
 
-// Kills a sweep with `sig` once `atLeast` points are complete, reruns it and
-// checks that finished points were kept (not redone) and the rest done.
-void killAndResume(const std::string& name, int sig) {
+// Runs a 10-point sweep, kills it with a signal once 2 points are complete,
+// then reruns it and runs the same study once uninterrupted. Records what the
+// test asserts on; asserts nothing itself.
+struct KillAndResumeRun {
+    bool started = false;
+    bool killedBySignal = false;            // the sweep was still running when killed
+    std::string firstLog;                   // its stdout + stderr
+    std::size_t kept = 0;                   // complete points right after the kill
+    std::size_t keptLater = 0;              // ... 1.5 s later (nothing of the killed sweep lives on)
+    std::map<std::string, std::string> before, after;  // point -> result.json text, before / after the rerun
+    CliRun again, once;                     // the rerun, the uninterrupted run
+    std::vector<json> resumed, fresh;       // their rows without timing
+};
+
+KillAndResumeRun killAndResume(const std::string& name, int sig) {
+    KillAndResumeRun r;
     const fs::path study = writeStudy(name, R"({"workloads": ["builtin:cornell", "builtin:terrain?triangles=20000"],
  "render": {"width": 48, "height": 48, "frames": 2, "effects": "gbuffer"},
  "grid": {"cache.sizeBytes": [2048, 4096, 8192, 16384, 32768]}})");
     const fs::path out = freshDir(name + "_out");
     const pid_t pid = startSweep(study, out, study.parent_path() / "first.log");
-    ASSERT_GT(pid, 0);
+    r.started = pid > 0;
+    if (!r.started) return r;
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     while (countResults(out) < 2 && std::chrono::steady_clock::now() < deadline)
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
     kill(pid, sig);
     int status = 0;
     waitpid(pid, &status, 0);
-    ASSERT_TRUE(WIFSIGNALED(status)) << "the sweep finished before it could be killed: " << readText(study.parent_path() / "first.log");
-    if (sig == SIGINT) {
-        EXPECT_NE(readText(study.parent_path() / "first.log").find("sweep interrupted: complete points are kept"),
-                  std::string::npos);
-    }
-    const std::size_t kept = countResults(out);
-    ASSERT_GE(kept, 2u);
-    ASSERT_LT(kept, 10u);
-    // The rows so far are complete and recorded (results.jsonl may lag by the last point only).
-    std::map<std::string, std::string> before;  // point -> result.json text
+    r.killedBySignal = WIFSIGNALED(status);
+    r.firstLog = readText(study.parent_path() / "first.log");
+    r.kept = countResults(out);
     for (const auto& e : fs::directory_iterator(out / "points"))
-        if (fs::exists(e.path() / "result.json")) before[e.path().filename()] = readText(e.path() / "result.json");
-
-    // No render of the killed sweep lives on (they die with it): nothing changes the points now.
+        if (fs::exists(e.path() / "result.json")) r.before[e.path().filename()] = readText(e.path() / "result.json");
     std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-    EXPECT_EQ(countResults(out), kept);
+    r.keptLater = countResults(out);
 
-    const CliRun again = runCli("sweep " + study.string() + " --out " + out.string() + " --jobs 2");
-    ASSERT_EQ(again.exitCode, 0) << again.out;
-    EXPECT_NE(again.out.find(std::to_string(kept) + " already complete"), std::string::npos) << again.out;
-    EXPECT_NE(again.out.find(std::to_string(10 - kept) + " to run"), std::string::npos) << again.out;
-    for (const auto& [point, text] : before)
-        EXPECT_EQ(readText(out / "points" / point / "result.json"), text) << point << " was redone";
-    const std::vector<json> resumed = rowsWithoutTiming(out);
-    ASSERT_EQ(resumed.size(), 10u);
-    for (std::size_t i = 0; i < resumed.size(); ++i) EXPECT_EQ(resumed[i]["index"], i);
-
-    // Same rows as one uninterrupted run.
+    r.again = runCli("sweep " + study.string() + " --out " + out.string() + " --jobs 2");
+    for (const auto& [point, text] : r.before) r.after[point] = readText(out / "points" / point / "result.json");
+    if (r.again.exitCode == 0) r.resumed = rowsWithoutTiming(out);
     const fs::path fresh = freshDir(name + "_fresh");
-    const CliRun once = runCli("sweep " + study.string() + " --out " + fresh.string() + " --jobs 2");
-    ASSERT_EQ(once.exitCode, 0) << once.out;
-    EXPECT_EQ(rowsWithoutTiming(fresh), resumed);
+    r.once = runCli("sweep " + study.string() + " --out " + fresh.string() + " --jobs 2");
+    if (r.once.exitCode == 0) r.fresh = rowsWithoutTiming(fresh);
+    return r;
 }
+
+class SweepKillAndResume : public ::testing::TestWithParam<int> {};
 
 }  // namespace
 
@@ -184,9 +183,35 @@ TEST(Sweep, IssueMinimalStudyWritesFourRowsAndStats) {
     EXPECT_EQ(readText(out / "results.jsonl"), before);
 }
 
-TEST(Sweep, ResumesAfterSigkillWithoutRedoingFinishedPoints) { killAndResume("kill9", SIGKILL); }
+// Killed (SIGKILL, or SIGINT as Ctrl-C) after 2 of 10 points, a sweep run
+// again keeps the finished points (not redone), does the rest, and ends with
+// the rows of one uninterrupted run.
+TEST_P(SweepKillAndResume, ResumesWithoutRedoingFinishedPoints) {
+    const int sig = GetParam();
+    const KillAndResumeRun r = killAndResume(sig == SIGKILL ? "kill9" : "int", sig);
+    ASSERT_TRUE(r.started);
+    ASSERT_TRUE(r.killedBySignal) << "the sweep finished before it could be killed: " << r.firstLog;
+    if (sig == SIGINT)
+        EXPECT_NE(r.firstLog.find("sweep interrupted: complete points are kept"), std::string::npos) << r.firstLog;
+    ASSERT_GE(r.kept, 2u);
+    ASSERT_LT(r.kept, 10u);
+    EXPECT_EQ(r.before.size(), r.kept);
+    // No render of the killed sweep lives on (they die with it): nothing changes the points.
+    EXPECT_EQ(r.keptLater, r.kept);
+    ASSERT_EQ(r.again.exitCode, 0) << r.again.out;
+    EXPECT_NE(r.again.out.find(std::to_string(r.kept) + " already complete"), std::string::npos) << r.again.out;
+    EXPECT_NE(r.again.out.find(std::to_string(10 - r.kept) + " to run"), std::string::npos) << r.again.out;
+    EXPECT_EQ(r.after, r.before) << "a finished point was redone";
+    ASSERT_EQ(r.resumed.size(), 10u);
+    for (std::size_t i = 0; i < r.resumed.size(); ++i) EXPECT_EQ(r.resumed[i]["index"], i);
+    ASSERT_EQ(r.once.exitCode, 0) << r.once.out;
+    EXPECT_EQ(r.fresh, r.resumed);
+}
 
-TEST(Sweep, ResumesAfterSigintWithoutRedoingFinishedPoints) { killAndResume("int", SIGINT); }
+INSTANTIATE_TEST_SUITE_P(Signals, SweepKillAndResume, ::testing::Values(SIGKILL, SIGINT),
+                         [](const ::testing::TestParamInfo<int>& info) {
+                             return std::string(info.param == SIGKILL ? "Sigkill" : "Sigint");
+                         });
 
 TEST(Sweep, TwoJobsGiveTheSameRowsAsOne) {
     const fs::path study = writeStudy("jobs", kSmallStudy);
