@@ -72,6 +72,44 @@ void TriangleCluster::set(int slot, const vec3& p0, const vec3& p1, const vec3& 
 
 namespace {
 
+// intersectTriangleWatertight's core for N lanes at once, after the ray's axis
+// permutation and the translation to its origin (a, b, c: the vertices' k
+// coordinates): shear, edge functions, determinant, then t in (tMin, tMax).
+// Stores t and the barycentrics of all N lanes and returns the hit lanes'
+// mask; stores nothing when it is 0.
+template <int N>
+RTLAB_SIMD_INLINE std::uint32_t shearedEdgeTest(const simd::vfloat<N>& akx, const simd::vfloat<N>& aky,
+                                                const simd::vfloat<N>& akz, const simd::vfloat<N>& bkx,
+                                                const simd::vfloat<N>& bky, const simd::vfloat<N>& bkz,
+                                                const simd::vfloat<N>& ckx, const simd::vfloat<N>& cky,
+                                                const simd::vfloat<N>& ckz, const simd::vfloat<N>& sx,
+                                                const simd::vfloat<N>& sy, const simd::vfloat<N>& sz,
+                                                const simd::vfloat<N>& tMin, const simd::vfloat<N>& tMax,
+                                                float* tOut, float* b1Out, float* b2Out) {
+    using V = simd::vfloat<N>;
+    using VI = simd::vint<N>;
+    // Step: shear, edge functions, determinant.
+    const V ax = akx - sx * akz, ay = aky - sy * akz;
+    const V bx = bkx - sx * bkz, by = bky - sy * bkz;
+    const V cx = ckx - sx * ckz, cy = cky - sy * ckz;
+    const V u = cx * by - cy * bx;
+    const V v = ax * cy - ay * cx;
+    const V w = bx * ay - by * ax;
+    const V zero = simd::splat<N>(0.f);
+    const V det = u + v + w;
+    const VI inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
+    // Step: early-out on an empty mask, before any division.
+    if (simd::signMask<N>(inside) == 0) return 0;
+    const V az = sz * akz, bz = sz * bkz, cz = sz * ckz;
+    const V t = (u * az + v * bz + w * cz) / det;
+    const std::uint32_t hit = simd::signMask<N>(inside & (t > tMin) & (t < tMax));
+    if (hit == 0) return 0;
+    simd::storeu<N>(tOut, t);
+    simd::storeu<N>(b1Out, v / det);
+    simd::storeu<N>(b2Out, w / det);
+    return hit;
+}
+
 // Lanes [first, first + N) of the packet against one triangle.
 template <int N>
 RTLAB_SIMD_INLINE std::uint32_t intersectPacketLanes(const WatertightRayPacket& p, int first, const TriangleCluster& c,
@@ -102,26 +140,9 @@ RTLAB_SIMD_INLINE std::uint32_t intersectPacketLanes(const WatertightRayPacket& 
         bkx = permuted(1, xIs0, xIs1) - ox, bky = permuted(1, yIs0, yIs1) - oy, bkz = permuted(1, zIs0, zIs1) - oz;
         ckx = permuted(2, xIs0, xIs1) - ox, cky = permuted(2, yIs0, yIs1) - oy, ckz = permuted(2, zIs0, zIs1) - oz;
     }
-    // Step: shear, edge functions, determinant (as intersectTriangleWatertight).
-    const V ax = akx - sx * akz, ay = aky - sy * akz;
-    const V bx = bkx - sx * bkz, by = bky - sy * bkz;
-    const V cx = ckx - sx * ckz, cy = cky - sy * ckz;
-    const V u = cx * by - cy * bx;
-    const V v = ax * cy - ay * cx;
-    const V w = bx * ay - by * ax;
-    const V zero = simd::splat<N>(0.f);
-    const V det = u + v + w;
-    const VI inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
-    // Step: early-out on an empty mask, before any division.
-    if (simd::signMask<N>(inside) == 0) return 0;
-    const V az = sz * akz, bz = sz * bkz, cz = sz * ckz;
-    const V t = (u * az + v * bz + w * cz) / det;
-    const std::uint32_t hit = simd::signMask<N>(inside & (t > lanes(p.tMin)) & (t < lanes(p.tMax)));
-    if (hit == 0) return 0;
-    simd::storeu<N>(tOut + first, t);
-    simd::storeu<N>(b1Out + first, v / det);
-    simd::storeu<N>(b2Out + first, w / det);
-    return hit << first;
+    return shearedEdgeTest<N>(akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz, sx, sy, sz, lanes(p.tMin), lanes(p.tMax),
+                              tOut + first, b1Out + first, b2Out + first)
+           << first;
 }
 
 // makeWatertightRay for lanes [first, first + N) of structure-of-arrays rays.
@@ -241,31 +262,14 @@ void intersectClusterWatertight(const WatertightRay& r, const TriangleCluster& c
     // Every slot in one SIMD step: intersectTriangleWatertight lane by lane.
     constexpr int N = kClusterTriangles;
     using V = simd::vfloat<N>;
-    using VI = simd::vint<N>;
     const V okx = simd::splat<N>(r.ox), oky = simd::splat<N>(r.oy), okz = simd::splat<N>(r.oz);
     const V sx = simd::splat<N>(r.sx), sy = simd::splat<N>(r.sy), sz = simd::splat<N>(r.sz);
     auto coordinate = [&](int k, int axis) { return simd::loadu<N>(c.v[k][axis]); };
     const V akx = coordinate(0, r.kx) - okx, aky = coordinate(0, r.ky) - oky, akz = coordinate(0, r.kz) - okz;
     const V bkx = coordinate(1, r.kx) - okx, bky = coordinate(1, r.ky) - oky, bkz = coordinate(1, r.kz) - okz;
     const V ckx = coordinate(2, r.kx) - okx, cky = coordinate(2, r.ky) - oky, ckz = coordinate(2, r.kz) - okz;
-    const V ax = akx - sx * akz, ay = aky - sy * akz;
-    const V bx = bkx - sx * bkz, by = bky - sy * bkz;
-    const V cx = ckx - sx * ckz, cy = cky - sy * ckz;
-    const V u = cx * by - cy * bx;
-    const V v = ax * cy - ay * cx;
-    const V w = bx * ay - by * ax;
-    const V zero = simd::splat<N>(0.f);
-    const V det = u + v + w;
-    const VI inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
-    // Step: early-out on an empty mask, before any division.
-    if (simd::signMask<N>(inside) == 0) return;
-    const V az = sz * akz, bz = sz * bkz, cz = sz * ckz;
-    const V t = (u * az + v * bz + w * cz) / det;
-    out.mask = simd::signMask<N>(inside & (t > simd::splat<N>(tMin)) & (t < simd::splat<N>(tMax)));
-    if (out.mask == 0) return;
-    simd::storeu<N>(out.t, t);
-    simd::storeu<N>(out.b1, v / det);
-    simd::storeu<N>(out.b2, w / det);
+    out.mask = shearedEdgeTest<N>(akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz, sx, sy, sz, simd::splat<N>(tMin),
+                                  simd::splat<N>(tMax), out.t, out.b1, out.b2);
 }
 
 }  // namespace rtlab::tracer
