@@ -2,6 +2,8 @@
 // The rtlab subcommands. Each returns the process exit code; bad input is
 // thrown as rtlab::InputError and turned into exit 2 by main().
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <rtlab/tracer/pipeline.hpp>
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 
@@ -48,6 +50,9 @@ void addBackendOptions(CLI::App& command, std::string& backend, std::string& rtc
 // InputError (exit 2) when --rtcore-config or --rtcore-set come without --backend rtcore.
 void checkRtCoreOptionsNeedRtCore(const std::string& backend, const std::string& rtcoreConfig,
                                   const std::vector<std::string>& rtcoreSet);
+
+// A committed hit for stats.json ({"hit": false}, or t, instance, geometry, primitive).
+nlohmann::json hitJson(const tracer::CommittedHit& hit);
 
 // The RT-core configuration: defaults, then the JSON file (if any), then
 // each section.field=value in order, validated. Bad keys and values are

@@ -96,13 +96,13 @@ rtcore_sim::RtCoreConfig resolveRtCoreConfig(const std::string& configFile, cons
     return config;
 }
 
-namespace {
-
 nlohmann::json hitJson(const tracer::CommittedHit& h) {
     if (!h.hit) return {{"hit", false}};
     return {{"hit", true}, {"t", h.t}, {"instance", h.instanceIndex}, {"geometry", h.geometryIndex},
             {"primitive", h.primitiveIndex}};
 }
+
+namespace {
 
 nlohmann::json verifyJson(const rtcore_sim::VerifyStats& v) {
     nlohmann::json examples = nlohmann::json::array();

@@ -27,12 +27,6 @@
 namespace rtlab::app {
 namespace {
 
-nlohmann::json hitJson(const tracer::CommittedHit& h) {
-    if (!h.hit) return {{"hit", false}};
-    return {{"hit", true}, {"t", h.t}, {"instance", h.instanceIndex}, {"geometry", h.geometryIndex},
-            {"primitive", h.primitiveIndex}};
-}
-
 // The ray-trace files of --rays: the file itself, or a directory's *.rays in name order.
 std::vector<std::filesystem::path> rayFiles(const std::string& rays) {
     namespace fs = std::filesystem;
