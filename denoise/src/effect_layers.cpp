@@ -95,14 +95,19 @@ const char* stackName(DenoiseStack stack) {
 }
 
 StackParams StackParams::svgfPaper() { return {SvgfParams::paper(), {}}; }
-StackParams StackParams::shadow() {
+StackParams StackParams::svgfAuto() {
     StackParams p = svgfPaper();
+    p.svgf.convergeStatic = true;
+    return p;
+}
+StackParams StackParams::shadow() {
+    StackParams p = svgfAuto();
     p.svgf.varianceOfMean = true;
     p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
     return p;
 }
 StackParams StackParams::reflection() {
-    StackParams p = svgfPaper();
+    StackParams p = svgfAuto();
     p.svgf.varianceOfMean = true;
     p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
     p.footprint.floorPx = 8.f;
@@ -114,7 +119,7 @@ StackParams StackParams::reflection() {
     return p;
 }
 StackParams StackParams::ambientOcclusion() {
-    StackParams p = svgfPaper();
+    StackParams p = svgfAuto();
     p.svgf.varianceOfMean = true;
     p.svgf.atrous.sigmaL = 10.f;
     return p;
@@ -126,7 +131,7 @@ StackParams StackParams::of(DenoiseStack stack) {
         case DenoiseStack::AmbientOcclusion: return ambientOcclusion();
         case DenoiseStack::Svgf: break;
     }
-    return svgfPaper();
+    return svgfAuto();
 }
 
 const std::vector<std::string>& EffectLayerDenoiser::effectNames() {
@@ -170,7 +175,8 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
     for (const std::string& effect : effects_)
         for (SignalLayer& s : signalsOf(frame, effect)) {
             if (forceSvgf_ || pixelWorld.empty()) s.stack = DenoiseStack::Svgf;
-            const StackParams params = StackParams::of(s.stack);
+            // A forced comparison runs the paper's SVGF as published.
+            const StackParams params = forceSvgf_ ? StackParams::svgfPaper() : StackParams::of(s.stack);
             const std::vector<float> footprint = footprintOf(frame, s, guides, pixelWorld, params.footprint);
             std::vector<vec3> noisy(n), out(n);
             if (s.scalar) {
