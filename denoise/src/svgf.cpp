@@ -4,8 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <utility>
 
 namespace rtlab::denoise {
@@ -25,6 +23,7 @@ void SvgfFilter::reset() {
     valid_.clear();
     static_.clear();
     staticColor_.clear();
+    staticMoments_.clear();
     staticLength_.clear();
     staticResets_ = 0;
 }
@@ -107,10 +106,7 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     }
     filteredVariance_.resize(n);
     tapColor_.resize(n);
-    AtrousParams ap = params_.atrous;
-    if (const char* e = std::getenv("RTLAB_SL")) ap.sigmaL *= std::atof(e);
-    if (const char* e = std::getenv("RTLAB_VS")) for (auto& v : variance_) v *= std::atof(e);
-    atrousFilter(curGuides_, reprojected_.color, variance_, ap, out, filteredVariance_,
+    atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
                  params_.historyTap, tapColor_, footprintPx, &atrousWorkspace_);
     if (params_.convergeStatic) shrinkTowardStaticMean(w, h, out);
 
@@ -126,13 +122,22 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     // Static pixels: the filtered value F and the long mean M estimate the
     // same signal; F has little variance and some bias, M no bias and the
     // variance of the mean V = Var / n. F is shrunk toward M by the
-    // positive-part James-Stein weight w = max(0, 1 - V' / D^2), D the
+    // positive-part James-Stein weight w = max(0, 1 - c V' / D^2), D the
     // luminance difference F - M averaged over the 3x3 static neighbourhood
     // (a bias is spatially coherent, M's noise is not) and V' its variance
     // (the neighbours' V summed / count^2): where F departs from M by more
-    // than M's noise explains, F's bias shows and the output moves to M. As n
+    // than M's noise explains (c = staticShrinkSigma2 > 1: more conservative),
+    // F's bias shows and the output moves to M. As n
     // grows V -> 0, so the output tends to the converged accumulation.
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    // The variance of the long mean, from its own samples' moments (every
+    // sample since the last restart: a firefly among them raises it, so that
+    // pixel keeps F).
+    const auto meanVariance = [&](std::size_t j) {
+        const vec2 m = staticMoments_[j];
+        const float v = m.y - m.x * m.x;
+        return (v > 0.f ? v : 0.f) / staticLength_[j];
+    };
     shrinkDiff_.resize(n);
     detail::forEachIndex(n, [&](std::size_t i) {
         shrinkDiff_[i] = static_[i] && staticLength_[i] > 0.f ? luminance(out[i]) - luminance(reprojected_.color[i]) : 0.f;
@@ -150,11 +155,11 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
                 const std::size_t j = static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px;
                 if (!static_[j] || !(staticLength_[j] > 0.f)) continue;
                 sumD += shrinkDiff_[j];
-                sumV += blurredVariance_[j] / staticLength_[j];
+                sumV += meanVariance(j);
                 ++count;
             }
         const float d = sumD / static_cast<float>(count);
-        const float v = sumV / static_cast<float>(count * count);
+        const float v = params_.staticShrinkSigma2 * sumV / static_cast<float>(count * count);
         const float d2 = d * d;
         if (!(d2 > v)) return;
         const float wgt = 1.f - v / d2;
@@ -167,6 +172,7 @@ void SvgfFilter::convergeStatic(int w, int h) {
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     if (staticColor_.size() != n) {
         staticColor_.assign(n, vec3(0.f));
+        staticMoments_.assign(n, vec2(0.f));
         staticLength_.assign(n, 0.f);
     }
     // The samples' luminance variance averaged over the 3x3 neighbourhood: a
@@ -187,8 +193,14 @@ void SvgfFilter::convergeStatic(int w, int h) {
     const float alpha = std::clamp(params_.temporal.alpha, 1e-3f, 1.f);
     const float momentsAlpha = std::clamp(params_.temporal.momentsAlpha, 1e-3f, 1.f);
     const float steady = (2.f - alpha) / alpha, steadyMoments = (2.f - momentsAlpha) / momentsAlpha;
-    float k = params_.staticResetSigma;
-    if (const char* e = std::getenv("RTLAB_K")) k = std::atof(e);
+    // The long mean's samples: the input, or its firefly-clamped copy.
+    std::span<const vec3> staticInput = input_;
+    if (params_.staticClampFireflies && !params_.clampFireflies) {
+        clampedInput_.resize(n);
+        clampFireflies(w, h, input_, clampedInput_, params_.firefly);
+        staticInput = clampedInput_;
+    }
+    const float k = params_.staticResetSigma;
     std::vector<std::uint8_t> reset(n, 0);
     detail::forEachIndex(n, [&](std::size_t i) {
         const vec3 fast = reprojected_.color[i];
@@ -196,22 +208,26 @@ void SvgfFilter::convergeStatic(int w, int h) {
         if (!static_[i] || !(staticLength_[i] > 0.f)) {
             // Not static (or no static history yet): start from the alpha-floored accumulation.
             staticColor_[i] = fast;
+            staticMoments_[i] = reprojected_.moments[i];
             staticLength_[i] = static_[i] ? fastN : 0.f;
             if (static_[i]) variance_[i] /= fastN;
             return;
         }
         const float len = staticLength_[i] + 1.f;
-        const vec3 mean = staticColor_[i] + (input_[i] - staticColor_[i]) / len;
+        const vec3 sample = staticInput[i];
+        const vec3 mean = staticColor_[i] + (sample - staticColor_[i]) / len;
         // The change test: the long mean against the short-memory luminance moment.
         const float nm = std::clamp(reprojected_.length[i], 1.f, steadyMoments);
         const float d = std::fabs(luminance(mean) - reprojected_.moments[i].x);
         const float tolerance = k * std::sqrt(blurredVariance_[i] * (1.f / nm + 1.f / len));
         if (d > tolerance && d > 1e-6f * std::fabs(reprojected_.moments[i].x)) {
             staticColor_[i] = fast;
+            staticMoments_[i] = reprojected_.moments[i];
             staticLength_[i] = fastN;
             reset[i] = 1;
         } else {
             staticColor_[i] = mean;
+            staticMoments_[i] += (luminanceMoments(sample) - staticMoments_[i]) / len;
             staticLength_[i] = len;
         }
         // The a-trous passes filter the long mean, guided by its variance.
@@ -220,13 +236,6 @@ void SvgfFilter::convergeStatic(int w, int h) {
     });
     staticResets_ = 0;
     for (std::uint8_t r : reset) staticResets_ += r;
-    if (std::getenv("RTLAB_DEBUG_STATIC")) {
-        std::size_t st = 0; double sl = 0;
-        for (std::size_t i = 0; i < n; ++i) if (static_[i]) { ++st; sl += staticLength_[i]; }
-        std::size_t sky = 0, val = 0, mz = 0;
-        for (std::size_t i = 0; i < n; ++i) { sky += curGuides_.isSky(i); val += valid_[i]; mz += curGuides_.motion[i] == vec2(0.f); }
-        std::fprintf(stderr, "static %zu/%zu mean len %.1f resets %zu sky %zu valid %zu motion0 %zu\n", st, n, st ? sl / st : 0.0, staticResets_, sky, val, mz);
-    }
 }
 
 }  // namespace rtlab::denoise

@@ -57,6 +57,15 @@ struct SvgfParams {
     // NVIDIA's ReLAX: a fast history guards a slow one).
     bool convergeStatic = false;
     float staticResetSigma = 4.f;
+    // The filtered output of a static pixel is shrunk toward the long mean
+    // where their 3x3-averaged luminance difference D exceeds what the mean's
+    // noise explains: weight max(0, 1 - c V' / D^2) with c this (positive-part
+    // James-Stein for c = 1; larger keeps more of the filter). Source: rtlab.
+    float staticShrinkSigma2 = 1.f;
+    // The long mean takes firefly-clamped samples (FireflyClampParams `firefly`)
+    // even when the filtered signal does not: a heavy-tailed signal's rare huge
+    // sample would otherwise stay in it at weight 1/n. Source: rtlab.
+    bool staticClampFireflies = false;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
     FireflyClampParams firefly;
@@ -142,9 +151,11 @@ private:
     std::vector<std::uint8_t> valid_;
     std::vector<std::uint8_t> static_;  // 1 where the reprojection is exact
     std::vector<vec3> staticColor_;      // the alpha = 1/n accumulation (convergeStatic)
+    std::vector<vec2> staticMoments_;   // its luminance moments
     std::vector<float> staticLength_;
     std::vector<float> blurredVariance_;
     std::vector<float> shrinkDiff_;
+    std::vector<vec3> clampedInput_;
     std::vector<vec3> shrunk_;
     std::size_t staticResets_ = 0;
     AtrousWorkspace atrousWorkspace_;
