@@ -127,6 +127,7 @@ struct TapRow {
     std::size_t row;  // plane index of the row's pixel 0
     float sigmaZ, depthEps;
     const simd::NormalPower* normalPower;
+    bool normalGatesSky;  // sigmaN > 0: max(0, n.n')^sigmaN is 0 for a zero normal
 };
 
 template <int N>
@@ -154,6 +155,7 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
         const V cDepth = simd::loadu<N>(t.depth + i), cGx = simd::loadu<N>(t.gradX + i),
                 cGy = simd::loadu<N>(t.gradY + i);
         const V cLum = simd::loadu<N>(t.lum + i), cInvLum = simd::loadu<N>(t.invLum + i);
+        const V cDepthEps = simd::abs<N>(cDepth) * t.depthEps;
         const V cVar = simd::loadu<N>(t.var + i);
         const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
         V sW = simd::splat<N>(hCentre), sVar = cVar * (hCentre * hCentre), sR = cR * hCentre, sG = cG * hCentre,
@@ -172,13 +174,17 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                 // and in the margins.
                 const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
                 const V wn = t.normalPower->apply<N>(dot);
-                const V termZ = simd::depthTerm<N>(cDepth, simd::loadu<N>(t.depth + j), cGx, cGy,
-                                                   simd::splat<N>(static_cast<float>(dx)),
-                                                   simd::splat<N>(static_cast<float>(ky * t.step)), t.sigmaZ,
-                                                   t.depthEps);
+                // The depth term |z - z'| / (sigmaZ |grad . offset| + eps |z|) with the denominator raised
+                // to 1e-30 (equal depths give 0; a zero denominator a term >= 87, i.e. weight 0, as +inf did).
+                const V zDen = simd::abs<N>(cGx * static_cast<float>(dx) + cGy * static_cast<float>(ky * t.step)) *
+                                   t.sigmaZ + cDepthEps;
+                const V termZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) /
+                                simd::select<N>(zDen > 1e-30f, zDen, simd::splat<N>(1e-30f));
                 const V dl = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j));
                 const V termL = simd::select<N>(dl == 0.f, simd::splat<N>(0.f), dl * cInvLum);
-                const V wgt = simd::expNeg<N>(termZ + termL) * wn * simd::loadu<N>(t.geometry + j);
+                // A sky tap or a margin has normal 0, so wn = 0 already unless sigmaN = 0.
+                const V e = simd::expNegWeight<N>(termZ + termL) * wn;
+                const V wgt = t.normalGatesSky ? e : e * simd::loadu<N>(t.geometry + j);
                 const V hw = wgt * hk;
                 sW = sW + hw;
                 sVar = sVar + hw * hw * simd::loadu<N>(t.var + j);
@@ -242,7 +248,7 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
                        g.geometry.data(), g.footprint.empty() ? nullptr : g.footprint.data(), in.luminance.data(),
                        invLumScale.data(), in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(),
                        out.g.data(), out.b.data(), out.variance.data(), out.luminance.data(), w, h, y, step,
-                       l.stride, l.at(0, y), p.sigmaZ, p.depthEpsilon, &normalPower};
+                       l.stride, l.at(0, y), p.sigmaZ, p.depthEpsilon, &normalPower, normalPower.sigma > 0.f};
         if (avx2) filterRowAvx2(t);
         else filterRow<4>(t);
     });
