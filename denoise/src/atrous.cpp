@@ -130,7 +130,9 @@ struct TapRow {
     bool normalGatesSky;  // sigmaN > 0: max(0, n.n')^sigmaN is 0 for a zero normal
 };
 
-template <int N>
+// Sq >= 0: sigmaN = 2^Sq, the normal weight as Sq squarings unrolled at
+// compile time (the paper's 128: 7); -1: NormalPower's general path.
+template <int N, int Sq>
 RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     using V = simd::vfloat<N>;
     const int w = t.w;
@@ -173,7 +175,13 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                 // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps
                 // and in the margins.
                 const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
-                const V wn = t.normalPower->apply<N>(dot);
+                V wn;
+                if constexpr (Sq >= 0) {
+                    wn = simd::min<N>(simd::positiveOrZero<N>(dot), simd::splat<N>(1.f));
+                    for (int k = 0; k < Sq; ++k) wn *= wn;
+                } else {
+                    wn = t.normalPower->apply<N>(dot);
+                }
                 // The depth term |z - z'| / (sigmaZ |grad . offset| + eps |z|) with the denominator raised
                 // to 1e-30 (equal depths give 0; a zero denominator a term >= 87, i.e. weight 0, as +inf did).
                 const V zDen = simd::abs<N>(cGx * static_cast<float>(dx) + cGy * static_cast<float>(ky * t.step)) *
@@ -181,7 +189,7 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                 const V termZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) /
                                 simd::select<N>(zDen > 1e-30f, zDen, simd::splat<N>(1e-30f));
                 const V dl = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j));
-                const V termL = simd::select<N>(dl == 0.f, simd::splat<N>(0.f), dl * cInvLum);
+                const V termL = dl * cInvLum;  // the scale is finite: 0 for equal luminances
                 // A sky tap or a margin has normal 0, so wn = 0 already unless sigmaN = 0.
                 const V e = simd::expNegWeight<N>(termZ + termL) * wn;
                 const V wgt = t.normalGatesSky ? e : e * simd::loadu<N>(t.geometry + j);
@@ -211,7 +219,8 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
 }
 
 // The same, compiled for AVX2 (picked at run time by simd::preferredWidth).
-__attribute__((target("avx2"))) void filterRowAvx2(const TapRow& t) { filterRow<8>(t); }
+__attribute__((target("avx2"))) void filterRowAvx2(const TapRow& t) { filterRow<8, -1>(t); }
+__attribute__((target("avx2"))) void filterRowAvx2Sq7(const TapRow& t) { filterRow<8, 7>(t); }
 
 // One iteration with step `step` from `in` to `out` (in.luminance is current).
 void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const AtrousParams& p,
@@ -237,11 +246,15 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
         }
         const float blurred = weight > 0.f ? sum / weight : 0.f;
         const float den = p.sigmaL * std::sqrt(blurred) + p.luminanceEpsilon;
-        invLumScale[k] = den > 0.f ? 1.f / den : kInfinity;
+        // Finite, so that equal luminances give the term 0 without a select; a
+        // zero denominator gives a term >= 87 (weight 0) for any difference
+        // above 3e-37, as +inf did for any difference.
+        invLumScale[k] = den > 0.f ? std::min(1.f / den, 3e38f) : 3e38f;
     });
 
     const simd::NormalPower normalPower(p.sigmaN);
     const bool avx2 = simd::preferredWidth() == 8;
+    const bool sq7 = normalPower.squarings == 7;
     parallelForEach(static_cast<std::size_t>(h), [&](std::size_t rowIndex) {
         const int y = static_cast<int>(rowIndex);
         const TapRow t{g.nx.data(), g.ny.data(), g.nz.data(), g.depth.data(), g.gradX.data(), g.gradY.data(),
@@ -249,8 +262,13 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
                        invLumScale.data(), in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(),
                        out.g.data(), out.b.data(), out.variance.data(), out.luminance.data(), w, h, y, step,
                        l.stride, l.at(0, y), p.sigmaZ, p.depthEpsilon, &normalPower, normalPower.sigma > 0.f};
-        if (avx2) filterRowAvx2(t);
-        else filterRow<4>(t);
+        if (sq7) {
+            if (avx2) filterRowAvx2Sq7(t);
+            else filterRow<4, 7>(t);
+        } else {
+            if (avx2) filterRowAvx2(t);
+            else filterRow<4, -1>(t);
+        }
     });
 }
 
