@@ -496,6 +496,27 @@ int runConverge(const ConvergeOptions& o) {
                 headline->relMse > 0 ? raw.front().relMse / headline->relMse : 0.0,
                 speedupText(headline->speedup, headline->extrapolated).c_str(),
                 speedupText(headline->speedupFrames, headline->extrapolatedFrames).c_str());
+    // Static-view convergence (issue 16): each method's error with history after
+    // 8 frames and after the last, and their ratio (history on a static view
+    // keeps lowering the error; `--frames 64` gives the 8-vs-64 figure).
+    if (o.frames > 8) {
+        const auto temporalAt = [&](const std::string& method, int frames) -> const Measured* {
+            for (const Measured& m : rows)
+                if (m.method == method && m.kind == "frames" && m.frames == frames) return &m;
+            return nullptr;
+        };
+        for (const std::string& method : [&] {
+                 std::vector<std::string> names = {"raw frames"};
+                 for (const Method& m : methods) names.push_back(m.name + " temporal");
+                 return names;
+             }()) {
+            const Measured* a = temporalAt(method, 8);
+            const Measured* b = temporalAt(method, o.frames);
+            if (!a || !b) continue;
+            std::printf("static view, %s: relMSE %.4g after 8 frames, %.4g after %d (%.3f of it)\n", method.c_str(),
+                        a->relMse, b->relMse, o.frames, a->relMse > 0 ? b->relMse / a->relMse : 0.0);
+        }
+    }
     std::printf("wrote %s/converge.{json,csv,png}\n", out.c_str());
     return 0;
 }

@@ -79,6 +79,26 @@ RTLAB_SIMD_INLINE vfloat<N> expNeg(const vfloat<N>& e) {
     return select<N>(huge, splat<N>(0.f), exp2NonPositive<N>(ec * -1.44269504089f));
 }
 
+// exp(-e) as expNeg, with a degree-4 polynomial for 2^t (relative error
+// < 4e-5): for edge-stopping weights, where that is far below what the
+// weights' own heuristics decide. Same special values as expNeg.
+template <int N>
+RTLAB_SIMD_INLINE vfloat<N> expNegWeight(const vfloat<N>& e) {
+    const vint<N> huge = !(e < 87.f);  // and NaN
+    const vfloat<N> f = positiveOrZero<N>(e) * -1.44269504089f;  // in [-125.6, 0]
+    const vfloat<N> shifted = f + 0.5f;
+    vint<N> i = __builtin_convertvector(shifted, vint<N>);
+    i += __builtin_convertvector(i, vfloat<N>) > shifted;  // floor
+    const vfloat<N> t = f - __builtin_convertvector(i, vfloat<N>);
+    vfloat<N> p = splat<N>(9.618129108e-3f);  // ln2^4 / 4!
+    p = p * t + 5.550410866e-2f;              // ln2^3 / 3!
+    p = p * t + 2.402265070e-1f;              // ln2^2 / 2!
+    p = p * t + 6.931471806e-1f;              // ln2
+    p = p * t + 1.f;
+    const vint<N> bits = (i + 127) << 23;
+    return select<N>(huge, splat<N>(0.f), p * (vfloat<N>)bits);
+}
+
 // log2(x) for x > 0 finite (others are the caller's business): exponent plus
 // a polynomial in the mantissa m in [sqrt(1/2), sqrt(2)) (abs error < 1e-6).
 template <int N>

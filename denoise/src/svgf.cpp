@@ -3,9 +3,15 @@
 #include "detail.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace rtlab::denoise {
+
+namespace {
+// Motion (pixels) below which a pixel counts as static for SvgfParams::convergeStatic.
+constexpr float kStaticMotionPx = 1e-3f;
+}  // namespace
 
 void SvgfFilter::reset() {
     hasHistory_ = false;
@@ -15,6 +21,11 @@ void SvgfFilter::reset() {
     variance_.clear();
     filteredVariance_.clear();
     valid_.clear();
+    static_.clear();
+    staticColor_.clear();
+    staticMoments_.clear();
+    staticLength_.clear();
+    staticResets_ = 0;
 }
 
 void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisyColor, std::span<vec3> out,
@@ -42,9 +53,21 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
         const Reprojection r = reproject(curGuides_, prevGuides_, params_.reprojection);
         reprojectHistory(r, history_, reprojected_);
         valid_ = r.valid;
+        static_.resize(n);
+        detail::forEachIndex(n, [&](std::size_t i) {
+            // Exact: the pixel's own previous value carries (nearly) all of the
+            // bilinear weight. A still camera's motion vectors are not exactly 0
+            // (round-off of the projection: ~1e-5 px), hence the tolerance.
+            const ReprojectionTaps& t = r.taps[i];
+            bool own = false;
+            for (int k = 0; k < 4; ++k) own = own || (t.index[k] == i && t.weight[k] >= 1.f - kStaticMotionPx);
+            const vec2 m = curGuides_.motion[i];
+            static_[i] = r.valid[i] && own && std::fabs(m.x) <= kStaticMotionPx && std::fabs(m.y) <= kStaticMotionPx;
+        });
     } else {
         reprojected_.resize(w, h);
         valid_.assign(n, 0);
+        static_.assign(n, 0);
     }
     // Pixels the footprint keeps sharp (0: no spatial filter, e.g. mirrors)
     // keep their history unclamped: the clamp's box comes from the noisy
@@ -62,6 +85,12 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     accumulateTemporal(input_, reprojected_, params_.temporal, reprojected_);
     variance_.resize(n);
     estimateVariance(curGuides_, reprojected_, params_.variance, variance_);
+    if (params_.convergeStatic) {
+        convergeStatic(w, h);
+    } else {
+        staticLength_.clear();
+        staticResets_ = 0;
+    }
     if (params_.varianceOfMean) {
         // The accumulated colour is a mean of about n_eff samples: its variance is
         // the samples' variance / n_eff, n_eff = min(history, (2 - alpha) / alpha)
@@ -70,6 +99,7 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
         const float alpha = std::clamp(params_.temporal.alpha, 1e-3f, 1.f);
         const float steady = (2.f - alpha) / alpha;
         detail::forEachIndex(n, [&](std::size_t i) {
+            if (params_.convergeStatic && static_[i]) return;  // divided by the static length already
             const float nEff = std::clamp(reprojected_.length[i], 1.f, steady);
             variance_[i] /= nEff;
         });
@@ -78,6 +108,7 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     tapColor_.resize(n);
     atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
                  params_.historyTap, tapColor_, footprintPx, &atrousWorkspace_);
+    if (params_.convergeStatic) shrinkTowardStaticMean(w, h, out);
 
     // The next frame's history: the feedback-tap colour, the accumulated moments and lengths.
     std::swap(history_, reprojected_);
@@ -85,6 +116,126 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     std::swap(prevGuides_, curGuides_);
     hasHistory_ = true;
     ++frames_;
+}
+
+void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
+    // Static pixels: the filtered value F and the long mean M estimate the
+    // same signal; F has little variance and some bias, M no bias and the
+    // variance of the mean V = Var / n. F is shrunk toward M by the
+    // positive-part James-Stein weight w = max(0, 1 - c V' / D^2), D the
+    // luminance difference F - M averaged over the 3x3 static neighbourhood
+    // (a bias is spatially coherent, M's noise is not) and V' its variance
+    // (the neighbours' V summed / count^2): where F departs from M by more
+    // than M's noise explains (c = staticShrinkSigma2 > 1: more conservative),
+    // F's bias shows and the output moves to M. As n
+    // grows V -> 0, so the output tends to the converged accumulation.
+    const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    // The variance of the long mean, from its own samples' moments (every
+    // sample since the last restart: a firefly among them raises it, so that
+    // pixel keeps F).
+    const auto meanVariance = [&](std::size_t j) {
+        const vec2 m = staticMoments_[j];
+        const float v = m.y - m.x * m.x;
+        return (v > 0.f ? v : 0.f) / staticLength_[j];
+    };
+    shrinkDiff_.resize(n);
+    detail::forEachIndex(n, [&](std::size_t i) {
+        shrinkDiff_[i] = static_[i] && staticLength_[i] > 0.f ? luminance(out[i]) - luminance(reprojected_.color[i]) : 0.f;
+    });
+    shrunk_.resize(n);
+    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
+        shrunk_[i] = out[i];
+        if (!static_[i] || !(staticLength_[i] > 0.f)) return;
+        float sumD = 0.f, sumV = 0.f;
+        int count = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int px = x + dx, py = y + dy;
+                if (px < 0 || py < 0 || px >= w || py >= h) continue;
+                const std::size_t j = static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px;
+                if (!static_[j] || !(staticLength_[j] > 0.f)) continue;
+                sumD += shrinkDiff_[j];
+                sumV += meanVariance(j);
+                ++count;
+            }
+        const float d = sumD / static_cast<float>(count);
+        const float v = params_.staticShrinkSigma2 * sumV / static_cast<float>(count * count);
+        const float d2 = d * d;
+        if (!(d2 > v)) return;
+        const float wgt = 1.f - v / d2;
+        shrunk_[i] = out[i] + wgt * (reprojected_.color[i] - out[i]);
+    });
+    std::copy(shrunk_.begin(), shrunk_.end(), out.begin());
+}
+
+void SvgfFilter::convergeStatic(int w, int h) {
+    const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    if (staticColor_.size() != n) {
+        staticColor_.assign(n, vec3(0.f));
+        staticMoments_.assign(n, vec2(0.f));
+        staticLength_.assign(n, 0.f);
+    }
+    // The samples' luminance variance averaged over the 3x3 neighbourhood: a
+    // pixel's own moments can show no variance (a run of equal 1-spp samples).
+    blurredVariance_.resize(n);
+    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
+        float sum = 0.f;
+        int count = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                const int px = x + dx, py = y + dy;
+                if (px < 0 || py < 0 || px >= w || py >= h) continue;
+                sum += variance_[static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px];
+                ++count;
+            }
+        blurredVariance_[i] = sum / static_cast<float>(count);
+    });
+    const float alpha = std::clamp(params_.temporal.alpha, 1e-3f, 1.f);
+    const float momentsAlpha = std::clamp(params_.temporal.momentsAlpha, 1e-3f, 1.f);
+    const float steady = (2.f - alpha) / alpha, steadyMoments = (2.f - momentsAlpha) / momentsAlpha;
+    // The long mean's samples: the input, or its firefly-clamped copy.
+    std::span<const vec3> staticInput = input_;
+    if (params_.staticClampFireflies && !params_.clampFireflies) {
+        clampedInput_.resize(n);
+        clampFireflies(w, h, input_, clampedInput_, params_.firefly);
+        staticInput = clampedInput_;
+    }
+    const float k = params_.staticResetSigma;
+    std::vector<std::uint8_t> reset(n, 0);
+    detail::forEachIndex(n, [&](std::size_t i) {
+        const vec3 fast = reprojected_.color[i];
+        const float fastN = std::clamp(reprojected_.length[i], 1.f, steady);
+        if (!static_[i] || !(staticLength_[i] > 0.f)) {
+            // Not static (or no static history yet): start from the alpha-floored accumulation.
+            staticColor_[i] = fast;
+            staticMoments_[i] = reprojected_.moments[i];
+            staticLength_[i] = static_[i] ? fastN : 0.f;
+            if (static_[i]) variance_[i] /= fastN;
+            return;
+        }
+        const float len = staticLength_[i] + 1.f;
+        const vec3 sample = staticInput[i];
+        const vec3 mean = staticColor_[i] + (sample - staticColor_[i]) / len;
+        // The change test: the long mean against the short-memory luminance moment.
+        const float nm = std::clamp(reprojected_.length[i], 1.f, steadyMoments);
+        const float d = std::fabs(luminance(mean) - reprojected_.moments[i].x);
+        const float tolerance = k * std::sqrt(blurredVariance_[i] * (1.f / nm + 1.f / len));
+        if (d > tolerance && d > 1e-6f * std::fabs(reprojected_.moments[i].x)) {
+            staticColor_[i] = fast;
+            staticMoments_[i] = reprojected_.moments[i];
+            staticLength_[i] = fastN;
+            reset[i] = 1;
+        } else {
+            staticColor_[i] = mean;
+            staticMoments_[i] += (luminanceMoments(sample) - staticMoments_[i]) / len;
+            staticLength_[i] = len;
+        }
+        // The a-trous passes filter the long mean, guided by its variance.
+        reprojected_.color[i] = staticColor_[i];
+        variance_[i] /= staticLength_[i];
+    });
+    staticResets_ = 0;
+    for (std::uint8_t r : reset) staticResets_ += r;
 }
 
 }  // namespace rtlab::denoise

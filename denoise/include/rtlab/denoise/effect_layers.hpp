@@ -45,6 +45,9 @@ struct StackParams {
 
     // SVGF, the paper's set (5 iterations, alpha 0.2, sigma z/n/l 1/128/4).
     static StackParams svgfPaper();
+    // The Svgf stack of `--denoise auto`: the paper's set, and static pixels
+    // keep converging (SvgfParams::convergeStatic; every stack below has it too).
+    static StackParams svgfAuto();
     // Shadows: the paper's set, the footprint from the penumbra, and the
     // history clamped to mean +- 1 sigma of the 5x5 neighbourhood (rtlab:
     // a moving occluder must not leave a ghost shadow).

@@ -39,6 +39,33 @@ struct SvgfParams {
     // view keeps converging instead of settling at the spatial filter's bias.
     // Source: rtlab (off: the paper and Falcor use the samples' variance).
     bool varianceOfMean = false;
+    // Static pixels keep converging. Where the reprojection is exact (the
+    // pixel's history comes from the same pixel, one tap of weight 1: a static
+    // camera over static geometry) a second, unclamped accumulation runs with
+    // alpha = 1/n and no cap on n, and feeds the a-trous passes instead of the
+    // alpha-floored one; their luminance edge-stopping uses the variance of
+    // that mean (the samples' variance / n), so the spatial filter's weights
+    // collapse toward the pixel itself as n grows and the output tends to the
+    // converged accumulation. A change of the signal on a static pixel (a
+    // moving occluder's shadow, a light switched on) is caught by comparing
+    // the long mean's luminance with the short-memory luminance moment
+    // (alpha-floored, unclamped): beyond staticResetSigma standard deviations
+    // of their difference (the samples' variance, 3x3-averaged, times 1/n_m +
+    // 1/n) the long mean restarts from the alpha-floored accumulation. Pixels
+    // whose reprojection is not exact (moving views) are filtered exactly as
+    // without this. Source: rtlab (the anti-lag test follows the idea of
+    // NVIDIA's ReLAX: a fast history guards a slow one).
+    bool convergeStatic = false;
+    float staticResetSigma = 4.f;
+    // The filtered output of a static pixel is shrunk toward the long mean
+    // where their 3x3-averaged luminance difference D exceeds what the mean's
+    // noise explains: weight max(0, 1 - c V' / D^2) with c this (positive-part
+    // James-Stein for c = 1; larger keeps more of the filter). Source: rtlab.
+    float staticShrinkSigma2 = 1.f;
+    // The long mean takes firefly-clamped samples (FireflyClampParams `firefly`)
+    // even when the filtered signal does not: a heavy-tailed signal's rare huge
+    // sample would otherwise stay in it at weight 1/n. Source: rtlab.
+    bool staticClampFireflies = false;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
     FireflyClampParams firefly;
@@ -94,12 +121,22 @@ public:
     std::span<const float> variance() const { return variance_; }
     // The variance after the last a-trous iteration.
     std::span<const float> filteredVariance() const { return filteredVariance_; }
+    // convergeStatic: the length of the static (alpha = 1/n) accumulation per
+    // pixel (0 where the reprojection was not exact), and how many pixels the
+    // change test restarted in the last frame.
+    std::span<const float> staticLength() const { return staticLength_; }
+    std::size_t staticResets() const { return staticResets_; }
     // 1 where the last frame found history by reprojection.
     std::span<const std::uint8_t> reprojectionValid() const { return valid_; }
     // Frames filtered since construction or the last reset.
     std::uint64_t frameCount() const { return frames_; }
 
 private:
+    // convergeStatic's long accumulation and change test (after the variance estimate).
+    void convergeStatic(int width, int height);
+    // convergeStatic's last step: the filtered output shrunk toward the long mean.
+    void shrinkTowardStaticMean(int width, int height, std::span<vec3> out);
+
     SvgfParams params_;
     bool hasHistory_ = false;
     std::uint64_t frames_ = 0;
@@ -112,6 +149,15 @@ private:
     std::vector<float> variance_;
     std::vector<float> filteredVariance_;
     std::vector<std::uint8_t> valid_;
+    std::vector<std::uint8_t> static_;  // 1 where the reprojection is exact
+    std::vector<vec3> staticColor_;      // the alpha = 1/n accumulation (convergeStatic)
+    std::vector<vec2> staticMoments_;   // its luminance moments
+    std::vector<float> staticLength_;
+    std::vector<float> blurredVariance_;
+    std::vector<float> shrinkDiff_;
+    std::vector<vec3> clampedInput_;
+    std::vector<vec3> shrunk_;
+    std::size_t staticResets_ = 0;
     AtrousWorkspace atrousWorkspace_;
 };
 

@@ -1,0 +1,113 @@
+// SvgfParams::convergeStatic (issue 16, item 2) on synthetic frames: the long
+// mean grows without a cap on a static view, a change of the signal on a
+// static pixel restarts it (no ghost), and pixels that move are filtered
+// exactly as without it.
+#include "denoise/denoise_test_util.hpp"
+
+#include <rtlab/denoise/svgf.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace rtlab;
+using namespace rtlab::denoise;
+using namespace rtlab::denoise::testing;
+
+namespace {
+
+SvgfParams staticParams() {
+    SvgfParams p;
+    p.convergeStatic = true;
+    return p;
+}
+
+// Mean squared error of the red channel against `truth` (a ramp's value per pixel).
+template <class F>
+double mse(std::span<const vec3> img, int w, F truth) {
+    double s = 0.0;
+    for (std::size_t i = 0; i < img.size(); ++i) {
+        const double d = double(img[i].r) - truth(int(i % w), int(i / w));
+        s += d * d;
+    }
+    return s / double(img.size());
+}
+
+}  // namespace
+
+TEST(DenoiseStaticConvergence, LongMeanGrowsWithoutCapAndTheErrorKeepsFalling) {
+    // A ramp (which the spatial filter biases) under uniform noise, static view.
+    const int w = 48, h = 32;
+    const GuideBuffers g = flatGuides(w, h);
+    const auto truth = [&](int x, int y) { return 0.2 + 0.6 * double(x) / w + 0.1 * ((x / 6 + y / 6) % 2); };
+    SvgfFilter filter(staticParams());
+    std::vector<vec3> out(g.pixelCount());
+    double at8 = 0, at64 = 0;
+    for (std::uint32_t f = 0; f < 64; ++f) {
+        std::vector<vec3> in(g.pixelCount());
+        for (std::size_t i = 0; i < in.size(); ++i)
+            in[i] = vec3(float(truth(int(i % w), int(i / w))) + 0.8f * uniformNoise(i, f));
+        filter.filter(g, in, out);
+        if (f + 1 == 8) at8 = mse(out, w, truth);
+        if (f + 1 == 64) at64 = mse(out, w, truth);
+    }
+    for (float len : filter.staticLength()) EXPECT_EQ(len, 64.f);  // no cap of 32, no alpha floor
+    EXPECT_EQ(filter.staticResets(), 0u);
+    ASSERT_TRUE(allFinite(out));
+    // The error keeps falling, and after 64 frames it is below that of the
+    // plain mean of the 64 samples (noise variance 0.8^2 / 12 / 64).
+    EXPECT_GT(at8, 0.0);
+    EXPECT_LE(at64, 0.5 * at8) << "after 8 frames " << at8 << ", after 64 " << at64;
+    EXPECT_LE(at64, 0.64 / 12.0 / 64.0) << "after 64 frames " << at64;
+    // The paper's SVGF plateaus on the same frames.
+    SvgfFilter paper;
+    for (std::uint32_t f = 0; f < 64; ++f) {
+        std::vector<vec3> in(g.pixelCount());
+        for (std::size_t i = 0; i < in.size(); ++i)
+            in[i] = vec3(float(truth(int(i % w), int(i / w))) + 0.8f * uniformNoise(i, f));
+        paper.filter(g, in, out);
+    }
+    EXPECT_GT(mse(out, w, truth), at64);
+}
+
+TEST(DenoiseStaticConvergence, AChangeOnAStaticPixelRestartsTheLongMean) {
+    // Static view; at frame 40 the signal steps from 0.2 to 0.8 everywhere (a
+    // light switched on). The change test restarts the long mean within a few
+    // frames. Measured: output mean 0.27 after 5 frames, restarts in frames
+    // 6-8 (0.43 after 8), 0.62 after 16. It lags: a restart takes the fast
+    // history, which on a static pixel follows the filtered long mean (the
+    // feedback tap); a fast history of its own followed the step sooner
+    // (0.64 one frame after the restart) but raised the showcase errors
+    // after 64 frames (shadows 64/8 0.233 -> 0.275, GI 0.232 -> 0.324).
+    const int w = 24, h = 16;
+    const GuideBuffers g = flatGuides(w, h);
+    SvgfFilter filter(staticParams());
+    std::vector<vec3> out(g.pixelCount());
+    std::size_t resets = 0;
+    for (std::uint32_t f = 0; f < 56; ++f) {
+        const std::vector<vec3> in = noisyGrey(g.pixelCount(), f < 40 ? 0.2f : 0.8f, 0.2f, f);
+        filter.filter(g, in, out);
+        if (f >= 40 && f < 48) resets += filter.staticResets();
+    }
+    EXPECT_GE(resets, g.pixelCount() / 2);  // most pixels restart within 8 frames
+    double mean = 0.0;
+    for (const vec3& c : out) mean += c.r;
+    mean /= double(out.size());
+    // Without the restart the long mean after 16 frames would be (40 * 0.2 + 16 * 0.8) / 56 = 0.37.
+    EXPECT_GT(mean, 0.55);
+    EXPECT_LT(mean, 0.85);
+}
+
+TEST(DenoiseStaticConvergence, MovingPixelsAreFilteredAsWithout) {
+    GuideBuffers g = flatGuides(20, 12);
+    g.motion.assign(g.pixelCount(), vec2(0.3f, -0.2f));  // a moving view: 4-tap gathers
+    SvgfFilter with(staticParams()), without;
+    std::vector<vec3> a(g.pixelCount()), b(g.pixelCount());
+    for (std::uint32_t f = 0; f < 12; ++f) {
+        const std::vector<vec3> in = noisyGrey(g.pixelCount(), 0.5f, 0.4f, f);
+        with.filter(g, in, a);
+        without.filter(g, in, b);
+        for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], b[i]) << "frame " << f << " pixel " << i;
+    }
+    for (float len : with.staticLength()) EXPECT_EQ(len, 0.f);
+}
