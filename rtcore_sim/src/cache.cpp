@@ -38,6 +38,8 @@ void NodeCache::prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort
         used_[victim] = ++stamp_;
         prefetched_[victim] = 1;
         ready_[victim] = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
+        if (isDeferred(ready_[victim])) [[unlikely]]
+            port.deferred()->ways.push_back(static_cast<std::uint32_t>(victim));
     }
 }
 
@@ -60,6 +62,9 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
                 prefetched_[i] = 0;
             }
             if (ready_[i] > hitReady) {
+                // A line whose read is deferred: whether this hit is pending is decided when it is answered.
+                if (isDeferred(ready_[i])) [[unlikely]]
+                    return LineFill{ready_[i] | kDeferredHit, 0, 0};
                 ++pendingHits;
                 return LineFill{ready_[i], 0, 0};
             }
@@ -75,6 +80,8 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
     prefetched_[victim] = 0;
     const LineFill fill = port.readLine(line << lineShift_, params_.lineBytes, now);
     ready_[victim] = fill.ready;
+    if (isDeferred(fill.ready)) [[unlikely]]
+        port.deferred()->ways.push_back(static_cast<std::uint32_t>(victim));
     return fill;
 }
 
@@ -84,9 +91,45 @@ LineFill NodeCache::fetch(const MemoryRange& range, std::uint64_t now, MemoryPor
     LineFill done{now, 0, 0};
     for (std::uint64_t line = first; line <= last; ++line) {
         const LineFill f = accessLine(line, now, port);
+        if (isDeferred(f.ready)) [[unlikely]] {
+            // From here on the lines' times are kept as terms: the first is the
+            // latest line so far (the result of the lines before), then one per line.
+            std::vector<LineFill>& terms = port.deferred()->terms;
+            const std::size_t begin = terms.size();
+            terms.push_back(done);
+            terms.push_back(f);
+            for (++line; line <= last; ++line) terms.push_back(accessLine(line, now, port));
+            return LineFill{kDeferred | begin, terms.size() - begin, 0};
+        }
         if (f.ready > done.ready) done = f;
     }
     return done;
+}
+
+LineFill NodeCache::evaluate(std::uint64_t now, const LineFill* terms, std::size_t count, const DeferredReads& reads) {
+    const std::uint64_t hitReady = now + params_.hitLatency;
+    LineFill done = terms[0];
+    for (std::size_t i = 1; i < count; ++i) {
+        LineFill f = terms[i];
+        if (isDeferred(f.ready)) {
+            const LineFill& answer = reads.fills[f.ready & kDeferredIndex];
+            if (!(f.ready & kDeferredHit)) {
+                f = answer;  // the miss that made the read
+            } else if (answer.ready > hitReady) {
+                ++pendingHits;  // a hit on a line still being filled (accessLine's rule)
+                f = LineFill{answer.ready, 0, 0};
+            } else {
+                f = LineFill{hitReady, 0, 0};
+            }
+        }
+        if (f.ready > done.ready) done = f;
+    }
+    return done;
+}
+
+void NodeCache::resolve(const DeferredReads& reads) {
+    for (const std::uint32_t way : reads.ways)
+        if (isDeferred(ready_[way])) ready_[way] = reads.fills[ready_[way] & kDeferredIndex].ready;
 }
 
 SharedL2::SharedL2(const L2Params& l2, const DramParams& dram) : l2_(l2), dram_(dram) {

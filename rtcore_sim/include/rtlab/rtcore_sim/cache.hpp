@@ -76,6 +76,40 @@ struct LineFill {
     std::uint64_t dramCycles = 0;
 };
 
+// Host-parallel epochs (docs/rtcore-model.md, "Host threads"): while the
+// cores run on several host threads, a core's L2 reads are not answered at
+// once but logged, and answered between epochs in the order the serial model
+// makes them (cycle, core index, the core's own order). Until then the
+// data-ready cycle of such a read is a placeholder, kDeferred | read index:
+// in a node-cache way, and in the per-line times of a fetch that waits for
+// it. No decision inside an epoch depends on a placeholder's value (every
+// answer lands after the epoch ends), so the answers, filled in afterwards,
+// give exactly the serial model's cycles.
+inline constexpr std::uint64_t kDeferred = std::uint64_t(1) << 63;
+inline constexpr std::uint64_t kDeferredHit = std::uint64_t(1) << 62;  // fetch term: a hit on such a line
+inline constexpr std::uint64_t kDeferredIndex = 0xffffffffu;
+inline bool isDeferred(std::uint64_t ready) { return (ready & kDeferred) != 0; }
+
+// One core's deferred L2 reads of an epoch and what waits for them.
+struct DeferredReads {
+    struct Read {
+        std::uint64_t cycle;    // when the core made it (the serial order's first key)
+        std::uint64_t address;  // byte address of the node-cache line
+        std::uint64_t arrive;   // end of its transfer slot on the core's port (the L2 arrival)
+    };
+    std::vector<Read> reads;          // in the order made
+    std::vector<LineFill> fills;      // the answers, per read, data at the core (filled between epochs)
+    std::vector<LineFill> terms;      // per-line times of fetches that wait for a deferred read
+    std::vector<std::uint32_t> ways;  // node-cache ways given a placeholder (may repeat)
+    bool empty() const { return reads.empty(); }
+    void clear() {
+        reads.clear();
+        fills.clear();
+        terms.clear();
+        ways.clear();
+    }
+};
+
 // The L2 shared by all cores (l2 mode cache) with the DRAM channels behind it.
 // Banks: line l (address / l2.lineBytes) is in bank l mod banks, set
 // (l / banks) mod setsPerBank; an access occupies its bank l2.bankCycles
@@ -126,9 +160,28 @@ public:
 
     LineFill readLine(std::uint64_t address, std::uint32_t bytes, std::uint64_t now) {
         if (!l2_) return LineFill{channel.read(now, bytes), 0, 0};
-        LineFill f = l2_->access(address, channel.transfer(now, bytes));
-        f.ready += channel.latency();
-        return f;
+        const std::uint64_t arrive = channel.transfer(now, bytes);
+        if (deferred_) [[unlikely]] {
+            const std::uint64_t index = deferred_->reads.size();
+            deferred_->reads.push_back(DeferredReads::Read{now, address, arrive});
+            return LineFill{kDeferred | index, 0, 0};
+        }
+        return atCore(l2_->access(address, arrive));
+    }
+    // The L2's answer to a read, as the time its data is at the core.
+    LineFill atCore(LineFill fromL2) const {
+        fromL2.ready += channel.latency();
+        return fromL2;
+    }
+    // Host-parallel epochs: L2 reads are logged in `reads` instead of
+    // answered (nullptr: answered at once). Mode ideal never defers.
+    void defer(DeferredReads* reads) { deferred_ = l2_ ? reads : nullptr; }
+    DeferredReads* deferred() const { return deferred_; }
+    // The shortest time from a line read made at cycle c to its data at the
+    // core in mode cache: port transfer + L2 hit latency + memory.latency
+    // (a bank wait, DRAM or a busy port only add to it).
+    std::uint64_t minReadLatency(std::uint32_t lineBytes) const {
+        return channel.transferCycles(lineBytes) + std::uint64_t(l2HitLatency_) + channel.latency();
     }
     // Stack refills: mode cache assumes they hit in the L2 (no bank, no allocation).
     std::uint64_t readStack(std::uint64_t now, std::uint32_t bytes) {
@@ -141,6 +194,7 @@ public:
 private:
     SharedL2* l2_;
     std::uint32_t l2HitLatency_;
+    DeferredReads* deferred_ = nullptr;
 };
 
 // Set-associative node cache with LRU replacement. Lines are allocated at
@@ -153,7 +207,16 @@ public:
     // Reads `range` at cycle `now`: every line it touches is looked up in
     // address order, misses go to `port`; returns the cycle all its data is
     // there, with the L2 / DRAM parts of the line that came last.
+    // With deferred L2 reads (MemoryPort::defer), a fetch that waits for one
+    // returns {kDeferred | first term, term count, 0}: its per-line times are
+    // port.deferred()->terms[first, first + count), to be evaluated by
+    // evaluate() once the reads are answered.
     LineFill fetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port);
+    // The result of a deferred fetch made at `now`, the reads answered
+    // (counts its pending hits, as fetch() would have).
+    LineFill evaluate(std::uint64_t now, const LineFill* terms, std::size_t count, const DeferredReads& reads);
+    // Replaces the placeholders of answered reads in the cache's ways.
+    void resolve(const DeferredReads& reads);
     // One line (address / lineBytes) at `now`: the cycle its data is there.
     LineFill accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port);
 
