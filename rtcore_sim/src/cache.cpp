@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <numeric>
 #include <stdexcept>
 
 namespace rtlab::rtcore_sim {
@@ -147,6 +148,7 @@ SharedL2::SharedL2(const L2Params& l2, const DramParams& dram) : l2_(l2), dram_(
     channelFree_.assign(dram.channels, 0);
     bankBusyCycles.assign(l2.banks, 0);
     channelBusyCycles.assign(dram.channels, 0);
+    classes_ = std::gcd(l2.banks, dram.channels);
 }
 
 void SharedL2::invalidate() {
@@ -155,8 +157,8 @@ void SharedL2::invalidate() {
 }
 
 void SharedL2::resetStats() {
-    accesses = hits = pendingHits = misses = evictions = invalidations = 0;
-    bankConflicts = bankWaitCycles = dramReads = dramReadBytes = dramQueueCycles = 0;
+    counters = L2Counters{};
+    invalidations = 0;
     std::fill(bankBusyCycles.begin(), bankBusyCycles.end(), 0);
     std::fill(channelBusyCycles.begin(), channelBusyCycles.end(), 0);
 }
@@ -166,15 +168,16 @@ void SharedL2::resetTime() {
     std::fill(channelFree_.begin(), channelFree_.end(), 0);
 }
 
-LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
-    ++accesses;
+LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp) {
+    L2Counters& c = counts;
+    ++c.accesses;
     const std::uint64_t line = address >> lineShift_;
     const std::uint32_t bank = static_cast<std::uint32_t>(line % l2_.banks);
     // Step: the bank, first come first served in request order.
     const std::uint64_t start = std::max(arrive, bankFree_[bank]);
     if (start > arrive) {
-        ++bankConflicts;
-        bankWaitCycles += start - arrive;
+        ++c.bankConflicts;
+        c.bankWaitCycles += start - arrive;
     }
     bankFree_[bank] = start + l2_.bankCycles;
     bankBusyCycles[bank] += l2_.bankCycles;
@@ -186,10 +189,10 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
     std::size_t victim = base;
     for (std::size_t i = base; i < base + l2_.ways; ++i) {
         if (tags_[i] == line) {
-            ++hits;
-            used_[i] = ++stamp_;
+            ++c.hits;
+            used_[i] = ++stamp;
             if (ready_[i] > tagDone) {  // still being filled: wait for DRAM
-                ++pendingHits;
+                ++c.pendingHits;
                 return LineFill{ready_[i], tagDone - arrive, ready_[i] - tagDone};
             }
             return LineFill{tagDone, tagDone - arrive, 0};
@@ -197,18 +200,18 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
         if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
     }
     // Step: a miss reads the whole line from its DRAM channel.
-    ++misses;
-    if (tags_[victim] != kInvalid) ++evictions;
+    ++c.misses;
+    if (tags_[victim] != kInvalid) ++c.evictions;
     const std::uint32_t channel = static_cast<std::uint32_t>(line % dram_.channels);
     const std::uint64_t dramStart = std::max(tagDone, channelFree_[channel]);
     channelFree_[channel] = dramStart + dramTransfer_;
     channelBusyCycles[channel] += dramTransfer_;
-    dramQueueCycles += dramStart - tagDone;
-    ++dramReads;
-    dramReadBytes += l2_.lineBytes;
+    c.dramQueueCycles += dramStart - tagDone;
+    ++c.dramReads;
+    c.dramReadBytes += l2_.lineBytes;
     const std::uint64_t filled = dramStart + dramTransfer_ + dram_.latency;
     tags_[victim] = line;
-    used_[victim] = ++stamp_;
+    used_[victim] = ++stamp;
     ready_[victim] = filled;
     return LineFill{filled, tagDone - arrive, filled - tagDone};
 }

@@ -395,6 +395,7 @@ struct alignas(64) Core {
     };
     DeferredReads deferredReads;
     std::vector<DeferredFetch> deferredFetches;
+    std::uint64_t deferredReady = kNever;  // the earliest answer to deferredReads (once answered)
     std::exception_ptr error;  // a side callback threw in a host-parallel epoch
     std::uint64_t errorCycle = 0;
 
@@ -531,6 +532,7 @@ struct alignas(64) Core {
         }
         deferredFetches.clear();
         deferredReads.clear();
+        deferredReady = kNever;
     }
 
     void onFetchDone(std::uint32_t slot, std::uint64_t c) {
@@ -799,6 +801,7 @@ struct alignas(64) Core {
         activity.clear();
         deferredReads.clear();
         deferredFetches.clear();
+        deferredReady = kNever;
         error = nullptr;
     }
     // Returns the warp's position in this core's list.
@@ -870,6 +873,7 @@ struct alignas(64) Core {
     void abortBatch(std::uint64_t now) {
         deferredFetches.clear();
         deferredReads.clear();
+        deferredReady = kNever;
         wheel.clear();
         policy = makeSchedulerPolicy(config.scheduler);
         readyCount = 0;
@@ -902,6 +906,7 @@ struct alignas(64) Core {
         nextAge = 0;
         deferredFetches.clear();
         deferredReads.clear();
+        deferredReady = kNever;
         wheel.clear();
         wheel.advance(0);
         cache.invalidate();
@@ -1105,11 +1110,17 @@ struct RtCore::Impl {
     std::unique_ptr<SharedL2> l2;  // l2 mode cache only
     std::vector<std::unique_ptr<Core>> cores;
     std::vector<std::size_t> cursor;  // scratch: per core, a position in its log (mergeByCycle)
+    struct alignas(64) L2Group {  // one host thread's share of answering L2 reads (answerL2Reads)
+        L2Counters counters;
+        std::uint64_t stamp = 0;
+        std::vector<std::uint64_t> ready;  // per core: the earliest answer to its reads
+        std::vector<std::size_t> cursor;
+    };
+    std::vector<L2Group> l2Groups;
     bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
     std::uint64_t now = 0;    // the clock between batches
     std::uint64_t clock = 0;  // the cycle being simulated during a batch
     std::uint64_t frameStart = 0, batches = 0;
-    std::vector<std::size_t> scratchSizes;
 
     Impl(const RtCoreConfig& cfg, const ModelScene& s) : config(cfg), scene(s) {
         if (config.l2.mode == L2Mode::Cache) l2 = std::make_unique<SharedL2>(config.l2, config.dram);
@@ -1144,22 +1155,24 @@ struct RtCore::Impl {
 
     // Visits, in the serial model's order (cycle, then core index, then the
     // core's own order), the entries of per-core logs that are each sorted by
-    // cycle: visitor(core, entry index).
-    template <class CycleOf, class Visitor>
-    void mergeByCycle(const CycleOf& cycleOf, const std::vector<std::size_t>& sizes, Visitor&& visitor) {
+    // cycle: visitor(core, entry index). `cursor` is scratch, one per core.
+    template <class CycleOf, class SizeOf, class Visitor>
+    void mergeByCycle(std::vector<std::size_t>& cursor, const CycleOf& cycleOf, const SizeOf& sizeOf,
+                      Visitor&& visitor) const {
         const std::size_t n = cores.size();
         cursor.assign(n, 0);
         for (;;) {
             std::size_t best = n;
             std::uint64_t bestCycle = ~std::uint64_t(0);
             for (std::size_t k = 0; k < n; ++k)
-                if (cursor[k] < sizes[k] && (best == n || cycleOf(k, cursor[k]) < bestCycle)) {
+                if (cursor[k] < sizeOf(k) && (best == n || cycleOf(k, cursor[k]) < bestCycle)) {
                     best = k;
                     bestCycle = cycleOf(k, cursor[k]);
                 }
             if (best == n) return;
             // This core's entries of that cycle, then the next core's.
-            while (cursor[best] < sizes[best] && cycleOf(best, cursor[best]) == bestCycle) visitor(best, cursor[best]++);
+            const std::size_t size = sizeOf(best);
+            while (cursor[best] < size && cycleOf(best, cursor[best]) == bestCycle) visitor(best, cursor[best]++);
         }
     }
 
@@ -1190,6 +1203,13 @@ struct RtCore::Impl {
             core->port.defer(deferring ? &core->deferredReads : nullptr);
         }
         const std::size_t groups = parallel ? std::min<std::size_t>(hostThreads(), n) : 1;
+        // One core's part of an epoch: first the answers of the previous
+        // epoch's L2 reads, then its cycles of this one.
+        const auto runCore = [&](Core& core, std::uint64_t end) {
+            core.resolveDeferred();
+            core.settle(everyCycle);
+            core.runEpochCatching(end, everyCycle);
+        };
         std::uint64_t epoch = now;
         for (;;) {
             clock = epoch;
@@ -1197,23 +1217,28 @@ struct RtCore::Impl {
             if (!parallel) {
                 for (auto& core : cores) core->runEpoch(end, everyCycle);  // throws through
             } else if (groups == 1) {
-                for (auto& core : cores) core->runEpochCatching(end, everyCycle);
+                for (auto& core : cores) runCore(*core, end);
             } else {
                 parallelForEach(groups, [&](std::size_t g) {
-                    for (std::size_t k = g; k < n; k += groups) cores[k]->runEpochCatching(end, everyCycle);
+                    for (std::size_t k = g; k < n; k += groups) runCore(*cores[k], end);
                 });
             }
-            if (deferring) answerL2Reads();
+            if (deferring) answerL2Reads(groups);
+            // The next epoch starts at the earliest cycle any core may act in:
+            // its next active cycle so far, or the earliest answer to its reads
+            // (a fetch waiting for one is done at or after it).
             epoch = kNever;
             bool allDone = true, failed = false;
             for (auto& core : cores) {
-                core->settle(everyCycle);
-                epoch = std::min(epoch, core->visit);
+                epoch = std::min({epoch, core->visit, core->deferredReady});
                 allDone = allDone && core->done();
                 failed = failed || core->error;
             }
-            if (failed) rethrowFirstError();
-            if (allDone) break;
+            if (failed || allDone) {
+                for (auto& core : cores) core->resolveDeferred();  // placeholders out of the node caches
+                if (failed) rethrowFirstError();
+                break;
+            }
             if (epoch == kNever) throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
         }
         // The batch ends when its last result is returned.
@@ -1224,22 +1249,47 @@ struct RtCore::Impl {
     }
 
     // Between epochs: the epoch's L2 reads of all cores, answered in the
-    // serial model's order; then each core takes its answers.
-    void answerL2Reads() {
-        std::vector<std::size_t>& sizes = scratchSizes;
-        sizes.resize(cores.size());
-        for (std::size_t k = 0; k < cores.size(); ++k) {
-            DeferredReads& d = cores[k]->deferredReads;
-            sizes[k] = d.reads.size();
-            d.fills.resize(d.reads.size());
+    // serial model's order (each core takes its answers in its next task).
+    // Reads of different line classes (SharedL2::classOf) touch disjoint
+    // banks, sets and DRAM channels: with several host threads, group g
+    // answers the reads of the classes c with c mod groups = g, each group in
+    // the serial order, with its own counters and LRU stamps.
+    void answerL2Reads(std::size_t threads) {
+        const std::size_t n = cores.size();
+        for (auto& core : cores) core->deferredReads.fills.resize(core->deferredReads.reads.size());
+        const std::size_t groups = std::min<std::size_t>(threads, l2->classes());
+        if (l2Groups.size() < groups) l2Groups.resize(groups);
+        const auto answer = [&](std::size_t g, bool all) {
+            L2Group& group = l2Groups[g];
+            group.counters = L2Counters{};
+            group.stamp = l2->stamp();
+            group.ready.assign(n, Core::kNever);
+            group.cursor.assign(n, 0);
+            mergeByCycle(group.cursor, [&](std::size_t k, std::size_t i) { return cores[k]->deferredReads.reads[i].cycle; },
+                         [&](std::size_t k) { return cores[k]->deferredReads.reads.size(); },
+                         [&](std::size_t k, std::size_t i) {
+                             DeferredReads& d = cores[k]->deferredReads;
+                             const DeferredReads::Read& r = d.reads[i];
+                             if (!all && l2->classOf(r.address) % groups != g) return;
+                             const LineFill f =
+                                 cores[k]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
+                             d.fills[i] = f;
+                             group.ready[k] = std::min(group.ready[k], f.ready);
+                         });
+        };
+        if (groups <= 1) {
+            answer(0, true);
+        } else {
+            parallelForEach(groups, [&](std::size_t g) { answer(g, false); });
         }
-        mergeByCycle([&](std::size_t k, std::size_t i) { return cores[k]->deferredReads.reads[i].cycle; }, sizes,
-                     [&](std::size_t k, std::size_t i) {
-                         Core& core = *cores[k];
-                         const DeferredReads::Read& r = core.deferredReads.reads[i];
-                         core.deferredReads.fills[i] = core.port.atCore(l2->access(r.address, r.arrive));
-                     });
-        for (auto& core : cores) core->resolveDeferred();
+        std::uint64_t stamp = l2->stamp();
+        for (std::size_t g = 0; g < std::max<std::size_t>(groups, 1); ++g) {
+            const L2Group& group = l2Groups[g];
+            l2->counters.add(group.counters);
+            stamp = std::max(stamp, group.stamp);
+            for (std::size_t k = 0; k < n; ++k) cores[k]->deferredReady = std::min(cores[k]->deferredReady, group.ready[k]);
+        }
+        l2->setStamp(stamp);
     }
 
     // A side callback threw in a host-parallel epoch: every core has run to the
@@ -1273,10 +1323,8 @@ struct RtCore::Impl {
                 w = RayTypeWork{};
             }
         }
-        std::vector<std::size_t>& sizes = scratchSizes;
-        sizes.resize(cores.size());
-        for (std::size_t k = 0; k < cores.size(); ++k) sizes[k] = cores[k]->activity.size();
-        mergeByCycle([&](std::size_t k, std::size_t i) { return cores[k]->activity[i].cycle; }, sizes,
+        mergeByCycle(cursor, [&](std::size_t k, std::size_t i) { return cores[k]->activity[i].cycle; },
+                     [&](std::size_t k) { return cores[k]->activity.size(); },
                      [&](std::size_t k, std::size_t i) {
                          const Activity& a = cores[k]->activity[i];
                          RayTypeStats& r = batch.rayTypes[a.type];
@@ -1429,15 +1477,15 @@ nlohmann::json RtCore::Impl::statsJson() const {
         const std::uint64_t bankMax = *std::max_element(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end());
         l2j["sizeBytes"] = config.l2.sizeBytes;
         l2j["banks"] = config.l2.banks;
-        l2j["accesses"] = l2->accesses;
-        l2j["hits"] = l2->hits;
-        l2j["pendingHits"] = l2->pendingHits;
-        l2j["misses"] = l2->misses;
-        l2j["evictions"] = l2->evictions;
+        l2j["accesses"] = l2->counters.accesses;
+        l2j["hits"] = l2->counters.hits;
+        l2j["pendingHits"] = l2->counters.pendingHits;
+        l2j["misses"] = l2->counters.misses;
+        l2j["evictions"] = l2->counters.evictions;
         l2j["invalidations"] = l2->invalidations;
-        l2j["hitRate"] = rate(double(l2->hits), double(l2->accesses));
-        l2j["bankConflicts"] = l2->bankConflicts;
-        l2j["bankWaitCycles"] = l2->bankWaitCycles;
+        l2j["hitRate"] = rate(double(l2->counters.hits), double(l2->counters.accesses));
+        l2j["bankConflicts"] = l2->counters.bankConflicts;
+        l2j["bankWaitCycles"] = l2->counters.bankWaitCycles;
         l2j["bankBusyCycles"] = bankBusy;
         l2j["busiestBankBusyCycles"] = bankMax;
         l2j["bankUtilization"] = rate(double(bankBusy), double(cycles) * config.l2.banks);
@@ -1445,13 +1493,13 @@ nlohmann::json RtCore::Impl::statsJson() const {
         const std::uint64_t chBusy =
             std::accumulate(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end(), std::uint64_t(0));
         const std::uint64_t chMax = *std::max_element(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end());
-        dram["reads"] = l2->dramReads;
-        dram["readBytes"] = l2->dramReadBytes;
+        dram["reads"] = l2->counters.dramReads;
+        dram["readBytes"] = l2->counters.dramReadBytes;
         dram["busyCycles"] = chBusy;
         dram["busiestChannelBusyCycles"] = chMax;
-        dram["queueCycles"] = l2->dramQueueCycles;
+        dram["queueCycles"] = l2->counters.dramQueueCycles;
         dram["utilization"] = rate(double(chBusy), double(cycles) * config.dram.channels);
-        dram["bytesPerCycle"] = rate(double(l2->dramReadBytes), double(cycles));
+        dram["bytesPerCycle"] = rate(double(l2->counters.dramReadBytes), double(cycles));
     } else {
         l2j["accesses"] = all.cacheMisses;
         l2j["hits"] = all.cacheMisses;

@@ -118,22 +118,53 @@ struct DeferredReads {
 // allocates the line (LRU victim) and reads it from DRAM channel l mod channels
 // from max(start + hitLatency, channel free), for ceil(l2.lineBytes /
 // dram.bytesPerCycle) cycles; the line is there dram.latency cycles later.
+// Counters of the L2 and the DRAM behind it.
+struct L2Counters {
+    std::uint64_t accesses = 0, hits = 0, pendingHits = 0, misses = 0, evictions = 0;
+    std::uint64_t bankConflicts = 0;   // accesses that found their bank busy
+    std::uint64_t bankWaitCycles = 0;  // sum of their waits
+    std::uint64_t dramReads = 0, dramReadBytes = 0, dramQueueCycles = 0;
+    void add(const L2Counters& o) {
+        accesses += o.accesses;
+        hits += o.hits;
+        pendingHits += o.pendingHits;
+        misses += o.misses;
+        evictions += o.evictions;
+        bankConflicts += o.bankConflicts;
+        bankWaitCycles += o.bankWaitCycles;
+        dramReads += o.dramReads;
+        dramReadBytes += o.dramReadBytes;
+        dramQueueCycles += o.dramQueueCycles;
+    }
+};
+
 class SharedL2 {
 public:
     SharedL2(const L2Params& l2, const DramParams& dram);
 
-    LineFill access(std::uint64_t address, std::uint64_t arrive);
+    LineFill access(std::uint64_t address, std::uint64_t arrive) { return access(address, arrive, counters, stamp_); }
+    // Lines of different classes (line mod classes(), classes = gcd(banks,
+    // channels)) share no bank, no set and no DRAM channel, so the accesses
+    // of different classes may be made on different host threads, each with
+    // its own counters (added to `counters` afterwards) and LRU stamp (started
+    // at stamp(), the largest given back with setStamp: only the order of the
+    // stamps within a set matters).
+    LineFill access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp);
+    std::uint32_t classes() const { return classes_; }
+    std::uint32_t classOf(std::uint64_t address) const {
+        return static_cast<std::uint32_t>((address >> lineShift_) % classes_);
+    }
+    std::uint64_t stamp() const { return stamp_; }
+    void setStamp(std::uint64_t stamp) { stamp_ = stamp; }
     void invalidate();
     void resetStats();
     void resetTime();
     std::uint32_t banks() const { return l2_.banks; }
     std::uint32_t channels() const { return dram_.channels; }
 
-    std::uint64_t accesses = 0, hits = 0, pendingHits = 0, misses = 0, evictions = 0, invalidations = 0;
-    std::uint64_t bankConflicts = 0;   // accesses that found their bank busy
-    std::uint64_t bankWaitCycles = 0;  // sum of their waits
+    L2Counters counters;
+    std::uint64_t invalidations = 0;
     std::vector<std::uint64_t> bankBusyCycles;
-    std::uint64_t dramReads = 0, dramReadBytes = 0, dramQueueCycles = 0;
     std::vector<std::uint64_t> channelBusyCycles;
 
 private:
@@ -143,6 +174,7 @@ private:
     std::uint32_t setsPerBank_ = 1;
     std::uint32_t lineShift_ = 7;
     std::uint32_t dramTransfer_ = 1;
+    std::uint32_t classes_ = 1;
     std::vector<std::uint64_t> tags_, ready_, used_;  // per way, [bank][set][way]
     std::vector<std::uint64_t> bankFree_, channelFree_;
     std::uint64_t stamp_ = 0;
