@@ -1251,39 +1251,43 @@ struct RtCore::Impl {
     // Between epochs: the epoch's L2 reads of all cores, answered in the
     // serial model's order (each core takes its answers in its next task).
     // Reads of different line classes (SharedL2::classOf) touch disjoint
-    // banks, sets and DRAM channels: with several host threads, group g
-    // answers the reads of the classes c with c mod groups = g, each group in
-    // the serial order, with its own counters and LRU stamps.
+    // banks, sets and DRAM channels, so only the order within a class
+    // matters: with several host threads, group g answers the classes c with
+    // c mod groups = g, each in the serial order, with its own counters and
+    // LRU stamps.
     void answerL2Reads(std::size_t threads) {
         const std::size_t n = cores.size();
+        const std::size_t classes = l2->classes();
         for (auto& core : cores) core->deferredReads.fills.resize(core->deferredReads.reads.size());
-        const std::size_t groups = std::min<std::size_t>(threads, l2->classes());
+        const std::size_t groups = std::max<std::size_t>(1, std::min(threads, classes));
         if (l2Groups.size() < groups) l2Groups.resize(groups);
-        const auto answer = [&](std::size_t g, bool all) {
+        const auto answer = [&](std::size_t g) {
             L2Group& group = l2Groups[g];
             group.counters = L2Counters{};
             group.stamp = l2->stamp();
             group.ready.assign(n, Core::kNever);
-            group.cursor.assign(n, 0);
-            mergeByCycle(group.cursor, [&](std::size_t k, std::size_t i) { return cores[k]->deferredReads.reads[i].cycle; },
-                         [&](std::size_t k) { return cores[k]->deferredReads.reads.size(); },
-                         [&](std::size_t k, std::size_t i) {
-                             DeferredReads& d = cores[k]->deferredReads;
-                             const DeferredReads::Read& r = d.reads[i];
-                             if (!all && l2->classOf(r.address) % groups != g) return;
-                             const LineFill f =
-                                 cores[k]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
-                             d.fills[i] = f;
-                             group.ready[k] = std::min(group.ready[k], f.ready);
-                         });
+            for (std::size_t c = g; c < classes; c += groups)
+                mergeByCycle(
+                    group.cursor,
+                    [&](std::size_t k, std::size_t i) {
+                        const DeferredReads& d = cores[k]->deferredReads;
+                        return d.reads[d.byClass[c][i]].cycle;
+                    },
+                    [&](std::size_t k) { return cores[k]->deferredReads.byClass[c].size(); },
+                    [&](std::size_t k, std::size_t i) {
+                        DeferredReads& d = cores[k]->deferredReads;
+                        const std::uint32_t index = d.byClass[c][i];
+                        const DeferredReads::Read& r = d.reads[index];
+                        const LineFill f =
+                            cores[k]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
+                        d.fills[index] = f;
+                        group.ready[k] = std::min(group.ready[k], f.ready);
+                    });
         };
-        if (groups <= 1) {
-            answer(0, true);
-        } else {
-            parallelForEach(groups, [&](std::size_t g) { answer(g, false); });
-        }
+        if (groups == 1) answer(0);
+        else parallelForEach(groups, answer);
         std::uint64_t stamp = l2->stamp();
-        for (std::size_t g = 0; g < std::max<std::size_t>(groups, 1); ++g) {
+        for (std::size_t g = 0; g < groups; ++g) {
             const L2Group& group = l2Groups[g];
             l2->counters.add(group.counters);
             stamp = std::max(stamp, group.stamp);

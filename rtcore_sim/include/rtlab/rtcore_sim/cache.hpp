@@ -98,12 +98,14 @@ struct DeferredReads {
         std::uint64_t arrive;   // end of its transfer slot on the core's port (the L2 arrival)
     };
     std::vector<Read> reads;          // in the order made
+    std::vector<std::vector<std::uint32_t>> byClass;  // per L2 line class (SharedL2::classOf): its reads, in order
     std::vector<LineFill> fills;      // the answers, per read, data at the core (filled between epochs)
     std::vector<LineFill> terms;      // per-line times of fetches that wait for a deferred read
     std::vector<std::uint32_t> ways;  // node-cache ways given a placeholder (may repeat)
     bool empty() const { return reads.empty(); }
     void clear() {
         reads.clear();
+        for (auto& c : byClass) c.clear();
         fills.clear();
         terms.clear();
         ways.clear();
@@ -196,6 +198,7 @@ public:
         if (deferred_) [[unlikely]] {
             const std::uint64_t index = deferred_->reads.size();
             deferred_->reads.push_back(DeferredReads::Read{now, address, arrive});
+            deferred_->byClass[l2_->classOf(address)].push_back(static_cast<std::uint32_t>(index));
             return LineFill{kDeferred | index, 0, 0};
         }
         return atCore(l2_->access(address, arrive));
@@ -207,7 +210,10 @@ public:
     }
     // Host-parallel epochs: L2 reads are logged in `reads` instead of
     // answered (nullptr: answered at once). Mode ideal never defers.
-    void defer(DeferredReads* reads) { deferred_ = l2_ ? reads : nullptr; }
+    void defer(DeferredReads* reads) {
+        deferred_ = l2_ ? reads : nullptr;
+        if (deferred_) deferred_->byClass.resize(l2_->classes());
+    }
     DeferredReads* deferred() const { return deferred_; }
     // The shortest time from a line read made at cycle c to its data at the
     // core in mode cache: port transfer + L2 hit latency + memory.latency
