@@ -11,6 +11,8 @@
 // Cycles in which no core can do anything in phases 2-5 are skipped: the
 // clock jumps to the next event of any core. Misses of a core's node cache go
 // through its memory port and, in l2 mode cache, to the shared L2 and DRAM.
+// With a side that allows concurrent callbacks the cores run in host-parallel
+// epochs instead (simulate): same cycles and statistics, several threads.
 #include <rtlab/core/error.hpp>
 #include <rtlab/rtcore_sim/cache.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
