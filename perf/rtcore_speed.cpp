@@ -13,13 +13,20 @@
 //                         test the model uses), 0 = Embree's native triangles
 //   BM_RtCoreGpu8         the GPU level (issue 14): 8 cores, l2.mode cache, on
 //                         showcase (0) and a 10^6-triangle terrain (1), primary (0)
-//                         and bounce (1) rays; BM_EmbreeIntersect1Scene: Embree on
-//                         the terrain's rays
-// All on one thread; perf/summarize.py turns rays_per_s into
-// rtcore_speed_vs_embree_{primary,bounce}[_native] (issue goal: >= 0.125) and
-// rtcore_speed_gpu8_vs_embree_{showcase,terrain1m}_{primary,bounce} (issue 14 goal: >= 0.1).
+//                         and bounce (1) rays; third argument: host threads —
+//                         0 = the serial model (a side that does not allow
+//                         concurrent callbacks: one thread, cycle by cycle),
+//                         1 / 2 = host-parallel epochs on that many threads
+//                         (rtlab::ThreadLimit). CPU time is the process's (all
+//                         threads); BM_EmbreeIntersect1Scene: Embree on the
+//                         terrain's rays
+// All on one thread except BM_RtCoreGpu8/*/*/2; perf/summarize.py turns rays_per_s into
+// rtcore_speed_vs_embree_{primary,bounce}[_native] (issue goal: >= 0.125),
+// rtcore_speed_gpu8_vs_embree_{showcase,terrain1m}_{primary,bounce} (one host thread, issue 14 goal: >= 0.1)
+// and rtcore_speed_gpu8_2t_vs_1t_* (issue 14 goal: >= 1.6).
 #include "bench_scenes.hpp"
 
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/rtcore_sim/rtcore.hpp>
 #include <rtlab/rtcore_sim/workloads.hpp>
 
@@ -147,19 +154,31 @@ void BM_EmbreeIntersect1Scene(benchmark::State& state) {
     embreeLoop(state, w.scene.accel->tlas(), w.rays(state.range(1)));
 }
 
+// OpaqueSide without concurrent callbacks: RtCore runs the serial model.
+struct SerialOpaqueSide final : ProgrammableSide {
+    CandidateVerdict triangle(std::uint32_t, const TriangleCandidate&) override { return {}; }
+    ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return {}; }
+};
+
 // The GPU level: 8 cores, L2 in mode cache, batches of 8192 rays (32 warps
-// per core), cold GPU per iteration, one host thread; workload range(0), rays range(1).
+// per core), cold GPU per iteration; workload range(0), rays range(1), host
+// threads range(2) (0 = the serial model on one thread).
 void BM_RtCoreGpu8(benchmark::State& state) {
     const Workload& w = workload(state.range(0));
     const std::vector<SimRay>& rays = w.rays(state.range(1));
+    const int threads = static_cast<int>(state.range(2));
+    const ThreadLimit limit(std::max(threads, 1));
     RtCoreConfig config = w.config;
     config.gpu.cores = 8;
     config.l2.mode = L2Mode::Cache;
     state.SetLabel(std::string(state.range(0) == 0 ? "showcase " : "terrain1M ") +
-                   (state.range(1) == 0 ? "primary" : "bounce"));
+                   (state.range(1) == 0 ? "primary " : "bounce ") +
+                   (threads == 0 ? "serial" : std::to_string(threads) + "t"));
     RtCore gpu(config, *w.model);
     std::vector<SimRayResult> results(rays.size());
-    OpaqueSide side;
+    OpaqueSide parallelSide;
+    SerialOpaqueSide serialSide;
+    ProgrammableSide& side = threads == 0 ? static_cast<ProgrammableSide&>(serialSide) : parallelSide;
     constexpr std::size_t kGpuBatch = 8192;
     for (auto _ : state) {
         gpu.reset();
@@ -206,6 +225,6 @@ void embreeLoop(benchmark::State& state, RTCScene tlas, const std::vector<SimRay
 BENCHMARK(BM_RtCoreTimingModel)->ArgsProduct({{0, 1}, {0, 1, 2}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RtCoreFunctional)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EmbreeIntersect1)->ArgsProduct({{0, 1}, {1, 0}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_RtCoreGpu8)->ArgsProduct({{0, 1}, {0, 1}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreGpu8)->ArgsProduct({{0, 1}, {0, 1}, {0, 1, 2}})->MinTime(1.0)->UseRealTime()->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EmbreeIntersect1Scene)->ArgsProduct({{1}, {0, 1}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

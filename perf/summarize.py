@@ -5,7 +5,7 @@ Where a benchmark ran several repetitions, its fastest one counts."""
 import json, math, pathlib, re, sys
 
 out = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench")
-times, rates, model = {}, {}, {}
+times, rates, model, cpu_over_wall = {}, {}, {}, {}
 terrain_scaling = []  # perf/scalable_scenes.cpp: one entry per terrain size
 denoise_times = {}  # (benchmark, args...) -> ms, from perf/denoise_speed.cpp
 for f in sorted(out.glob("*.json")):
@@ -19,6 +19,10 @@ for f in sorted(out.glob("*.json")):
         times[b["name"]] = min(b["real_time"], times.get(b["name"], float("inf")))
         if "rays_per_s" in b:
             rates[b["name"]] = max(b["rays_per_s"], rates.get(b["name"], 0.0))
+        if b["name"].startswith("BM_RtCoreGpu8/") and b.get("real_time"):
+            # CPU time (the process's, all threads) over wall time of the fastest repetition
+            if b["real_time"] <= times[b["name"]]:
+                cpu_over_wall[b["name"]] = b["cpu_time"] / b["real_time"]
         if b["name"].startswith("BM_Denoise"):
             m = re.match(r"(BM_Denoise\w+)((?:/\d+)*)", b["name"])
             scale = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b.get("time_unit", "ns")]
@@ -32,6 +36,9 @@ for f in sorted(out.glob("*.json")):
 
 def ratio(num, den, table):
     return table[num] / table[den] if num in table and den in table and table[den] else None
+
+def gpu8(workload, rays, threads):  # perf/rtcore_speed.cpp BM_RtCoreGpu8 (threads 0 = the serial model)
+    return f"BM_RtCoreGpu8/{workload}/{rays}/{threads}/min_time:1.000/process_time/real_time"
 
 def b(name, threads, watertight):
     return f"{name}/{threads}/{watertight}/min_time:1.000/real_time"
@@ -65,10 +72,18 @@ summary = {
     "rtcore_speed_vs_embree_primary_native_triangles": ratio("BM_RtCoreTimingModel/0/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/0/min_time:1.000/real_time", rates),
     "rtcore_speed_vs_embree_bounce_native_triangles": ratio("BM_RtCoreTimingModel/1/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/0/min_time:1.000/real_time", rates),
     # GPU level (issue 14): 8 simulated cores with the L2 in mode cache, one host thread (goal >= 0.1).
-    "rtcore_speed_gpu8_vs_embree_showcase_primary": ratio("BM_RtCoreGpu8/0/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
-    "rtcore_speed_gpu8_vs_embree_showcase_bounce": ratio("BM_RtCoreGpu8/0/1/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
-    "rtcore_speed_gpu8_vs_embree_terrain1m_primary": ratio("BM_RtCoreGpu8/1/0/min_time:1.000/real_time", "BM_EmbreeIntersect1Scene/1/0/min_time:1.000/real_time", rates),
-    "rtcore_speed_gpu8_vs_embree_terrain1m_bounce": ratio("BM_RtCoreGpu8/1/1/min_time:1.000/real_time", "BM_EmbreeIntersect1Scene/1/1/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_showcase_primary": ratio(gpu8(0, 0, 1), "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_showcase_bounce": ratio(gpu8(0, 1, 1), "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_terrain1m_primary": ratio(gpu8(1, 0, 1), "BM_EmbreeIntersect1Scene/1/0/min_time:1.000/real_time", rates),
+    "rtcore_speed_gpu8_vs_embree_terrain1m_bounce": ratio(gpu8(1, 1, 1), "BM_EmbreeIntersect1Scene/1/1/min_time:1.000/real_time", rates),
+    # Host-parallel epochs: 2 host threads over 1 (goal >= 1.6), and over the serial model (one thread, cycle by cycle).
+    **{f"rtcore_speed_gpu8_2t_vs_1t_{scene}_{rays}": ratio(gpu8(w, r, 2), gpu8(w, r, 1), rates)
+       for w, scene in ((0, "showcase"), (1, "terrain1m")) for r, rays in ((0, "primary"), (1, "bounce"))},
+    **{f"rtcore_speed_gpu8_2t_vs_serial_{scene}_{rays}": ratio(gpu8(w, r, 2), gpu8(w, r, 0), rates)
+       for w, scene in ((0, "showcase"), (1, "terrain1m")) for r, rays in ((0, "primary"), (1, "bounce"))},
+    # Process CPU time over wall time of the 2-thread runs (2.0 = both threads busy throughout).
+    **{f"rtcore_gpu8_2t_cpu_vs_wall_{scene}_{rays}": cpu_over_wall.get(gpu8(w, r, 2))
+       for w, scene in ((0, "showcase"), (1, "terrain1m")) for r, rays in ((0, "primary"), (1, "bounce"))},
     "rtcore_functional_vs_embree_primary": ratio("BM_RtCoreFunctional/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
     "rtcore_functional_vs_embree_bounce": ratio("BM_RtCoreFunctional/1/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
 }

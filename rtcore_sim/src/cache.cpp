@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <numeric>
 #include <stdexcept>
 
 namespace rtlab::rtcore_sim {
@@ -38,6 +39,8 @@ void NodeCache::prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort
         used_[victim] = ++stamp_;
         prefetched_[victim] = 1;
         ready_[victim] = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
+        if (isDeferred(ready_[victim])) [[unlikely]]
+            port.deferred()->ways.push_back(static_cast<std::uint32_t>(victim));
     }
 }
 
@@ -60,6 +63,9 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
                 prefetched_[i] = 0;
             }
             if (ready_[i] > hitReady) {
+                // A line whose read is deferred: whether this hit is pending is decided when it is answered.
+                if (isDeferred(ready_[i])) [[unlikely]]
+                    return LineFill{ready_[i] | kDeferredHit, 0, 0};
                 ++pendingHits;
                 return LineFill{ready_[i], 0, 0};
             }
@@ -75,6 +81,8 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
     prefetched_[victim] = 0;
     const LineFill fill = port.readLine(line << lineShift_, params_.lineBytes, now);
     ready_[victim] = fill.ready;
+    if (isDeferred(fill.ready)) [[unlikely]]
+        port.deferred()->ways.push_back(static_cast<std::uint32_t>(victim));
     return fill;
 }
 
@@ -84,9 +92,45 @@ LineFill NodeCache::fetch(const MemoryRange& range, std::uint64_t now, MemoryPor
     LineFill done{now, 0, 0};
     for (std::uint64_t line = first; line <= last; ++line) {
         const LineFill f = accessLine(line, now, port);
+        if (isDeferred(f.ready)) [[unlikely]] {
+            // From here on the lines' times are kept as terms: the first is the
+            // latest line so far (the result of the lines before), then one per line.
+            std::vector<LineFill>& terms = port.deferred()->terms;
+            const std::size_t begin = terms.size();
+            terms.push_back(done);
+            terms.push_back(f);
+            for (++line; line <= last; ++line) terms.push_back(accessLine(line, now, port));
+            return LineFill{kDeferred | begin, terms.size() - begin, 0};
+        }
         if (f.ready > done.ready) done = f;
     }
     return done;
+}
+
+LineFill NodeCache::evaluate(std::uint64_t now, const LineFill* terms, std::size_t count, const DeferredReads& reads) {
+    const std::uint64_t hitReady = now + params_.hitLatency;
+    LineFill done = terms[0];
+    for (std::size_t i = 1; i < count; ++i) {
+        LineFill f = terms[i];
+        if (isDeferred(f.ready)) {
+            const LineFill& answer = reads.fills[f.ready & kDeferredIndex];
+            if (!(f.ready & kDeferredHit)) {
+                f = answer;  // the miss that made the read
+            } else if (answer.ready > hitReady) {
+                ++pendingHits;  // a hit on a line still being filled (accessLine's rule)
+                f = LineFill{answer.ready, 0, 0};
+            } else {
+                f = LineFill{hitReady, 0, 0};
+            }
+        }
+        if (f.ready > done.ready) done = f;
+    }
+    return done;
+}
+
+void NodeCache::resolve(const DeferredReads& reads) {
+    for (const std::uint32_t way : reads.ways)
+        if (isDeferred(ready_[way])) ready_[way] = reads.fills[ready_[way] & kDeferredIndex].ready;
 }
 
 SharedL2::SharedL2(const L2Params& l2, const DramParams& dram) : l2_(l2), dram_(dram) {
@@ -104,6 +148,7 @@ SharedL2::SharedL2(const L2Params& l2, const DramParams& dram) : l2_(l2), dram_(
     channelFree_.assign(dram.channels, 0);
     bankBusyCycles.assign(l2.banks, 0);
     channelBusyCycles.assign(dram.channels, 0);
+    classes_ = std::gcd(l2.banks, dram.channels);
 }
 
 void SharedL2::invalidate() {
@@ -112,8 +157,8 @@ void SharedL2::invalidate() {
 }
 
 void SharedL2::resetStats() {
-    accesses = hits = pendingHits = misses = evictions = invalidations = 0;
-    bankConflicts = bankWaitCycles = dramReads = dramReadBytes = dramQueueCycles = 0;
+    counters = L2Counters{};
+    invalidations = 0;
     std::fill(bankBusyCycles.begin(), bankBusyCycles.end(), 0);
     std::fill(channelBusyCycles.begin(), channelBusyCycles.end(), 0);
 }
@@ -123,15 +168,16 @@ void SharedL2::resetTime() {
     std::fill(channelFree_.begin(), channelFree_.end(), 0);
 }
 
-LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
-    ++accesses;
+LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp) {
+    L2Counters& c = counts;
+    ++c.accesses;
     const std::uint64_t line = address >> lineShift_;
     const std::uint32_t bank = static_cast<std::uint32_t>(line % l2_.banks);
     // Step: the bank, first come first served in request order.
     const std::uint64_t start = std::max(arrive, bankFree_[bank]);
     if (start > arrive) {
-        ++bankConflicts;
-        bankWaitCycles += start - arrive;
+        ++c.bankConflicts;
+        c.bankWaitCycles += start - arrive;
     }
     bankFree_[bank] = start + l2_.bankCycles;
     bankBusyCycles[bank] += l2_.bankCycles;
@@ -143,10 +189,10 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
     std::size_t victim = base;
     for (std::size_t i = base; i < base + l2_.ways; ++i) {
         if (tags_[i] == line) {
-            ++hits;
-            used_[i] = ++stamp_;
+            ++c.hits;
+            used_[i] = ++stamp;
             if (ready_[i] > tagDone) {  // still being filled: wait for DRAM
-                ++pendingHits;
+                ++c.pendingHits;
                 return LineFill{ready_[i], tagDone - arrive, ready_[i] - tagDone};
             }
             return LineFill{tagDone, tagDone - arrive, 0};
@@ -154,18 +200,18 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive) {
         if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
     }
     // Step: a miss reads the whole line from its DRAM channel.
-    ++misses;
-    if (tags_[victim] != kInvalid) ++evictions;
+    ++c.misses;
+    if (tags_[victim] != kInvalid) ++c.evictions;
     const std::uint32_t channel = static_cast<std::uint32_t>(line % dram_.channels);
     const std::uint64_t dramStart = std::max(tagDone, channelFree_[channel]);
     channelFree_[channel] = dramStart + dramTransfer_;
     channelBusyCycles[channel] += dramTransfer_;
-    dramQueueCycles += dramStart - tagDone;
-    ++dramReads;
-    dramReadBytes += l2_.lineBytes;
+    c.dramQueueCycles += dramStart - tagDone;
+    ++c.dramReads;
+    c.dramReadBytes += l2_.lineBytes;
     const std::uint64_t filled = dramStart + dramTransfer_ + dram_.latency;
     tags_[victim] = line;
-    used_[victim] = ++stamp_;
+    used_[victim] = ++stamp;
     ready_[victim] = filled;
     return LineFill{filled, tagDone - arrive, filled - tagDone};
 }

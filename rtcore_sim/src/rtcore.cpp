@@ -11,6 +11,8 @@
 // Cycles in which no core can do anything in phases 2-5 are skipped: the
 // clock jumps to the next event of any core. Misses of a core's node cache go
 // through its memory port and, in l2 mode cache, to the shared L2 and DRAM.
+// With a side that allows concurrent callbacks the cores run in host-parallel
+// epochs instead (simulate): same cycles and statistics, several threads.
 #include <rtlab/core/error.hpp>
 #include <rtlab/rtcore_sim/cache.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
@@ -20,10 +22,16 @@
 
 #include "ray_order.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <deque>
+#include <exception>
 #include <memory>
 #include <numeric>
 #include <stdexcept>
@@ -35,7 +43,11 @@ namespace {
 
 // ---------------------------------------------------------------------------
 // Events: (slot, phase) in a timing wheel of kWheelSize cycles, farther ones
-// in an overflow heap. Events of one cycle run in the order they were scheduled.
+// in an overflow heap. Events of one cycle run in the order they were
+// scheduled: every event carries its core's scheduling sequence number, and
+// an event whose cycle is only known later (a fetch waiting for a deferred L2
+// read, host-parallel epochs) takes its number when the serial model would
+// have scheduled it (reserve()) and is inserted at its place (scheduleAt()).
 
 enum Phase : std::uint32_t { kFetchDone = 0, kStackTraffic = 1, kStepDone = 2 };
 constexpr std::uint32_t makeEvent(std::uint32_t slot, Phase phase) { return slot << 2 | phase; }
@@ -43,32 +55,36 @@ constexpr std::uint32_t makeEvent(std::uint32_t slot, Phase phase) { return slot
 class EventWheel {
 public:
     static constexpr std::uint64_t kSize = 4096;
+    static constexpr unsigned kEventBits = 16;  // events are < 4 x 4096 (core.raySlots <= 4096)
+    static constexpr std::uint64_t kEventMask = (std::uint64_t(1) << kEventBits) - 1;
 
     EventWheel() : buckets_(kSize) {}
 
-    void schedule(std::uint64_t cycle, std::uint32_t event) {
+    static std::uint32_t eventOf(std::uint64_t entry) { return static_cast<std::uint32_t>(entry & kEventMask); }
+
+    void schedule(std::uint64_t cycle, std::uint32_t event) { scheduleAt(cycle, event, seq_++); }
+    // A sequence number for an event scheduled later with scheduleAt.
+    std::uint64_t reserve() { return seq_++; }
+    void scheduleAt(std::uint64_t cycle, std::uint32_t event, std::uint64_t seq) {
+        const std::uint64_t entry = seq << kEventBits | event;
         if (cycle - base_ < kSize) [[likely]] {  // also false for cycle < base_ (wraps around)
-            const std::size_t b = cycle & (kSize - 1);
-            buckets_[b].push_back(event);
-            bits_[b >> 6] |= std::uint64_t(1) << (b & 63);
-            ++inWheel_;
+            place(cycle, entry);
         } else {
-            scheduleFar(cycle, event);
+            scheduleFar(cycle, entry);
         }
     }
     // The window moves to [cycle, cycle + kSize); overflow events now inside
-    // it join their buckets in (cycle, scheduling) order, before any event
-    // scheduled directly for those cycles.
+    // it join their buckets in (cycle, sequence) order.
     void advance(std::uint64_t cycle) {
         base_ = cycle;
         while (!overflow_.empty() && overflow_.front().cycle < base_ + kSize) {
             std::pop_heap(overflow_.begin(), overflow_.end(), Later{});
             const Far far = overflow_.back();
             overflow_.pop_back();
-            schedule(far.cycle, far.event);
+            place(far.cycle, far.entry);
         }
     }
-    std::vector<std::uint32_t>& bucket(std::uint64_t cycle) { return buckets_[cycle & (kSize - 1)]; }
+    std::vector<std::uint64_t>& bucket(std::uint64_t cycle) { return buckets_[cycle & (kSize - 1)]; }
     void clearBucket(std::uint64_t cycle) {
         const std::size_t b = cycle & (kSize - 1);
         inWheel_ -= buckets_[b].size();
@@ -101,9 +117,9 @@ public:
         return false;
     }
     bool empty() const { return inWheel_ == 0 && overflow_.empty(); }
-    [[gnu::noinline]] void scheduleFar(std::uint64_t cycle, std::uint32_t event) {
+    [[gnu::noinline]] void scheduleFar(std::uint64_t cycle, std::uint64_t entry) {
         if (cycle < base_) throw std::logic_error("rtcore_sim: event scheduled in the past");
-        overflow_.push_back(Far{cycle, seq_++, event});
+        overflow_.push_back(Far{cycle, entry});
         std::push_heap(overflow_.begin(), overflow_.end(), Later{});
     }
     void clear() {
@@ -115,13 +131,25 @@ public:
 
 private:
     struct Far {
-        std::uint64_t cycle, seq;
-        std::uint32_t event;
+        std::uint64_t cycle, entry;
     };
     struct Later {
-        bool operator()(const Far& a, const Far& b) const { return a.cycle != b.cycle ? a.cycle > b.cycle : a.seq > b.seq; }
+        bool operator()(const Far& a, const Far& b) const { return a.cycle != b.cycle ? a.cycle > b.cycle : a.entry > b.entry; }
     };
-    std::vector<std::vector<std::uint32_t>> buckets_;
+    // Entries of a bucket stay sorted by sequence number: new events append,
+    // a deferred one is inserted at its place.
+    void place(std::uint64_t cycle, std::uint64_t entry) {
+        const std::size_t b = cycle & (kSize - 1);
+        std::vector<std::uint64_t>& bucket = buckets_[b];
+        if (bucket.empty() || bucket.back() < entry) [[likely]]
+            bucket.push_back(entry);
+        else
+            bucket.insert(std::upper_bound(bucket.begin(), bucket.end(), entry), entry);
+        bits_[b >> 6] |= std::uint64_t(1) << (b & 63);
+        ++inWheel_;
+    }
+
+    std::vector<std::vector<std::uint64_t>> buckets_;
     std::array<std::uint64_t, kSize / 64> bits_{};
     std::vector<Far> overflow_;
     std::uint64_t base_ = 0;
@@ -171,6 +199,23 @@ struct RayTypeStats {
     Histogram latency{Histogram::Scheme::Log2};
     std::uint64_t nodeVisits = 0, triangleTests = 0, instanceTransitions = 0;
     std::uint64_t inFlight = 0, activeSince = 0, activeCycles = 0;
+};
+
+// One core's share of a ray type's sums during a batch (added to the GPU's
+// RayTypeStats, in core order, when the batch ends).
+struct RayTypeWork {
+    std::uint64_t rays = 0;
+    Histogram latency{Histogram::Scheme::Log2};
+    std::uint64_t nodeVisits = 0, triangleTests = 0, instanceTransitions = 0;
+};
+
+// A change of a ray type's rays in flight on one core (+ submitted, - returned).
+// A type's activity is a union over the cores, so these are replayed in the
+// serial order (cycle, core, the core's order) when the batch ends.
+struct Activity {
+    std::uint64_t cycle;
+    std::uint32_t type;
+    std::int32_t delta;
 };
 
 // ---------------------------------------------------------------------------
@@ -270,9 +315,8 @@ struct BatchState {
     ProgrammableSide* side = nullptr;
     std::span<SimRayResult> results;
     std::vector<std::uint64_t> warpSubmit;
-    std::vector<std::uint32_t> warpRemaining;
-    std::uint32_t delivered = 0;
-    std::vector<RayTypeStats> rayTypes;  // over the whole GPU (a type's activity is a union over cores)
+    std::vector<std::uint32_t> warpLocal;  // per warp: its position in its core's warp list
+    std::vector<RayTypeStats> rayTypes;    // over the whole GPU (a type's activity is a union over cores)
     // gpu.rayOrder other than submission: rays/results above are the reordered
     // copies; order[i] = index in the caller's batch (side callbacks get it).
     std::vector<std::uint32_t> order;
@@ -282,9 +326,13 @@ struct BatchState {
 // ---------------------------------------------------------------------------
 // One RT core: input queue, ray slots, scheduler, units, node cache (L1) and
 // memory port. Its clock is the GPU's: the GPU runs every core's phases for
-// a cycle, cores in index order, before moving on.
+// a cycle, cores in index order, before moving on — or, in host-parallel
+// epochs, every core's cycles of an epoch on its own (runEpoch), the L2
+// answered between epochs. During a batch a core writes only its own state
+// (its slots, its warps' results, its statistics): cores may run on
+// different host threads. Aligned so that two cores share no cache line.
 
-struct Core {
+struct alignas(64) Core {
     // The small fields first: with the traversal state's header right after
     // them, a step touches a few consecutive cache lines of its slot.
     struct Slot {
@@ -325,10 +373,33 @@ struct Core {
 
     // This core's share of the batch: its warps (indices into the batch) in order.
     std::vector<std::uint32_t> warps;
+    std::vector<std::uint32_t> warpRemaining;  // per entry of `warps`: rays not yet returned
     std::uint32_t rayCount = 0, submitted = 0, admitted = 0;  // positions in the core's ray sequence
+    std::uint32_t delivered = 0;                              // rays returned
 
     CoreStats stats;
     OccupancyTracker inputQueueOcc, slotOcc, readyOcc, completionOcc;
+    std::vector<RayTypeWork> typeWork;  // per ray type, this batch
+    std::vector<Activity> activity;     // this batch, in the core's order
+
+    // The GPU loop's view of the core.
+    static constexpr std::uint64_t kNever = ~std::uint64_t(0);
+    std::uint64_t visit = 0;      // the next cycle the core may act in
+    std::uint64_t lastVisit = 0;  // the last cycle it was simulated
+    bool accountPending = false;  // accountUntil(lastVisit, next) still to do: next may move earlier
+    bool deferring = false;       // L2 reads are deferred (host-parallel epochs, l2 mode cache)
+    // Host-parallel epochs: the L2 reads of the current epoch and the fetches waiting for them.
+    struct DeferredFetch {
+        std::uint64_t seq;    // the fetch-done event's place among the core's events
+        std::uint64_t cycle;  // issue cycle
+        std::uint32_t slot;
+        std::uint32_t firstTerm, terms;
+    };
+    DeferredReads deferredReads;
+    std::vector<DeferredFetch> deferredFetches;
+    std::uint64_t deferredReady = kNever;  // the earliest answer to deferredReads (once answered)
+    std::exception_ptr error;  // a side callback threw in a host-parallel epoch
+    std::uint64_t errorCycle = 0;
 
     Core(const RtCoreConfig& cfg, const ModelScene& s, const MemoryLayout& l, BatchState& b, SharedL2* l2)
         : config(cfg), scene(s), layout(l), batch(b), cache(cfg.cache),
@@ -427,14 +498,43 @@ struct Core {
         // below it the port, the L2 and DRAM).
         const MemoryRange range = stepRange(st);
         const LineFill fetched = cache.fetch(range, c, port);
-        const std::uint64_t waited = fetched.ready - c;
         ++stats.fetches;
         stats.fetchBytes += range.bytes;
+        if (isDeferred(fetched.ready)) [[unlikely]] {
+            // It waits for an L2 read answered after this epoch: its time and
+            // event follow then (resolveDeferred), its event in this place.
+            deferredFetches.push_back(DeferredFetch{wheel.reserve(), c, slot,
+                                                    static_cast<std::uint32_t>(fetched.ready & kDeferredIndex),
+                                                    static_cast<std::uint32_t>(fetched.l2Cycles)});
+            return;
+        }
+        fetchTimed(fetched, c);
+        wheel.schedule(fetched.ready, makeEvent(slot, kFetchDone));
+    }
+
+    // The latency breakdown's terms of a fetch issued at c.
+    void fetchTimed(const LineFill& fetched, std::uint64_t c) {
+        const std::uint64_t waited = fetched.ready - c;
         stats.fetch += waited - fetched.l2Cycles - fetched.dramCycles;
         stats.l2 += fetched.l2Cycles;
         stats.dram += fetched.dramCycles;
         stats.fetchBeyondHit += waited > config.cache.hitLatency ? waited - config.cache.hitLatency : 0;
-        wheel.schedule(fetched.ready, makeEvent(slot, kFetchDone));
+    }
+
+    // Between epochs, the epoch's L2 reads answered (deferredReads.fills):
+    // the node cache gets the fill cycles, each waiting fetch its time,
+    // statistics and fetch-done event.
+    void resolveDeferred() {
+        if (deferredReads.empty()) return;
+        cache.resolve(deferredReads);
+        for (const DeferredFetch& f : deferredFetches) {
+            const LineFill fetched = cache.evaluate(f.cycle, deferredReads.terms.data() + f.firstTerm, f.terms, deferredReads);
+            fetchTimed(fetched, f.cycle);
+            wheel.scheduleAt(fetched.ready, makeEvent(f.slot, kFetchDone), f.seq);
+        }
+        deferredFetches.clear();
+        deferredReads.clear();
+        deferredReady = kNever;
     }
 
     void onFetchDone(std::uint32_t slot, std::uint64_t c) {
@@ -515,7 +615,7 @@ struct Core {
         stats.maxStackDepth.add(w.maxStackDepth);
         stats.triangleTestCount += w.triangleTests;
         stats.proceduralTestCount += w.proceduralTests;
-        RayTypeStats& type = batch.rayTypes[batch.rays[s.rayIndex].rayType];
+        RayTypeWork& type = typeWork[batch.rays[s.rayIndex].rayType];
         type.nodeVisits += w.nodeVisits;
         type.triangleTests += w.triangleTests;
         type.instanceTransitions += w.instanceTransitions;
@@ -539,12 +639,24 @@ struct Core {
         batch.results[d.rayIndex].cycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(latency, UINT32_MAX));
         stats.latency.add(latency);
         ++stats.raysCompleted;
-        RayTypeStats& type = batch.rayTypes[batch.rays[d.rayIndex].rayType];
+        const std::uint32_t rayType = batch.rays[d.rayIndex].rayType;
+        RayTypeWork& type = typeWork[rayType];
         ++type.rays;
         type.latency.add(latency);
-        if (--type.inFlight == 0) type.activeCycles += c - type.activeSince;
-        ++batch.delivered;
-        if (--batch.warpRemaining[warp] == 0) warpDone(warp);
+        logActivity(c, rayType, -1);
+        ++delivered;
+        if (--warpRemaining[batch.warpLocal[warp]] == 0) warpDone(warp);
+    }
+
+    void logActivity(std::uint64_t c, std::uint32_t rayType, std::int32_t delta) {
+        if (!activity.empty()) {
+            Activity& last = activity.back();
+            if (last.cycle == c && last.type == rayType && (last.delta > 0) == (delta > 0)) {
+                last.delta += delta;
+                return;
+            }
+        }
+        activity.push_back(Activity{c, rayType, delta});
     }
 
     // SIMD efficiency of a lockstep traversal of this warp: warp step k has
@@ -573,9 +685,9 @@ struct Core {
     // ---- one cycle -----------------------------------------------------------
 
     void processEvents(std::uint64_t c) {
-        std::vector<std::uint32_t>& bucket = wheel.bucket(c);
+        std::vector<std::uint64_t>& bucket = wheel.bucket(c);
         for (std::size_t i = 0; i < bucket.size(); ++i) {  // handlers may append events for this cycle
-            const std::uint32_t event = bucket[i];
+            const std::uint32_t event = EventWheel::eventOf(bucket[i]);
             const std::uint32_t slot = event >> 2;
             switch (static_cast<Phase>(event & 3)) {
                 case kFetchDone: onFetchDone(slot, c); break;
@@ -617,10 +729,8 @@ struct Core {
         const std::uint32_t size = pendingWarpSize();
         const std::uint32_t warp = warps[submitted / config.core.warpWidth];
         batch.warpSubmit[warp] = c;
-        for (std::uint32_t i = warp * config.core.warpWidth; i < warp * config.core.warpWidth + size; ++i) {
-            RayTypeStats& type = batch.rayTypes[batch.rays[i].rayType];
-            if (type.inFlight++ == 0) type.activeSince = c;
-        }
+        for (std::uint32_t i = warp * config.core.warpWidth; i < warp * config.core.warpWidth + size; ++i)
+            logActivity(c, batch.rays[i].rayType, +1);
         submitted += size;
         ++stats.warps;
         stats.raysSubmitted += size;
@@ -685,24 +795,94 @@ struct Core {
         if (!blockedFinishers.empty()) stats.completionQueueFull += next - c;
     }
 
-    void beginBatch() {
+    void beginBatch(std::size_t rayTypes) {
         warps.clear();
-        rayCount = submitted = admitted = 0;
+        warpRemaining.clear();
+        rayCount = submitted = admitted = delivered = 0;
+        if (typeWork.size() < rayTypes) typeWork.resize(rayTypes);
+        activity.clear();
+        deferredReads.clear();
+        deferredFetches.clear();
+        deferredReady = kNever;
+        error = nullptr;
     }
-    void addWarp(std::uint32_t warp, std::uint32_t size) {
+    // Returns the warp's position in this core's list.
+    std::uint32_t addWarp(std::uint32_t warp, std::uint32_t size) {
         warps.push_back(warp);
+        warpRemaining.push_back(size);
         rayCount += size;
+        return static_cast<std::uint32_t>(warps.size() - 1);
+    }
+    bool done() const { return delivered == rayCount; }
+
+    // ---- the GPU loop --------------------------------------------------------
+
+    // Simulates this core's active cycles before `end` (from `visit`). It
+    // stops for good once all its rays are returned (nothing is left to
+    // happen). The accounting of skipped cycles up to the next active cycle
+    // is done here when that cycle is before `end`, otherwise left to
+    // settle() (a deferred fetch may make it earlier).
+    void runEpoch(std::uint64_t end, bool everyCycle) {
+        while (visit < end) {
+            const std::uint64_t c = visit;
+            wheel.advance(c);
+            cycle(c);
+            lastVisit = c;
+            if (done()) {
+                visit = kNever;
+                return;
+            }
+            std::uint64_t n = c + 1;
+            if (!busy() && !everyCycle && !wheel.nextAfter(c, n)) n = kNever;
+            visit = n;
+            if (n < end) {
+                accountUntil(c, n);
+                continue;
+            }
+            if (deferring) {
+                accountPending = true;  // a fetch of this epoch may bring the next active cycle forward
+                return;
+            }
+            if (n != kNever) accountUntil(c, n);
+            return;
+        }
+    }
+    // The same, catching a side callback's exception (host-parallel epochs:
+    // the other cores finish the epoch; the GPU rethrows afterwards).
+    void runEpochCatching(std::uint64_t end, bool everyCycle) {
+        try {
+            runEpoch(end, everyCycle);
+        } catch (...) {
+            error = std::current_exception();
+            errorCycle = lastVisit = visit;
+            visit = kNever;
+            accountPending = false;
+        }
+    }
+    // After the epoch's L2 reads are resolved: the next active cycle and the
+    // accounting of the cycles skipped until then.
+    void settle(bool everyCycle) {
+        if (!accountPending) return;
+        accountPending = false;
+        const std::uint64_t c = lastVisit;
+        std::uint64_t n = c + 1;
+        if (!busy() && !everyCycle && !wheel.nextAfter(c, n)) n = kNever;
+        if (n != kNever) accountUntil(c, n);
+        visit = n;
     }
 
     // A side callback threw: drop the batch's rays.
     void abortBatch(std::uint64_t now) {
+        deferredFetches.clear();
+        deferredReads.clear();
+        deferredReady = kNever;
         wheel.clear();
         policy = makeSchedulerPolicy(config.scheduler);
         readyCount = 0;
         completionQueue.clear();
         blockedFinishers.clear();
         resetSlots();
-        beginBatch();
+        beginBatch(typeWork.size());
         inputQueueOcc.set(0, now);
         slotOcc.set(0, now);
         readyOcc.set(0, now);
@@ -726,6 +906,9 @@ struct Core {
 
     void resetTime() {
         nextAge = 0;
+        deferredFetches.clear();
+        deferredReads.clear();
+        deferredReady = kNever;
         wheel.clear();
         wheel.advance(0);
         cache.invalidate();
@@ -928,7 +1111,14 @@ struct RtCore::Impl {
     std::vector<SimRayResult> orderedResults;
     std::unique_ptr<SharedL2> l2;  // l2 mode cache only
     std::vector<std::unique_ptr<Core>> cores;
-    std::vector<std::uint64_t> visit;  // per core: its next active cycle during a batch
+    std::vector<std::size_t> cursor;  // scratch: per core, a position in its log (mergeByCycle)
+    struct alignas(64) L2Group {  // one host thread's share of answering L2 reads (answerL2Reads)
+        L2Counters counters;
+        std::uint64_t stamp = 0;
+        std::vector<std::uint64_t> ready;  // per core: the earliest answer to its reads
+        std::vector<std::size_t> cursor;
+    };
+    std::vector<L2Group> l2Groups;
     bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
     std::uint64_t now = 0;    // the clock between batches
     std::uint64_t clock = 0;  // the cycle being simulated during a batch
@@ -947,14 +1137,212 @@ struct RtCore::Impl {
         const auto size = [&](std::uint32_t warp) {
             return std::min<std::uint32_t>(w, static_cast<std::uint32_t>(batch.rays.size()) - warp * w);
         };
-        for (auto& core : cores) core->beginBatch();
+        for (auto& core : cores) core->beginBatch(batch.rayTypes.size());
+        batch.warpLocal.resize(warpCount);
         for (std::uint32_t warp = 0; warp < warpCount; ++warp) {
             const std::uint32_t k =
                 config.gpu.dispatch == WarpDispatch::RoundRobin
                     ? warp % n
                     : static_cast<std::uint32_t>((std::uint64_t(warp) * n) / warpCount);  // contiguous runs
-            cores[k]->addWarp(warp, size(warp));
+            batch.warpLocal[warp] = cores[k]->addWarp(warp, size(warp));
         }
+    }
+
+    // The host threads the process allows (TBB's arena and any global limit).
+    static unsigned hostThreads() {
+        const std::size_t arena = static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
+        const std::size_t limit = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+        return static_cast<unsigned>(std::max<std::size_t>(1, std::min(arena, limit)));
+    }
+
+    // Visits, in the serial model's order (cycle, then core index, then the
+    // core's own order), the entries of per-core logs that are each sorted by
+    // cycle: visitor(core, entry index). `cursor` is scratch, one per core.
+    template <class CycleOf, class SizeOf, class Visitor>
+    void mergeByCycle(std::vector<std::size_t>& cursor, const CycleOf& cycleOf, const SizeOf& sizeOf,
+                      Visitor&& visitor) const {
+        const std::size_t n = cores.size();
+        cursor.assign(n, 0);
+        for (;;) {
+            std::size_t best = n;
+            std::uint64_t bestCycle = ~std::uint64_t(0);
+            for (std::size_t k = 0; k < n; ++k)
+                if (cursor[k] < sizeOf(k) && (best == n || cycleOf(k, cursor[k]) < bestCycle)) {
+                    best = k;
+                    bestCycle = cycleOf(k, cursor[k]);
+                }
+            if (best == n) return;
+            // This core's entries of that cycle, then the next core's.
+            const std::size_t size = sizeOf(best);
+            while (cursor[best] < size && cycleOf(best, cursor[best]) == bestCycle) visitor(best, cursor[best]++);
+        }
+    }
+
+    // The cores in lock step until every ray of the batch is returned.
+    //   parallel = false: one cycle at a time, cores in index order, L2
+    //     reads answered at once (the serial model itself).
+    //   parallel = true: host-parallel epochs. In l2 mode ideal the cores
+    //     share nothing and each runs the whole batch on its own; in mode
+    //     cache an epoch starting at E (the earliest next active cycle of any
+    //     core) lasts minReadLatency cycles, shorter than the time from any L2
+    //     read made in it to its answer. The cores run their cycles of the
+    //     epoch on up to hostThreads() threads (core k on group k mod groups),
+    //     their L2 reads logged; then the reads are answered serially in the
+    //     serial model's order and every core takes its answers
+    //     (resolveDeferred). Cycles and statistics are the serial model's,
+    //     whatever the number of threads.
+    void simulate(bool parallel) {
+        constexpr std::uint64_t kNever = Core::kNever;
+        const std::size_t n = cores.size();
+        const bool deferring = parallel && l2;
+        const std::uint64_t length =
+            !parallel ? 1 : deferring ? cores[0]->port.minReadLatency(config.cache.lineBytes) : kNever;
+        for (auto& core : cores) {
+            core->visit = now;
+            core->lastVisit = now;
+            core->accountPending = false;
+            core->deferring = deferring;
+            core->port.defer(deferring ? &core->deferredReads : nullptr);
+        }
+        const std::size_t groups = parallel ? std::min<std::size_t>(hostThreads(), n) : 1;
+        // One core's part of an epoch: first the answers of the previous
+        // epoch's L2 reads, then its cycles of this one.
+        const auto runCore = [&](Core& core, std::uint64_t end) {
+            core.resolveDeferred();
+            core.settle(everyCycle);
+            core.runEpochCatching(end, everyCycle);
+        };
+        std::uint64_t epoch = now;
+        for (;;) {
+            clock = epoch;
+            const std::uint64_t end = length == kNever ? kNever : epoch + length;
+            if (!parallel) {
+                for (auto& core : cores) core->runEpoch(end, everyCycle);  // throws through
+            } else if (groups == 1) {
+                for (auto& core : cores) runCore(*core, end);
+            } else {
+                parallelForEach(groups, [&](std::size_t g) {
+                    for (std::size_t k = g; k < n; k += groups) runCore(*cores[k], end);
+                });
+            }
+            if (deferring) answerL2Reads(groups);
+            // The next epoch starts at the earliest cycle any core may act in:
+            // its next active cycle so far, or the earliest answer to its reads
+            // (a fetch waiting for one is done at or after it).
+            epoch = kNever;
+            bool allDone = true, failed = false;
+            for (auto& core : cores) {
+                epoch = std::min({epoch, core->visit, core->deferredReady});
+                allDone = allDone && core->done();
+                failed = failed || core->error;
+            }
+            if (failed || allDone) {
+                for (auto& core : cores) core->resolveDeferred();  // placeholders out of the node caches
+                if (failed) rethrowFirstError();
+                break;
+            }
+            if (epoch == kNever) throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
+        }
+        // The batch ends when its last result is returned.
+        clock = now;
+        for (auto& core : cores)
+            if (core->rayCount > 0) clock = std::max(clock, core->lastVisit);
+        for (auto& core : cores) core->port.defer(nullptr);
+    }
+
+    // Between epochs: the epoch's L2 reads of all cores, answered in the
+    // serial model's order (each core takes its answers in its next task).
+    // Reads of different line classes (SharedL2::classOf) touch disjoint
+    // banks, sets and DRAM channels, so only the order within a class
+    // matters: with several host threads, group g answers the classes c with
+    // c mod groups = g, each in the serial order, with its own counters and
+    // LRU stamps.
+    void answerL2Reads(std::size_t threads) {
+        const std::size_t n = cores.size();
+        const std::size_t classes = l2->classes();
+        for (auto& core : cores) core->deferredReads.fills.resize(core->deferredReads.reads.size());
+        const std::size_t groups = std::max<std::size_t>(1, std::min(threads, classes));
+        if (l2Groups.size() < groups) l2Groups.resize(groups);
+        const auto answer = [&](std::size_t g) {
+            L2Group& group = l2Groups[g];
+            group.counters = L2Counters{};
+            group.stamp = l2->stamp();
+            group.ready.assign(n, Core::kNever);
+            for (std::size_t c = g; c < classes; c += groups)
+                mergeByCycle(
+                    group.cursor,
+                    [&](std::size_t k, std::size_t i) {
+                        const DeferredReads& d = cores[k]->deferredReads;
+                        return d.reads[d.byClass[c][i]].cycle;
+                    },
+                    [&](std::size_t k) { return cores[k]->deferredReads.byClass[c].size(); },
+                    [&](std::size_t k, std::size_t i) {
+                        DeferredReads& d = cores[k]->deferredReads;
+                        const std::uint32_t index = d.byClass[c][i];
+                        const DeferredReads::Read& r = d.reads[index];
+                        const LineFill f =
+                            cores[k]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
+                        d.fills[index] = f;
+                        group.ready[k] = std::min(group.ready[k], f.ready);
+                    });
+        };
+        if (groups == 1) answer(0);
+        else parallelForEach(groups, answer);
+        std::uint64_t stamp = l2->stamp();
+        for (std::size_t g = 0; g < groups; ++g) {
+            const L2Group& group = l2Groups[g];
+            l2->counters.add(group.counters);
+            stamp = std::max(stamp, group.stamp);
+            for (std::size_t k = 0; k < n; ++k) cores[k]->deferredReady = std::min(cores[k]->deferredReady, group.ready[k]);
+        }
+        l2->setStamp(stamp);
+    }
+
+    // A side callback threw in a host-parallel epoch: every core has run to the
+    // epoch's end or to its own exception; the clock is the last cycle any core
+    // reached, the exception rethrown the one the serial model would have met
+    // first (smallest cycle, then core index).
+    [[noreturn]] void rethrowFirstError() {
+        Core* first = nullptr;
+        clock = now;
+        for (auto& core : cores) {
+            clock = std::max(clock, core->lastVisit);
+            if (core->error && (!first || core->errorCycle < first->errorCycle)) first = core.get();
+        }
+        std::rethrow_exception(first->error);
+    }
+
+    // The batch's per-core ray-type sums and activity, into the GPU's
+    // RayTypeStats in the serial model's order (at the batch's end, or when
+    // it is dropped).
+    void mergeRayTypes() {
+        for (auto& core : cores) {
+            for (std::size_t t = 0; t < core->typeWork.size() && t < batch.rayTypes.size(); ++t) {
+                RayTypeWork& w = core->typeWork[t];
+                if (w.rays == 0 && w.nodeVisits == 0 && w.triangleTests == 0 && w.instanceTransitions == 0) continue;
+                RayTypeStats& r = batch.rayTypes[t];
+                r.rays += w.rays;
+                r.latency.merge(w.latency);
+                r.nodeVisits += w.nodeVisits;
+                r.triangleTests += w.triangleTests;
+                r.instanceTransitions += w.instanceTransitions;
+                w = RayTypeWork{};
+            }
+        }
+        mergeByCycle(cursor, [&](std::size_t k, std::size_t i) { return cores[k]->activity[i].cycle; },
+                     [&](std::size_t k) { return cores[k]->activity.size(); },
+                     [&](std::size_t k, std::size_t i) {
+                         const Activity& a = cores[k]->activity[i];
+                         RayTypeStats& r = batch.rayTypes[a.type];
+                         if (a.delta > 0) {
+                             if (r.inFlight == 0) r.activeSince = a.cycle;
+                             r.inFlight += static_cast<std::uint64_t>(a.delta);
+                         } else {
+                             r.inFlight -= static_cast<std::uint64_t>(-std::int64_t(a.delta));
+                             if (r.inFlight == 0) r.activeCycles += a.cycle - r.activeSince;
+                         }
+                     });
+        for (auto& core : cores) core->activity.clear();
     }
 
     std::uint64_t portsFree(std::uint64_t c) const {
@@ -990,12 +1378,9 @@ struct RtCore::Impl {
         batch.rays = rays;
         batch.side = &programmable;
         batch.results = batch.order.empty() ? out : std::span<SimRayResult>(orderedResults);
-        batch.delivered = 0;
         const std::uint32_t w = config.core.warpWidth;
         const std::uint32_t warps = static_cast<std::uint32_t>((rays.size() + w - 1) / w);
         batch.warpSubmit.assign(warps, 0);
-        batch.warpRemaining.assign(warps, w);
-        batch.warpRemaining.back() = static_cast<std::uint32_t>(rays.size()) - (warps - 1) * w;
         std::uint32_t maxType = 0;
         for (const SimRay& r : rays) maxType = std::max(maxType, r.rayType);
         if (batch.rayTypes.size() <= maxType) batch.rayTypes.resize(maxType + 1);
@@ -1003,43 +1388,12 @@ struct RtCore::Impl {
         dispatch(warps);
 
         try {
-            std::uint64_t& c = clock;
-            c = now;
-            // Each core is visited only in its own active cycles (a ready ray, a
-            // result to return, a ray to admit, a warp that fits, or an event):
-            // a core's future depends only on its own state, since L2 and DRAM
-            // times are computed when a request is made. Cores visited in the
-            // same cycle run in index order.
-            constexpr std::uint64_t kNever = ~std::uint64_t(0);
-            visit.assign(cores.size(), c);
-            for (;;) {
-                for (std::size_t k = 0; k < cores.size(); ++k)
-                    if (visit[k] == c) {
-                        cores[k]->wheel.advance(c);
-                        cores[k]->cycle(c);
-                    }
-                if (batch.delivered == rays.size()) break;
-                // Step: each visited core's next active cycle; the GPU's is the earliest.
-                std::uint64_t next = kNever;
-                bool anyBusy = false, anyEvent = false;
-                for (std::size_t k = 0; k < cores.size(); ++k) {
-                    Core& core = *cores[k];
-                    if (visit[k] == c) {
-                        const bool busy = core.busy();
-                        anyBusy = anyBusy || busy;
-                        std::uint64_t n = c + 1;
-                        if (!busy && !everyCycle && !core.wheel.nextAfter(c, n)) n = kNever;
-                        if (n != kNever) core.accountUntil(c, n);
-                        visit[k] = n;
-                    }
-                    anyEvent = anyEvent || !core.wheel.empty();
-                    next = std::min(next, visit[k]);
-                }
-                if (next == kNever || (everyCycle && !anyBusy && !anyEvent))
-                    throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
-                c = next;
-            }
-            now = portsFree(c);  // spill writes drain before the batch ends
+            // Host-parallel epochs when the side allows concurrent callbacks and
+            // there are several cores; the number of host threads changes the
+            // speed only.
+            simulate(cores.size() > 1 && programmable.concurrent());
+            now = portsFree(clock);  // spill writes drain before the batch ends
+            mergeRayTypes();
             for (std::size_t i = 0; i < batch.order.size(); ++i) out[batch.order[i]] = orderedResults[i];
         } catch (...) {
             abortBatch();
@@ -1053,6 +1407,8 @@ struct RtCore::Impl {
     // A side callback threw: drop the batch's rays; the clock stays at the cycle reached.
     void abortBatch() {
         now = portsFree(clock);
+        for (auto& core : cores) core->port.defer(nullptr);
+        mergeRayTypes();
         for (auto& core : cores) core->abortBatch(now);
         for (RayTypeStats& t : batch.rayTypes) t.inFlight = 0;
         batch.rays = {};
@@ -1127,15 +1483,15 @@ nlohmann::json RtCore::Impl::statsJson() const {
         const std::uint64_t bankMax = *std::max_element(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end());
         l2j["sizeBytes"] = config.l2.sizeBytes;
         l2j["banks"] = config.l2.banks;
-        l2j["accesses"] = l2->accesses;
-        l2j["hits"] = l2->hits;
-        l2j["pendingHits"] = l2->pendingHits;
-        l2j["misses"] = l2->misses;
-        l2j["evictions"] = l2->evictions;
+        l2j["accesses"] = l2->counters.accesses;
+        l2j["hits"] = l2->counters.hits;
+        l2j["pendingHits"] = l2->counters.pendingHits;
+        l2j["misses"] = l2->counters.misses;
+        l2j["evictions"] = l2->counters.evictions;
         l2j["invalidations"] = l2->invalidations;
-        l2j["hitRate"] = rate(double(l2->hits), double(l2->accesses));
-        l2j["bankConflicts"] = l2->bankConflicts;
-        l2j["bankWaitCycles"] = l2->bankWaitCycles;
+        l2j["hitRate"] = rate(double(l2->counters.hits), double(l2->counters.accesses));
+        l2j["bankConflicts"] = l2->counters.bankConflicts;
+        l2j["bankWaitCycles"] = l2->counters.bankWaitCycles;
         l2j["bankBusyCycles"] = bankBusy;
         l2j["busiestBankBusyCycles"] = bankMax;
         l2j["bankUtilization"] = rate(double(bankBusy), double(cycles) * config.l2.banks);
@@ -1143,13 +1499,13 @@ nlohmann::json RtCore::Impl::statsJson() const {
         const std::uint64_t chBusy =
             std::accumulate(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end(), std::uint64_t(0));
         const std::uint64_t chMax = *std::max_element(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end());
-        dram["reads"] = l2->dramReads;
-        dram["readBytes"] = l2->dramReadBytes;
+        dram["reads"] = l2->counters.dramReads;
+        dram["readBytes"] = l2->counters.dramReadBytes;
         dram["busyCycles"] = chBusy;
         dram["busiestChannelBusyCycles"] = chMax;
-        dram["queueCycles"] = l2->dramQueueCycles;
+        dram["queueCycles"] = l2->counters.dramQueueCycles;
         dram["utilization"] = rate(double(chBusy), double(cycles) * config.dram.channels);
-        dram["bytesPerCycle"] = rate(double(l2->dramReadBytes), double(cycles));
+        dram["bytesPerCycle"] = rate(double(l2->counters.dramReadBytes), double(cycles));
     } else {
         l2j["accesses"] = all.cacheMisses;
         l2j["hits"] = all.cacheMisses;

@@ -4,6 +4,7 @@
 // queue, utilizations, DRAM peak, work bounds, determinism) on several
 // workloads and configurations; the configuration's GPU sections.
 #include "rtcore_golden.hpp"
+#include "rtcore_gpu_golden.hpp"
 #include "rtcore_timing_helpers.hpp"
 
 #include <rtlab/core/error.hpp>
@@ -156,6 +157,22 @@ RtCoreConfig gpuConfig(std::uint32_t cores, L2Mode mode) {
     c.gpu.cores = cores;
     c.l2.mode = mode;
     return c;
+}
+
+// OpaqueSide's verdicts without allowing concurrent callbacks: the GPU runs
+// the serial model (one host thread, cycle by cycle).
+struct SerialOpaqueSide final : ProgrammableSide {
+    CandidateVerdict triangle(std::uint32_t, const TriangleCandidate&) override { return {}; }
+    ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return {}; }
+};
+
+// Runs fn with `threads` host threads: a TBB limit and an arena of that size
+// (3 threads oversubscribe this 2-core machine: the epochs' core groups differ all the same).
+template <class Fn>
+void withHostThreads(int threads, Fn&& fn) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    tbb::task_arena arena(threads);
+    arena.execute(fn);
 }
 
 }  // namespace
@@ -359,26 +376,131 @@ TEST(RtCoreGpu, MoreCoresFinishSoonerAndASmallerL2MissesMore) {
 }
 
 TEST(RtCoreGpu, IdenticalAcrossRunsAndHostThreadCounts) {
+    // 8 cores with the L2 in mode cache on two workloads: the cores run in
+    // host-parallel epochs (OpaqueSide allows concurrent callbacks) on 1, 2,
+    // 3 and 4 host threads; everything equals the default run's.
+    for (const char* source : {"builtin:showcase", "builtin:terrain?triangles=20000"}) {
+        RtCoreConfig config = gpuConfig(8, L2Mode::Cache);
+        config.scheduler.policy = "treelet";
+        std::vector<SimRayResult> a, b, c;
+        const json first = runScene(source, config, 64, 48, &a);
+        json inArena;
+        tbb::task_arena arena(4);
+        arena.execute([&] { inArena = runScene(source, config, 64, 48, &b); });
+        json limited;
+        {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+            limited = runScene(source, config, 64, 48, &c);
+        }
+        EXPECT_EQ(first, inArena) << source;
+        EXPECT_EQ(first, limited) << source;
+        ASSERT_EQ(a.size(), b.size());
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            ASSERT_EQ(a[i].cycles, b[i].cycles) << source << " " << i;
+            ASSERT_EQ(a[i].cycles, c[i].cycles) << source << " " << i;
+            ASSERT_EQ(a[i].slotCycles, c[i].slotCycles) << source << " " << i;
+        }
+        for (int threads : {2, 3}) {
+            std::vector<SimRayResult> d;
+            json withThreads;
+            withHostThreads(threads, [&] { withThreads = runScene(source, config, 64, 48, &d); });
+            EXPECT_EQ(first, withThreads) << source << " " << threads << " threads";
+            for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i].cycles, d[i].cycles) << source << " " << i;
+        }
+    }
+}
+
+TEST(RtCoreGpu, HostParallelEpochsReproduceTheSerialGpuModel) {
+    // {workload, clock after the run, per-ray digest, stats digest}, computed by
+    // rtcore_gpu_golden.hpp against the GPU model before host-parallel epochs
+    // (commit e3caa2e: one host thread, cores cycle by cycle).
+    struct Golden {
+        int which;
+        std::uint64_t cycles, rays, stats;
+    };
+    const Golden golden[] = {
+#include "rtcore_gpu_golden_values.inc"
+    };
+    ASSERT_EQ(std::size(golden), std::size_t(kGpuGoldenWorkloads));
+    for (const Golden& g : golden) {
+        const RtCoreConfig config = gpuGoldenConfig(g.which);
+        GpuGoldenScene scene;
+        loadGpuGoldenScene(scene, g.which, config);
+        const auto expectGolden = [&](const GoldenRun& run, const std::string& how) {
+            EXPECT_EQ(run.cycles, g.cycles) << "workload " << g.which << ", " << how;
+            EXPECT_EQ(run.rayDigest, g.rays) << "workload " << g.which << ", " << how;
+            EXPECT_EQ(run.statsDigest, g.stats) << "workload " << g.which << ", " << how;
+        };
+        {
+            // The serial model (a side that does not allow concurrent callbacks).
+            RtCore gpu(config, *scene.scene.model);
+            SerialOpaqueSide side;
+            expectGolden(gpuGoldenRun(gpu, scene.rays, side), "serial");
+        }
+        // Host-parallel epochs on 1, 2 and 3 host threads.
+        for (int threads : {1, 2, 3}) {
+            withHostThreads(threads, [&] {
+                RtCore gpu(config, *scene.scene.model);
+                OpaqueSide side;
+                expectGolden(gpuGoldenRun(gpu, scene.rays, side), std::to_string(threads) + " host threads");
+            });
+        }
+        if (g.which == 4) {  // visiting every cycle in the epochs changes nothing either
+            withHostThreads(2, [&] {
+                RtCore gpu(config, *scene.scene.model);
+                gpu.simulateEveryCycle(true);
+                OpaqueSide side;
+                expectGolden(gpuGoldenRun(gpu, scene.rays, side), "every cycle, 2 host threads");
+            });
+        }
+    }
+}
+
+TEST(RtCoreGpu, ASideThatThrowsInHostParallelEpochsGivesTheSameStateOnAnyThreadCount) {
+    // A concurrent side whose callback for one ray throws: the batch is
+    // dropped and the exception propagates; the clock reached and the
+    // statistics are the same for 1, 2 and 3 host threads, and the GPU
+    // stays usable.
+    struct ThrowingSide final : ProgrammableSide {
+        std::uint32_t throwFor = ~0u;
+        CandidateVerdict triangle(std::uint32_t ray, const TriangleCandidate&) override {
+            if (ray == throwFor) throw std::runtime_error("shader failed");
+            return {};
+        }
+        ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return {}; }
+        bool concurrent() const override { return true; }
+    };
     RtCoreConfig config = gpuConfig(8, L2Mode::Cache);
-    config.scheduler.policy = "treelet";
-    std::vector<SimRayResult> a, b, c;
-    const json first = runScene("builtin:showcase", config, 64, 48, &a);
-    json inArena;
-    tbb::task_arena arena(4);
-    arena.execute([&] { inArena = runScene("builtin:showcase", config, 64, 48, &b); });
-    json limited;
-    {
-        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-        limited = runScene("builtin:showcase", config, 64, 48, &c);
+    MicroScene scene;
+    loadScene(scene, "builtin:showcase", config.bvh);
+    const std::vector<SimRay> rays = primaryRays(scene.snapshot.camera, 64, 48);
+    std::vector<std::uint64_t> reached;
+    std::vector<json> stats;
+    for (int threads : {1, 2, 3}) {
+        withHostThreads(threads, [&] {
+            RtCore gpu(config, *scene.model);
+            ThrowingSide side;
+            side.throwFor = 1500;
+            std::vector<SimRayResult> results(rays.size());
+            EXPECT_THROW(gpu.run(rays, side, results), std::runtime_error);
+            reached.push_back(gpu.cycle());
+            side.throwFor = ~0u;
+            gpu.run(rays, side, results);
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                TraversalCounters work;
+                ASSERT_TRUE(sameHit(results[i].hit, traceClosestHit(*scene.model, rays[i].ray, work))) << i;
+            }
+            stats.push_back(gpu.statsJson());
+        });
     }
-    EXPECT_EQ(first, inArena);
-    EXPECT_EQ(first, limited);
-    ASSERT_EQ(a.size(), b.size());
-    for (std::size_t i = 0; i < a.size(); ++i) {
-        ASSERT_EQ(a[i].cycles, b[i].cycles) << i;
-        ASSERT_EQ(a[i].cycles, c[i].cycles) << i;
-        ASSERT_EQ(a[i].slotCycles, c[i].slotCycles) << i;
-    }
+    ASSERT_EQ(reached.size(), 3u);
+    EXPECT_GT(reached[0], 0u);
+    EXPECT_EQ(reached[0], reached[1]);
+    EXPECT_EQ(reached[0], reached[2]);
+    EXPECT_EQ(stats[0], stats[1]);
+    EXPECT_EQ(stats[0], stats[2]);
+    // The rays returned before the exception, then the whole second batch.
+    EXPECT_GE(stats[0]["rays"]["completed"].get<std::size_t>(), rays.size());
 }
 
 TEST(RtCoreGpu, SkippingIdleCyclesChangesNothingOnSeveralCores) {

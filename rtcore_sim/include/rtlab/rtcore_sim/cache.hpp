@@ -76,6 +76,42 @@ struct LineFill {
     std::uint64_t dramCycles = 0;
 };
 
+// Host-parallel epochs (docs/rtcore-model.md, "Host threads"): while the
+// cores run on several host threads, a core's L2 reads are not answered at
+// once but logged, and answered between epochs in the order the serial model
+// makes them (cycle, core index, the core's own order). Until then the
+// data-ready cycle of such a read is a placeholder, kDeferred | read index:
+// in a node-cache way, and in the per-line times of a fetch that waits for
+// it. No decision inside an epoch depends on a placeholder's value (every
+// answer lands after the epoch ends), so the answers, filled in afterwards,
+// give exactly the serial model's cycles.
+inline constexpr std::uint64_t kDeferred = std::uint64_t(1) << 63;
+inline constexpr std::uint64_t kDeferredHit = std::uint64_t(1) << 62;  // fetch term: a hit on such a line
+inline constexpr std::uint64_t kDeferredIndex = 0xffffffffu;
+inline bool isDeferred(std::uint64_t ready) { return (ready & kDeferred) != 0; }
+
+// One core's deferred L2 reads of an epoch and what waits for them.
+struct DeferredReads {
+    struct Read {
+        std::uint64_t cycle;    // when the core made it (the serial order's first key)
+        std::uint64_t address;  // byte address of the node-cache line
+        std::uint64_t arrive;   // end of its transfer slot on the core's port (the L2 arrival)
+    };
+    std::vector<Read> reads;          // in the order made
+    std::vector<std::vector<std::uint32_t>> byClass;  // per L2 line class (SharedL2::classOf): its reads, in order
+    std::vector<LineFill> fills;      // the answers, per read, data at the core (filled between epochs)
+    std::vector<LineFill> terms;      // per-line times of fetches that wait for a deferred read
+    std::vector<std::uint32_t> ways;  // node-cache ways given a placeholder (may repeat)
+    bool empty() const { return reads.empty(); }
+    void clear() {
+        reads.clear();
+        for (auto& c : byClass) c.clear();
+        fills.clear();
+        terms.clear();
+        ways.clear();
+    }
+};
+
 // The L2 shared by all cores (l2 mode cache) with the DRAM channels behind it.
 // Banks: line l (address / l2.lineBytes) is in bank l mod banks, set
 // (l / banks) mod setsPerBank; an access occupies its bank l2.bankCycles
@@ -84,22 +120,53 @@ struct LineFill {
 // allocates the line (LRU victim) and reads it from DRAM channel l mod channels
 // from max(start + hitLatency, channel free), for ceil(l2.lineBytes /
 // dram.bytesPerCycle) cycles; the line is there dram.latency cycles later.
+// Counters of the L2 and the DRAM behind it.
+struct L2Counters {
+    std::uint64_t accesses = 0, hits = 0, pendingHits = 0, misses = 0, evictions = 0;
+    std::uint64_t bankConflicts = 0;   // accesses that found their bank busy
+    std::uint64_t bankWaitCycles = 0;  // sum of their waits
+    std::uint64_t dramReads = 0, dramReadBytes = 0, dramQueueCycles = 0;
+    void add(const L2Counters& o) {
+        accesses += o.accesses;
+        hits += o.hits;
+        pendingHits += o.pendingHits;
+        misses += o.misses;
+        evictions += o.evictions;
+        bankConflicts += o.bankConflicts;
+        bankWaitCycles += o.bankWaitCycles;
+        dramReads += o.dramReads;
+        dramReadBytes += o.dramReadBytes;
+        dramQueueCycles += o.dramQueueCycles;
+    }
+};
+
 class SharedL2 {
 public:
     SharedL2(const L2Params& l2, const DramParams& dram);
 
-    LineFill access(std::uint64_t address, std::uint64_t arrive);
+    LineFill access(std::uint64_t address, std::uint64_t arrive) { return access(address, arrive, counters, stamp_); }
+    // Lines of different classes (line mod classes(), classes = gcd(banks,
+    // channels)) share no bank, no set and no DRAM channel, so the accesses
+    // of different classes may be made on different host threads, each with
+    // its own counters (added to `counters` afterwards) and LRU stamp (started
+    // at stamp(), the largest given back with setStamp: only the order of the
+    // stamps within a set matters).
+    LineFill access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp);
+    std::uint32_t classes() const { return classes_; }
+    std::uint32_t classOf(std::uint64_t address) const {
+        return static_cast<std::uint32_t>((address >> lineShift_) % classes_);
+    }
+    std::uint64_t stamp() const { return stamp_; }
+    void setStamp(std::uint64_t stamp) { stamp_ = stamp; }
     void invalidate();
     void resetStats();
     void resetTime();
     std::uint32_t banks() const { return l2_.banks; }
     std::uint32_t channels() const { return dram_.channels; }
 
-    std::uint64_t accesses = 0, hits = 0, pendingHits = 0, misses = 0, evictions = 0, invalidations = 0;
-    std::uint64_t bankConflicts = 0;   // accesses that found their bank busy
-    std::uint64_t bankWaitCycles = 0;  // sum of their waits
+    L2Counters counters;
+    std::uint64_t invalidations = 0;
     std::vector<std::uint64_t> bankBusyCycles;
-    std::uint64_t dramReads = 0, dramReadBytes = 0, dramQueueCycles = 0;
     std::vector<std::uint64_t> channelBusyCycles;
 
 private:
@@ -109,6 +176,7 @@ private:
     std::uint32_t setsPerBank_ = 1;
     std::uint32_t lineShift_ = 7;
     std::uint32_t dramTransfer_ = 1;
+    std::uint32_t classes_ = 1;
     std::vector<std::uint64_t> tags_, ready_, used_;  // per way, [bank][set][way]
     std::vector<std::uint64_t> bankFree_, channelFree_;
     std::uint64_t stamp_ = 0;
@@ -126,9 +194,32 @@ public:
 
     LineFill readLine(std::uint64_t address, std::uint32_t bytes, std::uint64_t now) {
         if (!l2_) return LineFill{channel.read(now, bytes), 0, 0};
-        LineFill f = l2_->access(address, channel.transfer(now, bytes));
-        f.ready += channel.latency();
-        return f;
+        const std::uint64_t arrive = channel.transfer(now, bytes);
+        if (deferred_) [[unlikely]] {
+            const std::uint64_t index = deferred_->reads.size();
+            deferred_->reads.push_back(DeferredReads::Read{now, address, arrive});
+            deferred_->byClass[l2_->classOf(address)].push_back(static_cast<std::uint32_t>(index));
+            return LineFill{kDeferred | index, 0, 0};
+        }
+        return atCore(l2_->access(address, arrive));
+    }
+    // The L2's answer to a read, as the time its data is at the core.
+    LineFill atCore(LineFill fromL2) const {
+        fromL2.ready += channel.latency();
+        return fromL2;
+    }
+    // Host-parallel epochs: L2 reads are logged in `reads` instead of
+    // answered (nullptr: answered at once). Mode ideal never defers.
+    void defer(DeferredReads* reads) {
+        deferred_ = l2_ ? reads : nullptr;
+        if (deferred_) deferred_->byClass.resize(l2_->classes());
+    }
+    DeferredReads* deferred() const { return deferred_; }
+    // The shortest time from a line read made at cycle c to its data at the
+    // core in mode cache: port transfer + L2 hit latency + memory.latency
+    // (a bank wait, DRAM or a busy port only add to it).
+    std::uint64_t minReadLatency(std::uint32_t lineBytes) const {
+        return channel.transferCycles(lineBytes) + std::uint64_t(l2HitLatency_) + channel.latency();
     }
     // Stack refills: mode cache assumes they hit in the L2 (no bank, no allocation).
     std::uint64_t readStack(std::uint64_t now, std::uint32_t bytes) {
@@ -141,6 +232,7 @@ public:
 private:
     SharedL2* l2_;
     std::uint32_t l2HitLatency_;
+    DeferredReads* deferred_ = nullptr;
 };
 
 // Set-associative node cache with LRU replacement. Lines are allocated at
@@ -153,7 +245,16 @@ public:
     // Reads `range` at cycle `now`: every line it touches is looked up in
     // address order, misses go to `port`; returns the cycle all its data is
     // there, with the L2 / DRAM parts of the line that came last.
+    // With deferred L2 reads (MemoryPort::defer), a fetch that waits for one
+    // returns {kDeferred | first term, term count, 0}: its per-line times are
+    // port.deferred()->terms[first, first + count), to be evaluated by
+    // evaluate() once the reads are answered.
     LineFill fetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port);
+    // The result of a deferred fetch made at `now`, the reads answered
+    // (counts its pending hits, as fetch() would have).
+    LineFill evaluate(std::uint64_t now, const LineFill* terms, std::size_t count, const DeferredReads& reads);
+    // Replaces the placeholders of answered reads in the cache's ways.
+    void resolve(const DeferredReads& reads);
     // One line (address / lineBytes) at `now`: the cycle its data is there.
     LineFill accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port);
 

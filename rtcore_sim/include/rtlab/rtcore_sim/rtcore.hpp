@@ -10,14 +10,17 @@
 // instance-transform unit, round trips to the programmable side for shaders,
 // and spills/refills its short stack. Finished rays leave through a bounded
 // completion queue. Simulation is event driven (no cycle-by-cycle sweep over
-// rays), single threaded and deterministic: the same inputs give the same
-// cycles and stats.
+// rays) and deterministic: the same inputs give the same cycles and stats.
 //
 // An RtCore object is the whole GPU (docs/rtcore-model.md, "GPU level"):
 // gpu.cores such cores on one clock, each with its own node cache (L1) and
 // memory port, sharing the L2 and DRAM (l2.mode = cache). Warps of a batch go
 // to cores by gpu.dispatch. One core with the ideal L2 (the defaults) is the
-// single-core model, cycle for cycle.
+// single-core model, cycle for cycle. Several cores run on the process's
+// host threads (TBB) in lock-step epochs when the side allows concurrent
+// callbacks (ProgrammableSide::concurrent), otherwise on the calling thread;
+// cycles and stats are the same for any number of threads
+// (docs/rtcore-model.md, "Host threads").
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/model_scene.hpp>
 #include <rtlab/rtcore_sim/traversal.hpp>

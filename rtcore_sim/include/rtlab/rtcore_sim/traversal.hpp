@@ -103,6 +103,14 @@ public:
     // (index into the submitted batch; 0 for the functional traceRay).
     virtual CandidateVerdict triangle(std::uint32_t rayIndex, const TriangleCandidate& c) = 0;
     virtual ProceduralVerdict procedural(std::uint32_t rayIndex, const ProceduralCandidate& c) = 0;
+    // True when callbacks for different rays may run at the same time on
+    // several host threads, in any interleaving: a verdict depends only on
+    // that ray's own candidates and a call touches no state shared with
+    // other rays' calls. The GPU model (RtCore with gpu.cores > 1) then
+    // advances its cores on several host threads (docs/rtcore-model.md,
+    // "Host threads"); otherwise it runs them on the calling thread, cycle
+    // by cycle. Cycles and statistics are the same either way.
+    virtual bool concurrent() const { return false; }
 };
 
 // Opaque triangles, every candidate committed, no shaders; procedural never hit.
@@ -110,6 +118,7 @@ class OpaqueSide final : public ProgrammableSide {
 public:
     CandidateVerdict triangle(std::uint32_t, const TriangleCandidate&) override { return {}; }
     ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return {}; }
+    bool concurrent() const override { return true; }
 };
 
 // A ray as submitted to the RT core. skipTriangles / skipProcedural leave
