@@ -9,14 +9,12 @@
 // to the noisy neighbourhood): FLIP 0.139 (worse than raw), Laplacian 0.020;
 // the reflected hit lit by one picked light instead of every light: raw
 // FLIP 0.414.
+#include "shaders_cpp/static_view.hpp"
 #include <rtlab/core/flip.hpp>
 #include <rtlab/denoise/effect_layers.hpp>
-#include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/snapshot.hpp>
-#include <rtlab/ecs/world.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
-#include <rtlab/tracer/accel_manager.hpp>
 
 #include <gtest/gtest.h>
 
@@ -62,11 +60,9 @@ MirrorMetrics measure(const std::vector<vec3>& test, const std::vector<vec3>& re
 }  // namespace
 
 TEST(MirrorDenoise, ShowcaseMirrorIsCloserToTheReferenceAndKeepsItsDetail) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:showcase");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));  // a static view
-    tracer::AccelManager accel;
-    accel.update(scene);
+    const test::StaticView view("builtin:showcase");
+    const ecs::SceneSnapshot& scene = view.scene;
+    const tracer::AccelManager& accel = view.accel;
     RenderSettings s;
     s.width = 128;
     s.height = 72;

@@ -7,14 +7,12 @@
 // reflections 7.3e-5 / 4.1e-4, AO 0.0077 / 0.00146, GI 0.0163 / 0.00379;
 // before SvgfParams::convergeStatic 0.00288 / 0.00306, 3.5e-4 / 3.5e-4,
 // 0.0146 / 0.0151, 0.0065 / 0.0061.
+#include "shaders_cpp/static_view.hpp"
 #include <rtlab/core/image.hpp>
 #include <rtlab/denoise/effect_layers.hpp>
-#include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/snapshot.hpp>
-#include <rtlab/ecs/world.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
-#include <rtlab/tracer/accel_manager.hpp>
 
 #include <gtest/gtest.h>
 
@@ -37,11 +35,9 @@ Image rgbImage(int w, int h, const std::vector<vec3>& rgb) {
 }  // namespace
 
 TEST(StaticConvergence, ShowcaseStacksKeepConvergingWithHistory) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:showcase");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));  // a static view
-    tracer::AccelManager accel;
-    accel.update(scene);
+    const test::StaticView view("builtin:showcase");
+    const ecs::SceneSnapshot& scene = view.scene;
+    const tracer::AccelManager& accel = view.accel;
     RenderSettings s;
     s.width = 96;
     s.height = 54;
