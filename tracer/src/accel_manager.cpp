@@ -175,7 +175,7 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
 
 // After a refit: the same triangles per cluster, their new vertices.
 void refreshClusterVertices(WatertightTriangles& data, const ecs::Geometry& g) {
-    for (const std::uint32_t unit : data.clusters.starts()) {
+    for (std::uint32_t unit = 0; unit < data.clusters.units(); unit = data.clusters.next(unit)) {
         const TriangleCluster c = data.clusters.at(unit);
         for (std::uint32_t s = 0; s < c.count; ++s) {
             const std::uint32_t t = c.primitive(s);

@@ -70,7 +70,6 @@ std::uint32_t PackedClusters::append(const std::uint32_t* primitives, std::uint3
     float* d = floats_.data() + 4 * std::size_t(unit);
     d[0] = std::bit_cast<float>(count);
     for (std::uint32_t s = 0; s < count; ++s) d[1 + s] = std::bit_cast<float>(primitives[s]);
-    starts_.push_back(unit);
     isStart_.resize(std::size_t(unit) + n, 0);
     isStart_[unit] = 1;
     return unit;

@@ -86,20 +86,23 @@ public:
     // `primitives`, vertices unset; returns its unit.
     std::uint32_t append(const std::uint32_t* primitives, std::uint32_t count);
     void setTriangle(std::uint32_t unit, std::uint32_t slot, const vec3& p0, const vec3& p1, const vec3& p2);
-    void clear() { floats_.assign(4, 0.f), starts_.clear(), isStart_.clear(); }
+    void clear() {
+        floats_.assign(4, 0.f);
+        isStart_.clear();
+    }
 
     TriangleCluster at(std::uint32_t unit) const {
         const float* d = floats_.data() + 4 * std::size_t(unit);
         return {d, std::bit_cast<std::uint32_t>(d[0])};
     }
     bool startsCluster(std::uint32_t unit) const { return unit < isStart_.size() && isStart_[unit]; }
-    const std::vector<std::uint32_t>& starts() const { return starts_; }  // every cluster's unit
+    // The unit after the cluster starting at `unit` (clusters lie back to back).
+    std::uint32_t next(std::uint32_t unit) const { return unit + unitsFor(at(unit).count); }
     std::uint32_t units() const { return static_cast<std::uint32_t>(isStart_.size()); }
     std::uint64_t bytes() const { return floats_.size() * sizeof(float) + isStart_.size(); }
 
 private:
     std::vector<float> floats_ = std::vector<float>(4, 0.f);  // the units, then 4 floats of tail
-    std::vector<std::uint32_t> starts_;
     std::vector<std::uint8_t> isStart_;
 };
 
