@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace rtlab::shaders::detail {
 namespace {
@@ -60,23 +61,21 @@ vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi) {
     return (1.f - sp.metalness) * (1.f - sp.transmission) * sp.albedo * (cosI / kPi);
 }
 
-vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi) {
+vec3 evalSpecularCos(const ShadingPoint& sp, const vec3& wi) {
     const float cosI = glm::dot(sp.normal, wi);
     const float cosO = glm::dot(sp.normal, sp.wo);
-    if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, wi) <= 0.f) return vec3(0.f);
-    vec3 f = evalDiffuseCos(sp, wi);
-    if (cosO > 0.f) {
-        // Step: GGX specular D G F / (4 cosI cosO) x cosI, in the shading frame.
-        const vec3& wo = sp.woLocal;
-        const vec3 wiLocal = toLocal(sp.frame, wi);
-        const vec3 h = glm::normalize(wo + wiLocal);
-        const float alpha = ggxAlpha(sp.roughness);
-        const vec3 F = fresnelSchlick(specularF0(sp), glm::dot(wiLocal, h));
-        const float spec = ggxD(h, alpha) * ggxG2(wo, wiLocal, alpha) / (4.f * std::max(cosO, 1e-6f));
-        if (std::isfinite(spec)) f += F * spec;
-    }
-    return f;
+    if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, wi) <= 0.f || !(cosO > 0.f)) return vec3(0.f);
+    // Step: GGX specular D G F / (4 cosI cosO) x cosI, in the shading frame.
+    const vec3& wo = sp.woLocal;
+    const vec3 wiLocal = toLocal(sp.frame, wi);
+    const vec3 h = glm::normalize(wo + wiLocal);
+    const float alpha = ggxAlpha(sp.roughness);
+    const vec3 F = fresnelSchlick(specularF0(sp), glm::dot(wiLocal, h));
+    const float spec = ggxD(h, alpha) * ggxG2(wo, wiLocal, alpha) / (4.f * std::max(cosO, 1e-6f));
+    return std::isfinite(spec) ? F * spec : vec3(0.f);
 }
+
+vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi) { return evalDiffuseCos(sp, wi) + evalSpecularCos(sp, wi); }
 
 tracer::RayDesc shadowRayToward(const LightSample& ls, const vec3& p, const vec3& ng, float errorScale) {
     const vec3 origin = rayOriginLeaving(p, ng, ls.direction, errorScale);
@@ -188,19 +187,100 @@ float pointLightImportance(const ecs::LightSnapshot& l, const ShadingPoint& sp) 
     return luminance(s.radianceOverPdf) * cosI;
 }
 
+float polygonCosineIntegral(const vec3* corners, int count, const vec3& n, const vec3& ng) {
+    // Step: clip the polygon (points relative to the surface point) to the
+    // half-spaces n.q >= 0 and ng.q >= 0 (Sutherland-Hodgman; convex stays convex).
+    constexpr int kMax = 12;
+    vec3 a[kMax], b[kMax];
+    int na = std::min(count, 8);
+    for (int i = 0; i < na; ++i) a[i] = corners[i];
+    const auto clip = [](const vec3* in, int m, vec3* out, const vec3& plane) {
+        int k = 0;
+        for (int i = 0; i < m; ++i) {
+            const vec3& p = in[i];
+            const vec3& q = in[(i + 1) % m];
+            const float dp = glm::dot(plane, p), dq = glm::dot(plane, q);
+            if (dp >= 0.f) out[k++] = p;
+            if ((dp >= 0.f) != (dq >= 0.f)) out[k++] = p + (q - p) * (dp / (dp - dq));
+        }
+        return k;
+    };
+    int nb = clip(a, na, b, n);
+    na = nb > 2 ? clip(b, nb, a, ng) : 0;
+    if (na < 3) return 0.f;
+    // Step: Lambert's formula, half the sum over edges of the angle they
+    // subtend times n . (unit normal of the edge's plane); the angle as
+    // atan2(|u x v|, u . v), exact for the small angles of distant lights.
+    float sum = 0.f;
+    for (int i = 0; i < na; ++i) {
+        const vec3 u = glm::normalize(a[i]), v = glm::normalize(a[(i + 1) % na]);
+        const vec3 c = glm::cross(u, v);
+        const float s = glm::length(c);
+        if (!(s > 0.f)) continue;  // a repeated point adds nothing
+        sum += glm::dot(n, c) * (std::atan2(s, glm::dot(u, v)) / s);
+    }
+    const float integral = 0.5f * std::abs(sum);
+    return std::isfinite(integral) ? std::min(integral, kPi) : 0.f;
+}
+
+std::optional<float> sphereCosineIntegral(const vec3& toCentre, float radius, const vec3& n, const vec3& ng) {
+    const float dist2 = glm::dot(toCentre, toCentre);
+    if (!(dist2 > radius * radius)) return 0.f;  // inside the light: nothing (as its sampler)
+    const float dist = std::sqrt(dist2);
+    const float sinSigma2 = radius * radius / dist2;
+    const float sinSigma = std::sqrt(sinSigma2);
+    const float cosTheta = glm::clamp(glm::dot(n, toCentre) / dist, -1.f, 1.f);
+    const bool sameHemispheres = n == ng;
+    // Step: a cap cut by the geometric horizon too is left to sampling.
+    if (!sameHemispheres && glm::dot(ng, toCentre) / dist < sinSigma) return std::nullopt;
+    if (cosTheta >= sinSigma) return kPi * sinSigma2 * cosTheta;  // the whole cap above the horizon
+    if (cosTheta <= -sinSigma) return 0.f;                        // the whole cap below it
+    // Step: the cap cut by the horizon (Snyder 1996): with x = cot(sigma),
+    // y = -x cot(theta), z = sin(theta) sqrt(1 - y^2),
+    //   integral = (cos(theta) acos(y) - x z) sin^2(sigma) + atan(z / x).
+    const float sinTheta = std::sqrt(std::max(0.f, 1.f - cosTheta * cosTheta));
+    const float x = std::sqrt(std::max(0.f, 1.f - sinSigma2)) / sinSigma;
+    const float y = glm::clamp(-x * cosTheta / std::max(sinTheta, 1e-30f), -1.f, 1.f);
+    const float z = sinTheta * std::sqrt(std::max(0.f, 1.f - y * y));
+    const float integral = (cosTheta * std::acos(y) - x * z) * sinSigma2 + std::atan2(z, x);
+    return std::isfinite(integral) ? glm::clamp(integral, 0.f, kPi * sinSigma2) : 0.f;
+}
+
 vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp, int samples, const SampleKey& key,
                          std::uint32_t dimension) {
-    // Step: stratified samples on a sqrt(n) x sqrt(n) grid, jittered by the pixel's hash.
+    // Step: the diffuse term in closed form (the light's uniform radiance x
+    // the integral of cos over the part of it above both hemispheres).
+    std::optional<float> cosineIntegral;
+    if (light.light.type == ecs::LightType::Rect) {
+        const vec3 toCentre = lightPosition(light) - sp.position;
+        if (!(glm::dot(toCentre, lightForward(light)) < 0.f)) return vec3(0.f);  // behind the one-sided panel
+        const vec3 ax = 0.5f * light.light.size.x * vec3(light.worldFromLight[0]);
+        const vec3 ay = 0.5f * light.light.size.y * vec3(light.worldFromLight[1]);
+        const vec3 corners[4] = {toCentre - ax - ay, toCentre + ax - ay, toCentre + ax + ay, toCentre - ax + ay};
+        cosineIntegral = polygonCosineIntegral(corners, 4, sp.normal, sp.geometricNormal);
+    } else {
+        cosineIntegral = sphereCosineIntegral(lightPosition(light) - sp.position, std::max(light.light.radius, 0.f),
+                                              sp.normal, sp.geometricNormal);
+    }
+    vec3 sum(0.f);
+    const vec3 diffuse = (1.f - sp.metalness) * (1.f - sp.transmission) * sp.albedo / kPi;
+    if (cosineIntegral) sum = diffuse * emitted(light) * *cosineIntegral;
+    // Step: the rest (the specular lobe; the diffuse one where no closed form
+    // applies) by stratified samples on a sqrt(n) x sqrt(n) grid, jittered by the pixel's hash.
+    const bool specular = glm::dot(sp.normal, sp.wo) > 0.f;  // evalSpecularCos is 0 otherwise
+    if (cosineIntegral && !specular) return sum;
     const int side = std::max(1, static_cast<int>(std::sqrt(static_cast<float>(samples))));
     const vec2 jitter(sampleUniform(key, dimension), sampleUniform(key, dimension + 1));
-    vec3 sum(0.f);
+    vec3 sampled(0.f);
     for (int j = 0; j < side; ++j)
         for (int i = 0; i < side; ++i) {
             const vec2 u = glm::fract((vec2(i, j) + jitter) / float(side));
             const LightSample s = sampleAreaLight(light, sp.position, u);
-            if (s.valid) sum += evalBrdfCos(sp, s.direction) * s.radianceOverPdf;
+            if (!s.valid) continue;
+            const vec3 f = cosineIntegral ? evalSpecularCos(sp, s.direction) : evalBrdfCos(sp, s.direction);
+            sampled += f * s.radianceOverPdf;
         }
-    return sum / float(side * side);
+    return sum + sampled / float(side * side);
 }
 
 bool emits(const ecs::LightSnapshot& l) {

@@ -7,6 +7,7 @@
 #include <rtlab/shaders_cpp/sampling.hpp>
 
 #include <cmath>
+#include <optional>
 #include <vector>
 
 namespace rtlab::shaders::detail {
@@ -34,6 +35,8 @@ ShadingPoint shadingPointOf(const HitPayload& hit, const ecs::Material& m, const
 vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi);
 // The diffuse part only: (1 - metalness)(1 - transmission) albedo / pi * cos(theta_i).
 vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi);
+// The specular (GGX) part only; evalBrdfCos = evalDiffuseCos + evalSpecularCos.
+vec3 evalSpecularCos(const ShadingPoint& sp, const vec3& wi);
 // F0 of the specular lobe.
 vec3 specularF0(const ShadingPoint& sp);
 
@@ -66,10 +69,24 @@ LightSample pointLightSample(const ecs::LightSnapshot& light, const vec3& p);
 // orientation / distance^2, zero out of range or facing away.
 float pointLightImportance(const ecs::LightSnapshot& light, const ShadingPoint& sp);
 
-// The unshadowed direct light of one area light, by `samples` stratified
-// samples without rays (the shadow pass's "unshadowed" signal).
+// The unshadowed direct light of one area light (the shadow pass's
+// "unshadowed" signal, no rays): the diffuse term in closed form
+// (polygonCosineIntegral / sphereCosineIntegral), the specular term by
+// `samples` stratified samples; the diffuse term is sampled too where no
+// closed form applies (a sphere light cut by the geometric horizon of a
+// surface whose shading normal differs from it).
 vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp, int samples, const SampleKey& key,
                          std::uint32_t dimension);
+// The integral of cos(theta) = n . w over the directions w toward a convex
+// polygon (`count` <= 8 corners relative to the surface point, in order)
+// that lie above both planes n . w >= 0 and ng . w >= 0 (Lambert's formula
+// after clipping). A Lambertian surface of albedo a under a polygon of
+// uniform radiance L receives a / pi x L x this.
+float polygonCosineIntegral(const vec3* corners, int count, const vec3& n, const vec3& ng);
+// The same for a sphere of `radius` centred at `toCentre` from the surface
+// point, clipped to the n hemisphere (Snyder 1996); nothing when the sphere
+// also crosses the ng horizon and n != ng (no closed form: sample it).
+std::optional<float> sphereCosineIntegral(const vec3& toCentre, float radius, const vec3& n, const vec3& ng);
 
 // Whether a light emits at all (the planner counts the same lights).
 bool emits(const ecs::LightSnapshot& light);
