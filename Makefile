@@ -29,12 +29,16 @@ workloads: build
 	@python3 perf/workloads.py build/release/apps/rtlab out/workloads docs/workloads.md
 
 # Error against run time of the showcase's shadow, reflection, AO and GI
-# denoisers (docs/denoise.md). References are cached in out/converge-cache:
-# the first run renders them (tens of minutes), later runs take minutes.
+# denoisers at 480x270 and 320x180 (docs/denoise.md). References are cached
+# in out/converge-cache: the first run renders them (tens of minutes), later
+# runs take minutes.
 converge: build
 	@for e in shadows reflections ao gi; do \
 	  ./build/release/apps/rtlab converge --scene builtin:showcase --effect $$e --out out/converge/showcase-$$e || exit $$?; \
+	  ./build/release/apps/rtlab converge --scene builtin:showcase --effect $$e --width 320 --height 180 \
+	    --out out/converge/showcase-$$e-320x180 || exit $$?; \
 	done
+	@python3 perf/converge_table.py out/converge
 
 # The example study of docs/studies.md: node-cache size x scheduling policy on
 # three workloads (27 points), then its report (out/study/report.html).
