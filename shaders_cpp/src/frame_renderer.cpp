@@ -61,7 +61,9 @@ struct ComposeLayers {
         const auto rgb = [&](const std::string& layer) -> std::vector<vec3> {
             return frame.hasChannel(layer.empty() ? "R" : layer + ".R") ? frame.rgbLayer(layer) : std::vector<vec3>();
         };
-        albedo = rgb("albedo"), emissive = rgb("emissive"), point = rgb("direct.point"), gi = rgb("gi");
+        albedo = rgb("albedo"), emissive = rgb("emissive"), gi = rgb("gi");
+        // The point lights: traced one by one (direct.point) or picked per pixel (direct.pointPicked).
+        point = frame.hasChannel("direct.pointPicked.R") ? rgb("direct.pointPicked") : rgb("direct.point");
         reflection = rgb("reflection"), brdf = rgb("reflection.brdf"), translucency = rgb("translucency");
         inscatter = rgb("volume.inscatter");
         pathTraced = rgb("pathtrace");

@@ -18,7 +18,7 @@ namespace rtlab::shaders::detail {
 // in a frame share random numbers; dimensions restart at 0 in each stream.
 namespace stream {
 inline constexpr std::uint32_t kAreaLight = 0x100;         // + area-light index: light point (0, 1), unshadowed jitter (2, 3)
-inline constexpr std::uint32_t kPointLightPick = 0x200;    // importance pick among point lights (0)
+inline constexpr std::uint32_t kPointLightPick = 0x200;    // importance pick among point lights (0); + 1 + j: point light j when every one is traced
 inline constexpr std::uint32_t kAmbientOcclusion = 0x300;  // direction (0, 1)
 inline constexpr std::uint32_t kGiBounce = 0x400;          // direction (0, 1)
 inline constexpr std::uint32_t kGiHit = 0x410;             // light pick and point at the GI hit (0, 1, 2)

@@ -190,7 +190,7 @@ Image allStacksFrame(int w, int h, float value) {
     f.addChannel("reflection.hitT", 2.f);
     f.addRgbLayer("reflection", std::vector<vec3>(f.pixelCount(), vec3(value)));
     f.addRgbLayer("gi", std::vector<vec3>(f.pixelCount(), vec3(value)));
-    f.addRgbLayer("direct.point", std::vector<vec3>(f.pixelCount(), vec3(value)));
+    f.addRgbLayer("direct.pointPicked", std::vector<vec3>(f.pixelCount(), vec3(value)));
     f.addRgbLayer("albedo", std::vector<vec3>(f.pixelCount(), vec3(0.5f)));
     return f;
 }
@@ -224,7 +224,7 @@ TEST(DenoiseStacks, ExtremeInputsStayFiniteOnEveryStack) {
                     f.channel("gi.G")[0] = std::numeric_limits<float>::infinity();
                 }
                 const std::vector<DenoisedLayer> done = d.apply(f);
-                EXPECT_EQ(done.size(), 5u);  // shadow V, direct.point, reflection, ao, gi
+                EXPECT_EQ(done.size(), 5u);  // shadow V, direct.pointPicked, reflection, ao, gi
                 EXPECT_TRUE(layersFinite(f)) << w << "x" << h << " value " << value << " frame " << frame;
             }
         }
@@ -235,7 +235,7 @@ TEST(DenoiseStacks, ConstantSignalStaysConstant) {
     for (const float value : {0.f, 0.25f, 1.f}) {
         Image f = allStacksFrame(20, 12, value);
         EffectLayerDenoiser().apply(f);
-        for (const char* c : {"shadow.light0.V", "ao.V", "reflection.R", "gi.B", "direct.point.G"})
+        for (const char* c : {"shadow.light0.V", "ao.V", "reflection.R", "gi.B", "direct.pointPicked.G"})
             for (std::size_t i = 0; i < f.pixelCount(); ++i) EXPECT_NEAR(f.channel(c)[i], value, 1e-6f) << c;
     }
 }

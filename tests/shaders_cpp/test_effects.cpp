@@ -730,3 +730,42 @@ TEST(Effects, PointLightIsInCandela) {
     const double expected = kHeadOnBrdf * 40.0 / 4.0;
     EXPECT_NEAR(got, expected, 1e-3 * expected);
 }
+
+// Up to four point lights each get a shadow ray (direct.point, exact at 1
+// spp); with more, one is picked per pixel by importance (direct.pointPicked,
+// right on average). Lights at height 2 over the floor centre, one apart.
+TEST(Effects, FewPointLightsAreTracedEachManyArePicked) {
+    const auto render = [](int lights, int spp, const char* layer, double& expected) {
+        ecs::World world;
+        addGreyFloor(world);
+        expected = 0.0;
+        for (int k = 0; k < lights; ++k) {
+            const vec3 position(0.5f * float(k) - 1.f, 2.f, 0.3f);
+            addLightFacingDown(world, ecs::Light{ecs::LightType::Point, vec3(1.f), 40.f}, position);
+            // E = I cos / d^2 at the floor centre times the Lambert term albedo / pi.
+            const double d2 = glm::dot(position, position), cosI = position.y / std::sqrt(d2);
+            expected += 40.0 * cosI / d2 * (0.5 / kPi);
+        }
+        addCamera(world, vec3(0.f, 0.5f, 0.f), vec3(0.f), 0.01f);
+        RenderSettings s;
+        s.width = s.height = 3;
+        s.spp = spp;
+        PlanOptions o;
+        o.requested = {Pass::Shadows};
+        const Rendered r = renderWorld(world, s, o);
+        expectAllFinite(r, layer);
+        EXPECT_EQ(r.out.image.hasChannel("direct.point.R"), lights <= 4);
+        EXPECT_EQ(r.out.image.hasChannel("direct.pointPicked.R"), lights > 4);
+        return r.out.image.channel(layer)[4];
+    };
+    double diffuseFour = 0.0, diffuseSix = 0.0;
+    const float four = render(4, 1, "direct.point.R", diffuseFour);
+    const float six = render(6, 256, "direct.pointPicked.R", diffuseSix);
+    // The default material adds a small GGX lobe (F0 0.04) to the Lambert term: within 4 %.
+    EXPECT_NEAR(four, diffuseFour, 0.04 * diffuseFour);
+    EXPECT_GT(four, diffuseFour);
+    EXPECT_NEAR(six, diffuseSix, 0.08 * diffuseSix);
+    // Traced, the same at 1 and 16 spp but for the rounding of the mean (no noise without fog).
+    double unused = 0.0;
+    EXPECT_NEAR(render(4, 16, "direct.point.R", unused), four, 1e-6f * four);
+}

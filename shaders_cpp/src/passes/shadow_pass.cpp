@@ -1,11 +1,16 @@
 // Shadows / direct light. Per area light: one visibility ray per pixel and
 // sample toward a random point on the light -> visibility and occluder hit
 // distance buffers (the shadow denoiser works per light), and the unshadowed
-// light by stratified samples without rays. Point, spot and directional
-// lights: one picked per pixel by importance, one shadow ray toward it.
+// light without rays (diffuse in closed form, specular by stratified
+// samples). Point, spot and directional lights: a shadow ray to each (up to
+// kTraceEveryPointLight of them), else one picked per pixel by importance.
 #include "../lighting.hpp"
 
 namespace rtlab::shaders::detail {
+
+// Up to this many point / spot / directional lights each get a shadow ray
+// per pixel and sample; more are sampled by an importance pick.
+constexpr std::size_t kTraceEveryPointLight = 4;
 
 std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct,
                             tracer::TraceCounters& counters) {
@@ -73,48 +78,79 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
         ++areaIndex;
     }
 
-    // Step: point / spot / directional lights — one picked per pixel by importance.
-    bool anyPoint = false;
-    for (const ecs::LightSnapshot& l : ctx.scene.lights) anyPoint = anyPoint || (!l.light.isArea() && emits(l));
-    if (anyPoint) {
+    // Step: point / spot / directional lights. A point light's visibility from
+    // a pixel's G-buffer point has no noise, so with few of them each gets
+    // its own shadow ray (the layer is then noise-free but for fog); with
+    // more, one is picked per pixel by importance.
+    std::vector<const ecs::LightSnapshot*> pointLights;
+    for (const ecs::LightSnapshot& l : ctx.scene.lights)
+        if (!l.light.isArea() && emits(l)) pointLights.push_back(&l);
+    if (!pointLights.empty()) {
         std::vector<vec3> pointDirect(n, vec3(0.f)), contribution(n, vec3(0.f));
         bytes += n * 2 * 3 * sizeof(float);
-        for (int s = 0; s < spp; ++s) {
-            tracePerPixel(
-                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-                    const std::size_t i = ctx.pixelIndex(x, y);
-                    const GPixel& g = ctx.gbuffer[i];
-                    contribution[i] = vec3(0.f);
-                    if (!g.hit) return std::nullopt;
-                    const ShadingPoint sp = shadingPointOf(g);
-                    // Step: importance = intensity x orientation / distance^2 over the non-area lights.
-                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kPointLightPick);
-                    float pdf = 0.f;
-                    const ecs::LightSnapshot* chosen = pickByWeight(
-                        ctx.scene.lights,
-                        [&](const ecs::LightSnapshot& l) {
-                            return !l.light.isArea() && emits(l) ? pointLightImportance(l, sp) : 0.f;
+        const auto addIfVisible = [&](int x, int y, const HitPayload& p) {
+            const std::size_t i = ctx.pixelIndex(x, y);
+            if (!p.hit) pointDirect[i] += contribution[i];
+        };
+        if (pointLights.size() <= kTraceEveryPointLight) {
+            for (std::uint32_t j = 0; j < pointLights.size(); ++j) {
+                const ecs::LightSnapshot& light = *pointLights[j];
+                const std::uint32_t fogStream = stream::transmittance(stream::kPointLightPick + 1 + j);
+                for (int s = 0; s < spp; ++s)
+                    tracePerPixel(
+                        [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                            const std::size_t i = ctx.pixelIndex(x, y);
+                            const GPixel& g = ctx.gbuffer[i];
+                            contribution[i] = vec3(0.f);
+                            if (!g.hit) return std::nullopt;
+                            const LightSample ls = pointLightSample(light, g.position);
+                            if (!ls.valid) return std::nullopt;
+                            const vec3 f = evalBrdfCos(shadingPointOf(g), ls.direction) * ls.radianceOverPdf;
+                            if (!(luminance(f) > 0.f)) return std::nullopt;
+                            const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
+                            contribution[i] = f * ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
+                                                                    static_cast<std::uint32_t>(s), fogStream);
+                            return ray;
                         },
-                        sampleUniform(key, 0), pdf);
-                    if (!chosen) return std::nullopt;
-                    const LightSample ls = pointLightSample(*chosen, g.position);
-                    const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
-                    contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf *
-                                      ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
-                                                        static_cast<std::uint32_t>(s),
-                                                        stream::transmittance(stream::kPointLightPick));
-                    return ray;
-                },
-                [&](int x, int y, const HitPayload& p) {
-                    const std::size_t i = ctx.pixelIndex(x, y);
-                    if (!p.hit) pointDirect[i] += contribution[i];
-                });
+                        addIfVisible);
+            }
+        } else {
+            for (int s = 0; s < spp; ++s) {
+                tracePerPixel(
+                    [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                        const std::size_t i = ctx.pixelIndex(x, y);
+                        const GPixel& g = ctx.gbuffer[i];
+                        contribution[i] = vec3(0.f);
+                        if (!g.hit) return std::nullopt;
+                        const ShadingPoint sp = shadingPointOf(g);
+                        // Step: importance = intensity x orientation / distance^2 over the non-area lights.
+                        const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kPointLightPick);
+                        float pdf = 0.f;
+                        const ecs::LightSnapshot* chosen = pickByWeight(
+                            ctx.scene.lights,
+                            [&](const ecs::LightSnapshot& l) {
+                                return !l.light.isArea() && emits(l) ? pointLightImportance(l, sp) : 0.f;
+                            },
+                            sampleUniform(key, 0), pdf);
+                        if (!chosen) return std::nullopt;
+                        const LightSample ls = pointLightSample(*chosen, g.position);
+                        const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
+                        contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf *
+                                          ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
+                                                            static_cast<std::uint32_t>(s),
+                                                            stream::transmittance(stream::kPointLightPick));
+                        return ray;
+                    },
+                    addIfVisible);
+            }
         }
         for (std::size_t i = 0; i < n; ++i) {
             pointDirect[i] /= float(spp);
             direct[i] += pointDirect[i];
         }
-        out.addRgbLayer("direct.point", pointDirect);
+        // Traced one by one the layer has no noise but the fog's; picked, it is noisy
+        // (the denoiser filters direct.pointPicked only).
+        out.addRgbLayer(pointLights.size() <= kTraceEveryPointLight ? "direct.point" : "direct.pointPicked", pointDirect);
     }
     return bytes;
 }

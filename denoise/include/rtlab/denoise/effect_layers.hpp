@@ -9,10 +9,10 @@
 //   effect        signal layers                          stack
 //   shadows       shadow.light<i>.V (one per area light)  Shadow: visibility only; footprint from the
 //                                                          penumbra (shadow.light<i>.penumbra); history clamp
-//                 direct.light<i>.RGB (unshadowed)        Svgf on direct.light<i> / albedo.RGB (16 stratified
-//                                                          samples a frame: noisy, but no visibility edges)
-//                 direct.point.RGB                        Svgf on direct.point / albedo.RGB (point lights: hard
-//                                                          shadows, one light pick; remodulated after)
+//                 direct.light<i>.RGB (unshadowed),       not filtered (closed-form diffuse, stratified specular;
+//                 direct.point.RGB (<= 4 point lights)     each point light traced: no noise but the fog's)
+//                 direct.pointPicked.RGB                  Svgf on direct.pointPicked / albedo.RGB (more than 4
+//                                                          point lights, one picked per pixel; remodulated after)
 //   reflections   reflection.RGB (incoming radiance)      Reflection: footprint from roughness.Y and
 //                                                          reflection.hitT; history clamp
 //   ao            ao.V                                    AmbientOcclusion: footprint from ao.hitT

@@ -104,7 +104,7 @@ struct FrameOutput {
 
 // The beauty image (R, G, B) from a frame's layers, the renderer's compose:
 //   in-scattered + T x (emission + sum_i direct.light<i> x shadow.light<i>.V
-//   + direct.point + diffuse albedo / pi x gi + reflection.brdf x reflection
+//   + direct.point (or direct.pointPicked) + diffuse albedo / pi x gi + reflection.brdf x reflection
 //   + transmission x translucency), or in-scattered + T x pathtrace when the
 //   path tracer ran (its layer is the whole estimate), diffuse albedo = (1 - metalness)(1 -
 //   transmission) albedo; sky pixels (id.mesh < 0) get the in-scattered light
@@ -113,7 +113,7 @@ void composeBeauty(Image& frame);
 
 // One effect's term of that compose, per pixel (what `rtlab converge`
 // measures): shadows = sum_i direct.light<i> x shadow.light<i>.V +
-// direct.point; reflections = reflection.brdf x reflection; ao = ao.V
+// direct.point (or direct.pointPicked); reflections = reflection.brdf x reflection; ao = ao.V
 // (grey); gi = diffuse albedo / pi x gi; translucency = transmission x
 // translucency; volumes = volume.inscatter. 0 on sky pixels (except
 // volumes). Throws std::invalid_argument for another name.
