@@ -63,7 +63,7 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
     }
     out.addRgbLayer("reflection", radiance);
     out.addRgbLayer("reflection.brdf", brdf);
-    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
+    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + sizeof(BrdfSample) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
 }
 
 }  // namespace rtlab::shaders::detail

@@ -73,7 +73,10 @@ struct SvgfParams {
     float staticShrinkSigma2 = 1.f;
     // The long mean takes firefly-clamped samples (FireflyClampParams `firefly`)
     // even when the filtered signal does not: a heavy-tailed signal's rare huge
-    // sample would otherwise stay in it at weight 1/n. Source: rtlab.
+    // sample would otherwise stay in it at weight 1/n. No stack sets it now:
+    // it also pulls a bright, sparse but true signal to its neighbours (the
+    // reflection stack used it until its heavy tail was removed at the
+    // source). Source: rtlab.
     bool staticClampFireflies = false;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
