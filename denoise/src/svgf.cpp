@@ -219,7 +219,12 @@ void SvgfFilter::convergeStatic(int w, int h) {
         // The change test: the long mean against the short-memory luminance moment.
         const float nm = std::clamp(reprojected_.length[i], 1.f, steadyMoments);
         const float d = std::fabs(luminance(mean) - reprojected_.moments[i].x);
-        const float tolerance = k * std::sqrt(blurredVariance_[i] * (1.f / nm + 1.f / len));
+        // The samples' variance: the 3x3 average, or (staticResetOwnVariance)
+        // the long mean's own samples' where larger.
+        const float ownVariance = staticMoments_[i].y - staticMoments_[i].x * staticMoments_[i].x;
+        const float variance = params_.staticResetOwnVariance && ownVariance > blurredVariance_[i] ? ownVariance
+                                                                                                 : blurredVariance_[i];
+        const float tolerance = k * std::sqrt(variance * (1.f / nm + 1.f / len));
         if (d > tolerance && d > 1e-6f * std::fabs(reprojected_.moments[i].x)) {
             staticColor_[i] = fast;
             staticMoments_[i] = reprojected_.moments[i];

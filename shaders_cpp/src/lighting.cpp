@@ -57,6 +57,61 @@ void finishShadingPoint(ShadingPoint& sp) {
 
 vec3 specularF0(const ShadingPoint& sp) { return glm::mix(vec3(0.04f), sp.albedo, sp.metalness); }
 
+namespace {
+
+// The specular lobe's pick probability in sampleBrdf; < 0 when nothing can be sampled.
+float specularLobeProbability(const ShadingPoint& sp) {
+    const float cosO = std::max(sp.woLocal.z, 0.f);
+    if (!(cosO > 0.f)) return -1.f;
+    const float diffuse = (1.f - sp.metalness) * (1.f - sp.transmission) * luminance(sp.albedo);
+    const float specular = luminance(fresnelSchlick(specularF0(sp), cosO));
+    if (!(diffuse + specular > 0.f)) return -1.f;
+    return specular / (diffuse + specular);
+}
+
+float mixturePdf(const ShadingPoint& sp, float pSpecular, const vec3& wiLocal) {
+    return pSpecular * ggxReflectionPdf(sp.woLocal, wiLocal, ggxAlpha(sp.roughness)) +
+           (1.f - pSpecular) * cosineHemispherePdf(wiLocal.z);
+}
+
+}  // namespace
+
+BrdfSample sampleBrdf(const ShadingPoint& sp, float uLobe, vec2 u) {
+    BrdfSample b;
+    const float pSpecular = specularLobeProbability(sp);
+    if (pSpecular < 0.f) return b;
+    // Step: direction from the picked lobe.
+    vec3 wiLocal;
+    if (uLobe < pSpecular) {
+        const GgxReflectionSample rs = sampleGgxReflection(sp.woLocal, ggxAlpha(sp.roughness), u);
+        if (!(rs.pdf > 0.f)) return b;
+        wiLocal = rs.wi;
+    } else {
+        wiLocal = sampleCosineHemisphere(u);
+    }
+    // Step: the mixture pdf of both lobes.
+    b.pdf = mixturePdf(sp, pSpecular, wiLocal);
+    b.direction = glm::normalize(toWorld(sp.frame, wiLocal));
+    b.valid = b.pdf > 0.f && std::isfinite(b.pdf) && glm::dot(b.direction, sp.geometricNormal) > 0.f;
+    return b;
+}
+
+BrdfSample sampleSpecularLobe(const ShadingPoint& sp, vec2 u) {
+    BrdfSample b;
+    if (!(sp.woLocal.z > 0.f)) return b;
+    const GgxReflectionSample rs = sampleGgxReflection(sp.woLocal, ggxAlpha(sp.roughness), u);
+    b.pdf = rs.pdf;
+    b.direction = glm::normalize(toWorld(sp.frame, rs.wi));
+    b.valid = b.pdf > 0.f && std::isfinite(b.pdf) && glm::dot(b.direction, sp.geometricNormal) > 0.f;
+    return b;
+}
+
+float specularLobePdf(const ShadingPoint& sp, const vec3& wi) {
+    if (!(sp.woLocal.z > 0.f) || glm::dot(wi, sp.geometricNormal) <= 0.f) return 0.f;
+    const float pdf = ggxReflectionPdf(sp.woLocal, toLocal(sp.frame, wi), ggxAlpha(sp.roughness));
+    return pdf > 0.f ? pdf : 0.f;
+}
+
 vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi) {
     const float cosI = glm::dot(sp.normal, wi);
     if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, wi) <= 0.f) return vec3(0.f);
@@ -122,6 +177,7 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
         if (!(cosLight > 0.f)) return s;  // the back of a one-sided panel
         const float area = lightArea(l) * glm::length(glm::cross(ax, ay));
         s.radianceOverPdf = emitted(l) * (cosLight * area / dist2);
+        s.pdf = dist2 / (cosLight * area);
         s.valid = std::isfinite(s.radianceOverPdf.x) && area > 0.f;
         return s;
     }
@@ -148,9 +204,56 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
     s.distance = r > 0.f ? b - std::sqrt(std::max(disc, 0.f)) : dist;
     // pdf = 1 / (2 pi (1 - cos theta_max)).
     s.radianceOverPdf = emitted(l) * (2.f * kPi * oneMinusCosMax);
+    s.pdf = 1.f / (2.f * kPi * oneMinusCosMax);
     // A zero-radius sphere is a point light of intensity 0: nothing to sample.
     s.valid = r > 0.f && std::isfinite(s.radianceOverPdf.x) && s.distance > 0.f;
     return s;
+}
+
+AreaLightHit intersectAreaLight(const ecs::LightSnapshot& l, const vec3& p, const vec3& direction) {
+    AreaLightHit h;
+    if (l.light.type == ecs::LightType::Rect) {
+        // Step: the plane of the rectangle, then its extent in the light's axes
+        // (d = a ax + b ay, solved with cross products: no orthogonality assumed).
+        const vec3 ax = vec3(l.worldFromLight[0]), ay = vec3(l.worldFromLight[1]);
+        const vec3 n = glm::cross(ax, ay);
+        const float nn = glm::dot(n, n);
+        const float denom = glm::dot(direction, n);
+        if (!(nn > 0.f) || denom == 0.f) return h;
+        const vec3 toCentre = lightPosition(l) - p;
+        const float t = glm::dot(toCentre, n) / denom;
+        if (!(t > 0.f) || !std::isfinite(t)) return h;
+        const vec3 d = direction * t - toCentre;  // from the centre, in the plane
+        const float a = glm::dot(glm::cross(d, ay), n) / nn / l.light.size.x;
+        const float b = glm::dot(glm::cross(ax, d), n) / nn / l.light.size.y;
+        if (!(std::abs(a) <= 0.5f && std::abs(b) <= 0.5f)) return h;
+        // Step: the same solid-angle pdf as sampleAreaLight's.
+        const float cosLight = glm::dot(-direction, lightForward(l));
+        if (!(cosLight > 0.f)) return h;  // the back of a one-sided panel
+        const float area = lightArea(l) * std::sqrt(nn);
+        h.pdf = t * t / (cosLight * area);
+        h.distance = t;
+    } else if (l.light.type == ecs::LightType::Sphere) {
+        // Step: the nearest root; the cone sampleAreaLight samples is exactly
+        // the set of directions that meet the sphere.
+        const vec3 d = lightPosition(l) - p;
+        const float dist2 = glm::dot(d, d);
+        const float r = std::max(l.light.radius, 0.f);
+        if (!(r > 0.f) || !(dist2 > r * r)) return h;
+        const float b = glm::dot(d, direction);
+        const float disc = b * b - (dist2 - r * r);
+        if (!(b > 0.f) || !(disc >= 0.f)) return h;
+        const float sinMax2 = r * r / dist2;
+        const float cosMax = std::sqrt(std::max(0.f, 1.f - sinMax2));
+        h.pdf = 1.f / (2.f * kPi * (sinMax2 / (1.f + cosMax)));
+        h.distance = b - std::sqrt(disc);
+    } else {
+        return h;
+    }
+    h.radiance = emitted(l);
+    h.valid = h.distance > 0.f && std::isfinite(h.distance) && h.pdf > 0.f && std::isfinite(h.pdf);
+    if (!h.valid) h = AreaLightHit{};
+    return h;
 }
 
 LightSample pointLightSample(const ecs::LightSnapshot& l, const vec3& p) {

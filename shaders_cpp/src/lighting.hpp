@@ -40,11 +40,29 @@ vec3 evalSpecularCos(const ShadingPoint& sp, const vec3& wi);
 // F0 of the specular lobe.
 vec3 specularF0(const ShadingPoint& sp);
 
+// Sampling the BRDF: the diffuse (cosine) or the GGX (visible normals)
+// lobe, picked with probabilities from the lobes' estimated albedos; pdf is
+// the mixture pdf of both lobes per solid angle. valid = false when wo is
+// below the surface, the BRDF is black, or the direction leaves below the
+// geometric normal.
+struct BrdfSample {
+    vec3 direction{0.f};  // world, unit
+    float pdf = 0.f;
+    bool valid = false;
+};
+BrdfSample sampleBrdf(const ShadingPoint& sp, float uLobe, vec2 u);
+// Sampling the specular lobe alone (GGX visible normals, whatever the
+// diffuse lobe's weight): the strategy that finds a glossy highlight.
+BrdfSample sampleSpecularLobe(const ShadingPoint& sp, vec2 u);
+// The pdf sampleSpecularLobe has for world direction wi (0 where it cannot sample it).
+float specularLobePdf(const ShadingPoint& sp, const vec3& wi);
+
 // A point sampled on a light, seen from a surface point.
 struct LightSample {
     vec3 direction{0.f};  // unit, from the surface to the light
     float distance = 0.f; // to the sampled point (kInfinity for directional)
     vec3 radianceOverPdf{0.f};  // Le / pdf (solid angle) for area lights, I / d^2 for point lights
+    float pdf = 0.f;      // per solid angle for area lights; 0 for point/spot/directional (a delta)
     bool valid = false;
 };
 // The shadow ray from surface point p (geometric normal ng) to the light
@@ -56,6 +74,19 @@ tracer::RayDesc shadowRayToward(const LightSample& ls, const vec3& p, const vec3
 
 // Area light (rect or sphere) sample from `p` with two uniforms.
 LightSample sampleAreaLight(const ecs::LightSnapshot& light, const vec3& p, vec2 u);
+// Where the ray from `p` along unit `direction` meets an area light's
+// emitting side: the light's radiance there (Le, the same everywhere),
+// the distance and the solid-angle pdf with which sampleAreaLight would pick
+// that direction. valid = false (pdf 0) when the ray misses the light, hits
+// a rect's back or the light is not an area light. Lights are not geometry:
+// nothing but the light itself is tested here (the caller's shadow ray does that).
+struct AreaLightHit {
+    vec3 radiance{0.f};
+    float distance = 0.f;
+    float pdf = 0.f;
+    bool valid = false;
+};
+AreaLightHit intersectAreaLight(const ecs::LightSnapshot& light, const vec3& p, const vec3& direction);
 // The penumbra width (world units) an area light casts at receiver `p` from
 // an occluder `occluderDistance` away toward the light (the PCSS estimate,
 // Fernando 2005: light size x occluder distance / occluder-to-light

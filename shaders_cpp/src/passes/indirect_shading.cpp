@@ -32,15 +32,28 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         if (p.missed) radiance[i] += lightContribution[i];
     };
     if (everyLight) {
-        // Every emitting light, one sample and one shadow ray each (no pick:
-        // the primary hit's direct light, without its stratified unshadowed
-        // estimate): light l uses dimensions 3 + 2l and 4 + 2l of the key.
-        for (std::size_t i = 0; i < n; ++i)
-            if (hits[i].hit) radiance[i] += weight[i] * ctx.material(hits[i].material).emissive;
+        // Every emitting light, no pick. A point, spot or directional light:
+        // one shadow ray toward it. An area light: two strategies combined by
+        // multiple importance sampling (Veach's power heuristic): a point on
+        // the light (dimensions 3 + 2l, 4 + 2l of the key), and one sample of
+        // the specular lobe per hit (GGX visible normals, dimensions 1, 2;
+        // shared by the lights) that counts where its ray meets the light. A
+        // glossy hit's highlight of a light larger than its lobe then comes
+        // from the lobe's samples, not from rare light points of huge f / pdf
+        // (nor from the rare pick of the specular lobe of the whole BRDF).
+        std::vector<BrdfSample> brdfSample(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            if (!hits[i].hit) continue;
+            radiance[i] += weight[i] * ctx.material(hits[i].material).emissive;
+            const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
+            const SampleKey key = ctx.key(i, sample, hitStream);
+            brdfSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
+        }
         for (std::size_t l = 0; l < ctx.scene.lights.size(); ++l) {
             const ecs::LightSnapshot& light = ctx.scene.lights[l];
             if (!emits(light)) continue;
             const auto dim = static_cast<std::uint32_t>(3 + 2 * l);
+            // Step: the light's own sample.
             counters.add(ctx.pipeline().dispatchCoherent(
                 grid.width, grid.height, args,
                 [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
@@ -50,15 +63,45 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
                     if (!h.hit) return std::nullopt;
                     const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
                     const SampleKey key = ctx.key(i, sample, hitStream);
-                    const LightSample ls = light.light.isArea()
-                                               ? sampleAreaLight(light, sp.position,
-                                                                 vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
-                                               : pointLightSample(light, sp.position);
+                    const bool area = light.light.isArea();
+                    const LightSample ls = area ? sampleAreaLight(light, sp.position,
+                                                                  vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
+                                                : pointLightSample(light, sp.position);
                     if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
+                    const float mis = area ? powerHeuristic(1, ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;
+                    if (!(mis > 0.f)) return std::nullopt;
                     const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
-                    lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf *
+                    lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf * mis *
                                            ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
                                                              stream::transmittance(hitStream, 0));
+                    if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
+                    return ray;
+                },
+                unoccluded, tracer::RayCoherence::Incoherent));
+            if (!light.light.isArea()) continue;
+            // Step: the specular-lobe sample, where its ray meets this light (lights are
+            // not geometry: each one the ray passes through counts, behind
+            // its own shadow ray).
+            counters.add(ctx.pipeline().dispatchCoherent(
+                grid.width, grid.height, args,
+                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                    const std::size_t i = index(x, y);
+                    lightContribution[i] = vec3(0.f);
+                    const HitPayload& h = hits[i];
+                    const BrdfSample& b = brdfSample[i];
+                    if (!h.hit || !b.valid) return std::nullopt;
+                    const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
+                    const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
+                    if (!lh.valid) return std::nullopt;
+                    const float mis = powerHeuristic(1, b.pdf, 1, lh.pdf);
+                    if (!(mis > 0.f)) return std::nullopt;
+                    LightSample target;
+                    target.direction = b.direction;
+                    target.distance = lh.distance;
+                    const tracer::RayDesc ray = shadowRayToward(target, sp.position, sp.geometricNormal, sp.errorScale);
+                    lightContribution[i] = weight[i] * evalBrdfCos(sp, b.direction) * (lh.radiance * (mis / b.pdf)) *
+                                           ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
+                                                             stream::transmittance(hitStream, 2));
                     if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
                     return ray;
                 },

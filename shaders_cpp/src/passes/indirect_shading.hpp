@@ -40,8 +40,10 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
 // Outgoing radiance toward -incoming[i] at every hit: emission + one light
 // picked by importance with its shadow ray (type kRayShadow), times
 // weight[i], added to radiance[i]. `hitStream` (namespace stream) keys the
-// random numbers. everyLight: every emitting light instead, one sample and
-// one shadow ray each (no pick noise, one shadow dispatch per light).
+// random numbers. everyLight: every emitting light instead, no pick noise:
+// a point/spot/directional light by one shadow ray; an area light by one
+// point on it and one sample of the specular lobe per hit, combined by MIS
+// (power heuristic), a shadow ray each (two shadow dispatches per area light).
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
                std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters,

@@ -43,31 +43,11 @@ struct BounceSample {
 };
 
 std::optional<BounceSample> sampleBounce(const ShadingPoint& sp, float uLobe, vec2 u) {
-    // Step: lobe probabilities from the lobes' estimated albedos.
-    const float cosO = std::max(sp.woLocal.z, 0.f);
-    if (!(cosO > 0.f)) return std::nullopt;
-    const float diffuse = (1.f - sp.metalness) * (1.f - sp.transmission) * luminance(sp.albedo);
-    const float specular = luminance(fresnelSchlick(specularF0(sp), cosO));
-    if (!(diffuse + specular > 0.f)) return std::nullopt;
-    const float pSpecular = specular / (diffuse + specular);
-    const float alpha = ggxAlpha(sp.roughness);
-    // Step: direction from the picked lobe.
-    vec3 wiLocal;
-    if (uLobe < pSpecular) {
-        const GgxReflectionSample rs = sampleGgxReflection(sp.woLocal, alpha, u);
-        if (!(rs.pdf > 0.f)) return std::nullopt;
-        wiLocal = rs.wi;
-    } else {
-        wiLocal = sampleCosineHemisphere(u);
-    }
-    // Step: weight by the mixture pdf of both lobes.
-    const float pdf = pSpecular * ggxReflectionPdf(sp.woLocal, wiLocal, alpha) +
-                      (1.f - pSpecular) * cosineHemispherePdf(wiLocal.z);
-    const vec3 direction = glm::normalize(toWorld(sp.frame, wiLocal));
-    if (!(pdf > 0.f) || glm::dot(direction, sp.geometricNormal) <= 0.f) return std::nullopt;
-    const vec3 weight = evalBrdfCos(sp, direction) / pdf;
+    const BrdfSample b = sampleBrdf(sp, uLobe, u);
+    if (!b.valid) return std::nullopt;
+    const vec3 weight = evalBrdfCos(sp, b.direction) / b.pdf;
     if (!isFinite(weight) || !(std::max({weight.x, weight.y, weight.z}) > 0.f)) return std::nullopt;
-    return BounceSample{direction, weight};
+    return BounceSample{b.direction, weight};
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // Reflections where roughness <= FramePlan::reflectionMaxRoughness (opaque
 // materials): the mirror direction at roughness ~ 0, GGX visible-normal
-// samples (Heitz 2018) otherwise; the hit is shaded with emission + one
-// importance-picked light and its shadow ray. Output: incoming radiance,
+// samples (Heitz 2018) otherwise; the hit is shaded with emission + every
+// light (area lights by MIS of a light point and a specular-lobe sample,
+// each with its shadow ray). Output: incoming radiance,
 // hit distance, and the pre-integrated specular term (F0 x + y), so the
 // denoiser filters radiance only and compose multiplies the term back.
 #include "indirect_shading.hpp"
@@ -43,9 +44,11 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
             ++validSamples[i];
             rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
         }
-        // The reflected hit's direct light like the primary hit's: every
-        // light with its own shadow ray, not one picked (whose 1/pdf weight
-        // made the fireflies a sharp mirror cannot filter away spatially).
+        // The reflected hit's direct light: every light with its own shadow
+        // ray, not one picked (whose 1/pdf weight made the fireflies a sharp
+        // mirror cannot filter away spatially); area lights by MIS of a light
+        // point and a specular-lobe sample (a glossy hit's highlight of a
+        // light larger than its lobe came as rare light points of huge f / pdf).
         traceAndShadeSecondary(ctx, rays, kRayReflection, static_cast<std::uint32_t>(s), stream::kReflectionHit, result,
                                counters, /*everyLight=*/true);
     }
@@ -60,7 +63,7 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
     }
     out.addRgbLayer("reflection", radiance);
     out.addRgbLayer("reflection.brdf", brdf);
-    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
+    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + sizeof(BrdfSample) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
 }
 
 }  // namespace rtlab::shaders::detail

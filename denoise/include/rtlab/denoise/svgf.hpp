@@ -57,6 +57,15 @@ struct SvgfParams {
     // NVIDIA's ReLAX: a fast history guards a slow one).
     bool convergeStatic = false;
     float staticResetSigma = 4.f;
+    // The change test takes the larger of the 3x3-averaged variance and the
+    // variance of the long mean's own samples (since its last restart): a
+    // bright, sparse signal among dim neighbours (a glossy floor seeing a
+    // light's image in a mirror) has far more variance than their average,
+    // and a run of its zero samples would otherwise restart it onto the
+    // clamped fast history. Off by default: a firefly in a mean then widens
+    // the test until the next restart (GI's 64-frame error on showcase 0.0038
+    // -> 0.0082). Source: rtlab.
+    bool staticResetOwnVariance = false;
     // The filtered output of a static pixel is shrunk toward the long mean
     // where their 3x3-averaged luminance difference D exceeds what the mean's
     // noise explains: weight max(0, 1 - c V' / D^2) with c this (positive-part
@@ -64,7 +73,10 @@ struct SvgfParams {
     float staticShrinkSigma2 = 1.f;
     // The long mean takes firefly-clamped samples (FireflyClampParams `firefly`)
     // even when the filtered signal does not: a heavy-tailed signal's rare huge
-    // sample would otherwise stay in it at weight 1/n. Source: rtlab.
+    // sample would otherwise stay in it at weight 1/n. No stack sets it now:
+    // it also pulls a bright, sparse but true signal to its neighbours (the
+    // reflection stack used it until its heavy tail was removed at the
+    // source). Source: rtlab.
     bool staticClampFireflies = false;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
