@@ -139,7 +139,7 @@ struct SignalPlanes {
 // sum, a clamp and a conversion to integer instead of an exp.
 constexpr float kExpUnit = 8388608.f;           // 2^23: one unit of E in the float's bits
 constexpr float kLog2e = 1.44269504088896341f;  // exp(-x) = 2^(-x log2(e))
-constexpr float kMaxBits = 127.f * kExpUnit;    // the bits of 1.0f; E <= 0 gives weight 1
+constexpr float kMaxBits = 127.f * kExpUnit;    // the bits of 1.0f
 
 // One row's pixels: per vector of pixels, the centre and its 24 off-centre
 // taps (12 pairs at +-offset sharing the depth term's denominator),
@@ -232,17 +232,20 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                 cz = simd::loadu<N>(t.nz + i) * t.normalScale;
         V sW = simd::splat<N>(hCentre), sVar = cVar * (hCentre * hCentre), sR = cR * hCentre, sG = cG * hCentre,
           sB = cB * hCentre;
-        const auto tap = [&](std::ptrdiff_t offset, const V& rz, float hk) __attribute__((always_inline)) {
+        // A tap's kernel weight h = m 2^-k (m 1 or 3/2) is folded into the bits: 2^-k as k 2^23 less,
+        // exact except that weights below 2^-(127-k) become 0.
+        const auto tap = [&](std::ptrdiff_t offset, const V& rz, float bias, bool threeHalves) __attribute__((always_inline)) {
             const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + offset);
             const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
             const V eZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) * rz;
             const V eL = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j)) * cIL;
-            V bits = (dot + t.bias) - (eZ + eL);  // terms >= 0 and finite or +inf: never NaN
+            // The terms are >= 0 and finite or +inf: never NaN. Unit normals keep n.n' <= 1 up to
+            // round-off, so the bits stay below those of 2^-k * (1 + 1e-5): no upper clamp.
+            V bits = (dot + bias) - (eZ + eL);
             bits = simd::select<N>(bits > 0.f, bits, simd::splat<N>(0.f));
-            bits = simd::select<N>(bits < kMaxBits, bits, simd::splat<N>(kMaxBits));
-            V wgt = (V)__builtin_convertvector(bits, VI);
-            if constexpr (GateSky) wgt = wgt * simd::loadu<N>(t.geometry + j);
-            const V hw = wgt * hk;
+            V hw = (V)__builtin_convertvector(bits, VI);
+            if constexpr (GateSky) hw = hw * simd::loadu<N>(t.geometry + j);
+            if (threeHalves) hw = hw * 1.5f;
             sW = sW + hw;
             sVar = sVar + hw * hw * simd::loadu<N>(t.var + j);
             sR = sR + hw * simd::loadu<N>(t.red + j);
@@ -251,19 +254,22 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
         };
         constexpr int kOffsets[12][2] = {{1, 0},  {2, 0},  {-2, 1}, {-1, 1}, {0, 1}, {1, 1},
                                          {2, 1},  {-2, 2}, {-1, 2}, {0, 2},  {1, 2}, {2, 2}};
+        // log2 of 1/h for |offset| 0, 1, 2 per axis: 3/8 = 3/2 2^-2, 1/4 = 2^-2, 1/16 = 2^-4.
+        constexpr int kShift[3] = {2, 2, 4};
 #pragma GCC unroll 12
         for (int k = 0; k < 12; ++k) {
-            const int kx = kOffsets[k][0], ky = kOffsets[k][1];
-            const float hk = kKernel[kx < 0 ? -kx : kx] * kKernel[ky];
+            const int kx = kOffsets[k][0], ky = kOffsets[k][1], ax = kx < 0 ? -kx : kx;
+            const float bias = t.bias - static_cast<float>(kShift[ax] + kShift[ky]) * kExpUnit;
+            const bool threeHalves = ax == 0 || ky == 0;  // exactly one factor 3/8
             const int dx = kx * t.step, dy = ky * t.step;
             const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(dy) * t.stride + dx;
             if constexpr (Checked) {
                 if (dx >= w || -dx >= w) continue;  // no pixel of the row: all in the margin
-                if (t.y + dy < t.h) tap(offset, rZ[k], hk);
-                if (t.y - dy >= 0) tap(-offset, rZ[k], hk);
+                if (t.y + dy < t.h) tap(offset, rZ[k], bias, threeHalves);
+                if (t.y - dy >= 0) tap(-offset, rZ[k], bias, threeHalves);
             } else {
-                tap(offset, rZ[k], hk);
-                tap(-offset, rZ[k], hk);
+                tap(offset, rZ[k], bias, threeHalves);
+                tap(-offset, rZ[k], bias, threeHalves);
             }
         }
         const V inv = 1.f / sW;
