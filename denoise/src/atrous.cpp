@@ -103,7 +103,11 @@ struct GuidePlanes {
             const bool sky = g.isSky(i);
             geometry[k] = sky ? 0.f : 1.f;
             depth[k] = sky ? 0.f : detail::clampNaNLow(g.depth[i], -kMaxRadiance, kMaxRadiance);
-            const vec3 n = sky ? vec3(0.f) : unitNormal(g.normal[i]);
+            // G-buffer normals are unit vectors up to round-off: normalised only when they are not.
+            vec3 n = g.normal[i];
+            const float l2 = n.x * n.x + n.y * n.y + n.z * n.z;
+            if (!(l2 > 1.f - 1e-6f && l2 < 1.f + 1e-6f)) n = unitNormal(n);
+            if (sky) n = vec3(0.f);
             nx[k] = n.x, ny[k] = n.y, nz[k] = n.z;
             gradX[k] = sky ? 0.f : sanitize(grad[i].x);
             gradY[k] = sky ? 0.f : sanitize(grad[i].y);
