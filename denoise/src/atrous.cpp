@@ -137,7 +137,7 @@ struct SignalPlanes {
 // The edge-stopping weight of a tap is 2^-E, E = log2(e) (sigmaN (1 - n.n')
 // + |z - z'| / (sigmaZ |grad z . offset| + eps |z|) + |l - l'| / (sigmaL
 // sqrt(g3x3(Var)) + eps)), computed as a float whose bits are 127 * 2^23 -
-// E * 2^23 (Schraudolph 1999): 2^-floor(E) times 1 + (1 - frac(E)), within
+// E * 2^23 (Schraudolph 1999): 2^-floor(E) (1 - frac(E) / 2), within
 // +6.2 % / -0 % of 2^-E, exactly 1 for E = 0 and exactly 0 for E >= 127.
 // Every term is scaled by 2^23 at the pixel, so a tap costs one
 // sum, a clamp and a conversion to integer instead of an exp.

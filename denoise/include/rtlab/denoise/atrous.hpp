@@ -65,9 +65,10 @@ public:
 //
 // The edge-stopping weight is one exponential of the three terms' sum,
 // exp(-(normal + depth + luminance term)) = 2^-E, evaluated as a float whose
-// bits are (127 - E) 2^23 (Schraudolph 1999: 2^-floor(E) (2 - frac(E)),
-// within +6.2 % / -0 % of 2^-E, exactly 1 at E = 0 and exactly 0 from E =
-// 127 - log2(1/h) on), so a sky tap (normal 0) or a tap in the planes' zero
+// bits are (127 - E) 2^23 (Schraudolph 1999: 2^-floor(E) (1 - frac(E) / 2),
+// within +6.2 % / -0 % of 2^-E, exactly 1 at E = 0; with the kernel weight
+// h = m 2^-k (m 1 or 3/2) folded into the bits, exactly 0 from E = 127 - k
+// on, k 4 to 8), so a sky tap (normal 0) or a tap in the planes' zero
 // margins gets weight 0.
 //
 // Implementation: 8-wide AVX2 (picked at run time) or 4-wide SSE2 SIMD over
