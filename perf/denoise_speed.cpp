@@ -453,14 +453,12 @@ void BM_DenoiseAtrousFilter(benchmark::State& state) {
 //        read, 4 x 4 written.
 // Both are 60 bytes per pixel, 124 MB per 1920x1080 pass. What the a-trous
 // code actually moves is more, by construction:
-//   - inside atrousFilter, one iteration (iterate()) also writes and reads
-//     back two scratch planes: a luminance pass (reads r, g, b; writes
-//     luminance) and the luminance edge-stopping scale (reads variance and
-//     geometry over 3x3; writes invLumScale), then the 5x5 pass reads the 11
-//     planes + luminance + invLumScale (52 B) and writes 16 B: about 96 B per
-//     pixel when the 5 tap rows stay in cache (step 16 reaches rows y +- 32:
-//     about 5 MB of tap planes between a row's first and last use), so ~1.6x
-//     the reference at best;
+//   - inside atrousFilter, one iteration (iterate()) reads the 11 planes and the
+//     luminance plane (48 B; the 3x3 variance blur of the luminance scale reads
+//     variance and geometry again, from cache) and writes r, g, b, variance and
+//     the luminance for the next iteration (20 B): 68 B per pixel when the 5 tap
+//     rows stay in cache (step 16 reaches rows y +- 32: about 5 MB of tap planes
+//     between a row's first and last use), ~1.13x the reference;
 //   - atrousIteration() additionally builds a fresh AtrousWorkspace every
 //     call: converts the guides to 7 planes (reads 28 B, writes 28 B into
 //     zero-filled new allocations, another 28 B + page faults), loads the

@@ -19,10 +19,6 @@ constexpr float kKernel[3] = {3.f / 8.f, 1.f / 4.f, 1.f / 16.f};
 constexpr float kMaxVariance = 1e36f;
 
 float clampVariance(float v) { return v > 0.f ? (v < kMaxVariance ? v : kMaxVariance) : 0.f; }
-float toFloatVariance(float v) {
-    if (!(v > 0.f)) return 0.f;
-    return v < 3.0e38f ? v : 3.0e38f;
-}
 
 void checkInputs(const GuideBuffers& g, std::span<const vec3> color, std::span<const float> variance,
                  std::span<vec3> colorOut, std::span<float> varianceOut) {
@@ -33,29 +29,38 @@ void checkInputs(const GuideBuffers& g, std::span<const vec3> color, std::span<c
     detail::checkSize(varianceOut.size(), n, "atrous: varianceOut");
 }
 
-// The planes' layout: rows of `stride` floats, each with `margin` zero floats
-// on both sides, so that a tap up to margin - kLanes pixels left or right of
-// any pixel of a vector reads a zero (geometry 0: weight 0) instead of another
-// row or memory outside the planes. The margins are zeroed when the layout
-// changes and never written after.
+// The planes' layout: rows of `stride` floats with `margin` zero floats on
+// both sides, and `top` zero rows above the first row and below the last,
+// so that a tap up to `fastReach` pixels away in x and y (and, with range
+// checks on rows, up to margin - kLanes in x) reads a zero (normal 0 and
+// geometry 0: weight 0) instead of another row or memory outside the planes.
+// The margins are zeroed when the layout changes and never written after
+// (the last vector of a row stores the values it read there: zeros).
 struct Layout {
-    int width = 0, height = 0, margin = 0, stride = 0;
-    std::size_t size() const { return static_cast<std::size_t>(height + 1) * static_cast<std::size_t>(stride) + kLanes; }
+    int width = 0, height = 0, margin = 0, stride = 0, top = 0, fastReach = 0;
+    std::size_t size() const {
+        return static_cast<std::size_t>(height + 2 * top) * static_cast<std::size_t>(stride) + kLanes;
+    }
     std::size_t at(int x, int y) const {
-        return static_cast<std::size_t>(y) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(margin + x);
+        return static_cast<std::size_t>(y + top) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(margin + x);
     }
     bool operator==(const Layout&) const = default;
-    // The margin for taps up to 2 * maxStep pixels away (a tap |dx| >= width
-    // reaches no pixel of the row and is skipped).
+    // Taps up to 2 * maxStep pixels away. Steps with 2 * step <= fastReach
+    // (every step up to 32) run without range checks; larger ones check rows
+    // and skip taps with |dx| >= width (no pixel of the row).
     static Layout of(int w, int h, int maxStep) {
         Layout l;
         l.width = w;
         l.height = h;
-        const long reach = std::min<long>(2L * maxStep, static_cast<long>(w));
-        l.margin = static_cast<int>((reach + kLanes + kLanes - 1) / kLanes * kLanes);
+        const long reach = 2L * maxStep;
+        l.fastReach = static_cast<int>(std::min<long>(reach, kMaxFastReach));
+        const long horizontal = std::max<long>(std::min<long>(reach, static_cast<long>(w)), l.fastReach);
+        l.margin = static_cast<int>((horizontal + kLanes + kLanes - 1) / kLanes * kLanes);
         l.stride = w + 2 * l.margin;
+        l.top = std::max(l.fastReach, 1);  // >= 1: the 3x3 variance blur reads rows y +- 1
         return l;
     }
+    static constexpr long kMaxFastReach = 64;
 };
 
 void fitPlane(std::vector<float>& plane, const Layout& l, bool relayout) {
@@ -72,10 +77,19 @@ void forEachRow(const Layout& l, F&& f) {
     });
 }
 
+// The guide's normal scaled to unit length (0 stays 0).
+vec3 unitNormal(const vec3& normal) {
+    const vec3 n = sanitize(normal);
+    const float m = std::max(std::fabs(n.x), std::max(std::fabs(n.y), std::fabs(n.z)));
+    if (!(m > 0.f)) return vec3(0.f);
+    const vec3 s = n / m;  // no overflow in the squares
+    return s / std::sqrt(s.x * s.x + s.y * s.y + s.z * s.z);
+}
+
 // The guides as structure-of-arrays floats (padded rows), built once per filter call.
 struct GuidePlanes {
     Layout layout;
-    std::vector<float> depth, nx, ny, nz, gradX, gradY;
+    std::vector<float> depth, nx, ny, nz, gradX, gradY;  // normals of unit length
     std::vector<float> geometry;  // 1 on geometry, 0 on sky and in the margins
     std::vector<float> footprint; // per-pixel reach in pixels; empty = unlimited
 
@@ -89,9 +103,12 @@ struct GuidePlanes {
             const bool sky = g.isSky(i);
             geometry[k] = sky ? 0.f : 1.f;
             depth[k] = sky ? 0.f : detail::clampNaNLow(g.depth[i], -kMaxRadiance, kMaxRadiance);
-            nx[k] = sky ? 0.f : sanitize(g.normal[i].x);
-            ny[k] = sky ? 0.f : sanitize(g.normal[i].y);
-            nz[k] = sky ? 0.f : sanitize(g.normal[i].z);
+            // G-buffer normals are unit vectors up to round-off: normalised only when they are not.
+            vec3 n = g.normal[i];
+            const float l2 = n.x * n.x + n.y * n.y + n.z * n.z;
+            if (!(l2 > 1.f - 1e-6f && l2 < 1.f + 1e-6f)) n = unitNormal(n);
+            if (sky) n = vec3(0.f);
+            nx[k] = n.x, ny[k] = n.y, nz[k] = n.z;
             gradX[k] = sky ? 0.f : sanitize(grad[i].x);
             gradY[k] = sky ? 0.f : sanitize(grad[i].y);
         });
@@ -117,158 +134,200 @@ struct SignalPlanes {
     }
 };
 
+// The edge-stopping weight of a tap is 2^-E, E = log2(e) (sigmaN (1 - n.n')
+// + |z - z'| / (sigmaZ |grad z . offset| + eps |z|) + |l - l'| / (sigmaL
+// sqrt(g3x3(Var)) + eps)), computed as a float whose bits are 127 * 2^23 -
+// E * 2^23 (Schraudolph 1999): 2^-floor(E) (1 - frac(E) / 2), within
+// +6.2 % / -0 % of 2^-E, exactly 1 for E = 0 and exactly 0 for E >= 127.
+// Every term is scaled by 2^23 at the pixel, so a tap costs one
+// sum, a clamp and a conversion to integer instead of an exp.
+constexpr float kExpUnit = 8388608.f;           // 2^23: one unit of E in the float's bits
+constexpr float kLog2e = 1.44269504088896341f;  // exp(-x) = 2^(-x log2(e))
+constexpr float kMaxBits = 127.f * kExpUnit;    // the bits of 1.0f
+
 // One row's pixels: per vector of pixels, the centre and its 24 off-centre
-// taps, accumulated in registers, then normalised and stored.
+// taps (12 pairs at +-offset sharing the depth term's denominator),
+// accumulated in registers, then normalised and stored.
 struct TapRow {
-    const float *nx, *ny, *nz, *depth, *gradX, *gradY, *geometry, *footprint, *lum, *invLum, *var, *red, *green,
-        *blue;
+    const float *nx, *ny, *nz, *depth, *gradX, *gradY, *geometry, *footprint, *lum, *var, *red, *green, *blue;
     float *outR, *outG, *outB, *outVar, *outLum;
     int w, h, y, step, stride;
-    std::size_t row;  // plane index of the row's pixel 0
-    float sigmaZ, depthEps;
-    const simd::NormalPower* normalPower;
-    bool normalGatesSky;  // sigmaN > 0: max(0, n.n')^sigmaN is 0 for a zero normal
+    std::size_t row;     // plane index of the row's pixel 0
+    float normalScale;   // sigmaN log2(e) 2^23 (the centre's normal is scaled by it)
+    float bias;          // 127 2^23 - normalScale: the weight's bits are bias + n.n' normalScale - depth and luminance terms
+    float gradScale;     // sigmaZ * step
+    float depthEps;
+    float sigmaL, luminanceEps;
 };
 
-// Sq >= 0: sigmaN = 2^Sq, the normal weight as Sq squarings unrolled at
-// compile time (the paper's 128: 7); -1: NormalPower's general path.
-template <int N, int Sq>
+// sqrt(x) for x >= 0 by Newton-Raphson on 1/sqrt(max(x, 1e-30)) (three
+// steps from the bit-trick estimate: relative error < 1e-6), times x.
+template <int N>
+RTLAB_SIMD_INLINE simd::vfloat<N> sqrtNonNegative(const simd::vfloat<N>& x) {
+    using V = simd::vfloat<N>;
+    const V xc = simd::select<N>(x > 1e-30f, x, simd::splat<N>(1e-30f));
+    V r = (V)(0x5f3759df - ((simd::vint<N>)xc >> 1));
+    const V half = xc * 0.5f;
+    r = r * (1.5f - half * r * r);
+    r = r * (1.5f - half * r * r);
+    r = r * (1.5f - half * r * r);
+    return x * r;
+}
+
+// GateSky: the normal term does not zero a sky tap by itself (sigmaN log2(e)
+// < 127), so the weight is multiplied by the tap's geometry flag. Checked: a
+// step beyond the layout's fastReach: rows outside the image and taps with
+// |dx| >= width are skipped.
+template <int N, bool GateSky, bool Checked>
 RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     using V = simd::vfloat<N>;
+    using VI = simd::vint<N>;
     const int w = t.w;
     const float hCentre = kKernel[0] * kKernel[0];
     const float reach = 2.f * static_cast<float>(t.step);
+    VI laneIndex;
+    for (int lane = 0; lane < N; ++lane) laneIndex[lane] = lane;
     for (int x = 0; x < w; x += N) {
-        const int lanes = std::min(N, w - x);
         const std::size_t i = t.row + static_cast<std::size_t>(x);
-        // Which of these pixels this iteration filters (geometry, within the footprint).
-        bool any = false;
-        for (int lane = 0; lane < lanes; ++lane)
-            any = any || (t.geometry[i + lane] != 0.f && (!t.footprint || reach <= t.footprint[i + lane]));
-        if (!any) {
-            for (int lane = 0; lane < lanes; ++lane) {
-                t.outR[i + lane] = t.red[i + lane], t.outG[i + lane] = t.green[i + lane];
-                t.outB[i + lane] = t.blue[i + lane], t.outVar[i + lane] = t.var[i + lane];
-                t.outLum[i + lane] = t.lum[i + lane];
-            }
+        const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
+        const V cVar = simd::loadu<N>(t.var + i), cLum = simd::loadu<N>(t.lum + i);
+        // Which of these pixels this iteration filters (geometry, within the footprint, inside the row).
+        VI active = simd::loadu<N>(t.geometry + i) != 0.f;
+        if (t.footprint) active &= simd::splat<N>(reach) <= simd::loadu<N>(t.footprint + i);
+        if (w - x < N) active &= laneIndex < (w - x);
+        if (rtlab::simd::signMask<N>(active) == 0u) {
+            simd::storeu<N>(t.outR + i, cR), simd::storeu<N>(t.outG + i, cG), simd::storeu<N>(t.outB + i, cB);
+            simd::storeu<N>(t.outVar + i, cVar), simd::storeu<N>(t.outLum + i, cLum);
             continue;
         }
-        const V cx = simd::loadu<N>(t.nx + i), cy = simd::loadu<N>(t.ny + i), cz = simd::loadu<N>(t.nz + i);
-        const V cDepth = simd::loadu<N>(t.depth + i), cGx = simd::loadu<N>(t.gradX + i),
-                cGy = simd::loadu<N>(t.gradY + i);
-        const V cLum = simd::loadu<N>(t.lum + i), cInvLum = simd::loadu<N>(t.invLum + i);
-        const V cDepthEps = simd::abs<N>(cDepth) * t.depthEps;
-        const V cVar = simd::loadu<N>(t.var + i);
-        const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
+        // The luminance scale log2(e) 2^23 / (sigmaL sqrt(g3x3(Var)) + eps), the 3x3
+        // Gaussian of the variance over geometry pixels (sky and the margins add 0 to both sums).
+        V sum = simd::splat<N>(0.f), weight = simd::splat<N>(0.f);
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+                const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + dy * t.stride + dx);
+                const V kw = simd::loadu<N>(t.geometry + j) * ((dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f));
+                sum = sum + kw * simd::loadu<N>(t.var + j);
+                weight = weight + kw;
+            }
+        const V blurred = simd::select<N>(weight > 0.f, sum / simd::select<N>(weight > 0.f, weight, simd::splat<N>(1.f)),
+                                          simd::splat<N>(0.f));
+        const V lumDen = sqrtNonNegative<N>(blurred) * t.sigmaL + t.luminanceEps;
+        // Finite, so that equal luminances give the term 0 (0 * inf would be NaN).
+        const V cIL = simd::select<N>(lumDen > 0.f, simd::min<N>(simd::splat<N>(kLog2e * kExpUnit) / lumDen, simd::splat<N>(3e38f)),
+                                      simd::splat<N>(3e38f));
+
+        // The depth term's reciprocal denominators log2(e) 2^23 / max(sigmaZ |grad . offset| + eps |z|, 1e-30)
+        // for the 12 offsets (kx, ky) with ky > 0 or ky = 0 < kx (the other 12 are their negatives).
+        const V cDepth = simd::loadu<N>(t.depth + i);
+        V rZ[12];
+        {
+            const V gA = simd::loadu<N>(t.gradX + i) * t.gradScale, gB = simd::loadu<N>(t.gradY + i) * t.gradScale;
+            const V gA2 = gA + gA, gB2 = gB + gB;
+            const V eps = simd::abs<N>(cDepth) * t.depthEps;
+            const V along[12] = {gA,       gA2,      gB - gA2, gB - gA, gB,      gB + gA,
+                                 gB + gA2, gB2 - gA2, gB2 - gA, gB2,     gB2 + gA, gB2 + gA2};
+            for (int k = 0; k < 12; ++k) {
+                const V den = simd::abs<N>(along[k]) + eps;
+                rZ[k] = simd::splat<N>(kLog2e * kExpUnit) / simd::select<N>(den > 1e-30f, den, simd::splat<N>(1e-30f));
+            }
+        }
+        const V cx = simd::loadu<N>(t.nx + i) * t.normalScale, cy = simd::loadu<N>(t.ny + i) * t.normalScale,
+                cz = simd::loadu<N>(t.nz + i) * t.normalScale;
         V sW = simd::splat<N>(hCentre), sVar = cVar * (hCentre * hCentre), sR = cR * hCentre, sG = cG * hCentre,
           sB = cB * hCentre;
-        for (int ky = -2; ky <= 2; ++ky) {
-            const int py = t.y + ky * t.step;
-            if (py < 0 || py >= t.h) continue;
-            const std::ptrdiff_t rowOffset = static_cast<std::ptrdiff_t>(ky) * t.step * t.stride;
-            for (int kx = -2; kx <= 2; ++kx) {
-                if (kx == 0 && ky == 0) continue;
-                const int dx = kx * t.step;
+        // A tap's kernel weight h = m 2^-k (m 1 or 3/2) is folded into the bits: 2^-k as k 2^23 less,
+        // exact except that weights below 2^-(127-k) become 0.
+        const auto tap = [&](std::ptrdiff_t offset, const V& rz, float bias, bool threeHalves) __attribute__((always_inline)) {
+            const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + offset);
+            const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
+            const V eZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) * rz;
+            const V eL = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j)) * cIL;
+            // The terms are >= 0 and finite or +inf: never NaN. Unit normals keep n.n' <= 1 up to
+            // round-off, so the bits stay below those of 2^-k * (1 + 1e-5): no upper clamp.
+            V bits = (dot + bias) - (eZ + eL);
+            bits = simd::select<N>(bits > 0.f, bits, simd::splat<N>(0.f));
+            V hw = (V)__builtin_convertvector(bits, VI);
+            if constexpr (GateSky) hw = hw * simd::loadu<N>(t.geometry + j);
+            if (threeHalves) hw = hw * 1.5f;
+            sW = sW + hw;
+            sVar = sVar + hw * hw * simd::loadu<N>(t.var + j);
+            sR = sR + hw * simd::loadu<N>(t.red + j);
+            sG = sG + hw * simd::loadu<N>(t.green + j);
+            sB = sB + hw * simd::loadu<N>(t.blue + j);
+        };
+        constexpr int kOffsets[12][2] = {{1, 0},  {2, 0},  {-2, 1}, {-1, 1}, {0, 1}, {1, 1},
+                                         {2, 1},  {-2, 2}, {-1, 2}, {0, 2},  {1, 2}, {2, 2}};
+        // log2 of 1/h for |offset| 0, 1, 2 per axis: 3/8 = 3/2 2^-2, 1/4 = 2^-2, 1/16 = 2^-4.
+        constexpr int kShift[3] = {2, 2, 4};
+#pragma GCC unroll 12
+        for (int k = 0; k < 12; ++k) {
+            const int kx = kOffsets[k][0], ky = kOffsets[k][1], ax = kx < 0 ? -kx : kx;
+            const float bias = t.bias - static_cast<float>(kShift[ax] + kShift[ky]) * kExpUnit;
+            const bool threeHalves = ax == 0 || ky == 0;  // exactly one factor 3/8
+            const int dx = kx * t.step, dy = ky * t.step;
+            const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(dy) * t.stride + dx;
+            if constexpr (Checked) {
                 if (dx >= w || -dx >= w) continue;  // no pixel of the row: all in the margin
-                const float hk = kKernel[kx < 0 ? -kx : kx] * kKernel[ky < 0 ? -ky : ky];
-                const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + rowOffset + dx);
-                // Edge-stopping weight: normal^sigmaN * exp(-(depth term + luminance term)), 0 on sky taps
-                // and in the margins.
-                const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
-                V wn;
-                if constexpr (Sq >= 0) {
-                    wn = simd::min<N>(simd::positiveOrZero<N>(dot), simd::splat<N>(1.f));
-                    for (int k = 0; k < Sq; ++k) wn *= wn;
-                } else {
-                    wn = t.normalPower->apply<N>(dot);
-                }
-                // The depth term |z - z'| / (sigmaZ |grad . offset| + eps |z|) with the denominator raised
-                // to 1e-30 (equal depths give 0; a zero denominator a term >= 87, i.e. weight 0, as +inf did).
-                const V zDen = simd::abs<N>(cGx * static_cast<float>(dx) + cGy * static_cast<float>(ky * t.step)) *
-                                   t.sigmaZ + cDepthEps;
-                const V termZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) /
-                                simd::select<N>(zDen > 1e-30f, zDen, simd::splat<N>(1e-30f));
-                const V dl = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j));
-                const V termL = dl * cInvLum;  // the scale is finite: 0 for equal luminances
-                // A sky tap or a margin has normal 0, so wn = 0 already unless sigmaN = 0.
-                const V e = simd::expNegWeight<N>(termZ + termL) * wn;
-                const V wgt = t.normalGatesSky ? e : e * simd::loadu<N>(t.geometry + j);
-                const V hw = wgt * hk;
-                sW = sW + hw;
-                sVar = sVar + hw * hw * simd::loadu<N>(t.var + j);
-                sR = sR + hw * simd::loadu<N>(t.red + j);
-                sG = sG + hw * simd::loadu<N>(t.green + j);
-                sB = sB + hw * simd::loadu<N>(t.blue + j);
+                if (t.y + dy < t.h) tap(offset, rZ[k], bias, threeHalves);
+                if (t.y - dy >= 0) tap(-offset, rZ[k], bias, threeHalves);
+            } else {
+                tap(offset, rZ[k], bias, threeHalves);
+                tap(-offset, rZ[k], bias, threeHalves);
             }
         }
         const V inv = 1.f / sW;
-        const V oR = sR * inv, oG = sG * inv, oB = sB * inv, oVar = sVar * inv * inv;
-        for (int lane = 0; lane < lanes; ++lane) {
-            const std::size_t k = i + lane;
-            if (t.geometry[k] == 0.f || (t.footprint && !(reach <= t.footprint[k]))) {
-                t.outR[k] = t.red[k], t.outG[k] = t.green[k], t.outB[k] = t.blue[k];
-                t.outVar[k] = t.var[k];
-                t.outLum[k] = t.lum[k];
-                continue;
-            }
-            t.outR[k] = oR[lane], t.outG[k] = oG[lane], t.outB[k] = oB[lane];
-            t.outVar[k] = clampVariance(toFloatVariance(oVar[lane]));
-            t.outLum[k] = luminance(vec3(oR[lane], oG[lane], oB[lane]));
-        }
+        const V oR = sR * inv, oG = sG * inv, oB = sB * inv;
+        V oVar = sVar * inv * inv;  // > 0 and finite, or +inf: clamped to kMaxVariance
+        oVar = simd::select<N>(oVar > 0.f, simd::min<N>(oVar, simd::splat<N>(kMaxVariance)), simd::splat<N>(0.f));
+        const V oLum = oR * 0.2126f + oG * 0.7152f + oB * 0.0722f;  // luminance(), lane-wise
+        simd::storeu<N>(t.outR + i, simd::select<N>(active, oR, cR));
+        simd::storeu<N>(t.outG + i, simd::select<N>(active, oG, cG));
+        simd::storeu<N>(t.outB + i, simd::select<N>(active, oB, cB));
+        simd::storeu<N>(t.outVar + i, simd::select<N>(active, oVar, cVar));
+        simd::storeu<N>(t.outLum + i, simd::select<N>(active, oLum, cLum));
     }
 }
 
 // The same, compiled for AVX2 (picked at run time by simd::preferredWidth).
-__attribute__((target("avx2"))) void filterRowAvx2(const TapRow& t) { filterRow<8, -1>(t); }
-__attribute__((target("avx2"))) void filterRowAvx2Sq7(const TapRow& t) { filterRow<8, 7>(t); }
+__attribute__((target("avx2"))) void filterRowAvx2(const TapRow& t) { filterRow<8, false, false>(t); }
+__attribute__((target("avx2"))) void filterRowAvx2Gate(const TapRow& t) { filterRow<8, true, false>(t); }
+__attribute__((target("avx2"))) void filterRowAvx2Checked(const TapRow& t) { filterRow<8, false, true>(t); }
+__attribute__((target("avx2"))) void filterRowAvx2GateChecked(const TapRow& t) { filterRow<8, true, true>(t); }
+
+void filterRowAny(const TapRow& t, bool avx2, bool gateSky, bool checked) {
+    if (avx2) {
+        if (gateSky) checked ? filterRowAvx2GateChecked(t) : filterRowAvx2Gate(t);
+        else checked ? filterRowAvx2Checked(t) : filterRowAvx2(t);
+    } else {
+        if (gateSky) checked ? filterRow<4, true, true>(t) : filterRow<4, true, false>(t);
+        else checked ? filterRow<4, false, true>(t) : filterRow<4, false, false>(t);
+    }
+}
 
 // One iteration with step `step` from `in` to `out` (in.luminance is current).
-void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const AtrousParams& p,
-             std::vector<float>& invLumScale, SignalPlanes& out) {
+void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const AtrousParams& p, SignalPlanes& out) {
     const Layout& l = g.layout;
-    const int w = l.width, h = l.height;
     out.fit(l);
-    fitPlane(invLumScale, l, invLumScale.size() != l.size());
-    // Step: the luminance edge-stopping scale 1 / (sigmaL sqrt(g3x3(Var)) + eps),
-    // the 3x3 Gaussian of the variance over geometry pixels (sky and the
-    // margins add 0 to both sums).
-    forEachRow(l, [&](int, int y, std::size_t k, std::size_t) {
-        float sum = 0.f, weight = 0.f;
-        for (int dy = -1; dy <= 1; ++dy) {
-            if (y + dy < 0 || y + dy >= h) continue;
-            const std::size_t rowK = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(k) + dy * l.stride);
-            for (int dx = -1; dx <= 1; ++dx) {
-                const std::size_t j = rowK + dx;
-                const float kw = (dx == 0 ? 0.5f : 0.25f) * (dy == 0 ? 0.5f : 0.25f) * g.geometry[j];
-                sum += kw * in.variance[j];
-                weight += kw;
-            }
-        }
-        const float blurred = weight > 0.f ? sum / weight : 0.f;
-        const float den = p.sigmaL * std::sqrt(blurred) + p.luminanceEpsilon;
-        // Finite, so that equal luminances give the term 0 without a select; a
-        // zero denominator gives a term >= 87 (weight 0) for any difference
-        // above 3e-37, as +inf did for any difference.
-        invLumScale[k] = den > 0.f ? std::min(1.f / den, 3e38f) : 3e38f;
-    });
-
-    const simd::NormalPower normalPower(p.sigmaN);
+    const float sigmaN = p.sigmaN > 0.f ? std::min(p.sigmaN, 1e6f) : 0.f;
+    const float normalScale = sigmaN * kLog2e * kExpUnit;
+    const float bias = kMaxBits - normalScale;
+    const bool gateSky = bias > 0.f;  // a zero normal gives bits <= bias
+    const bool checked = 2L * step > l.fastReach;
     const bool avx2 = simd::preferredWidth() == 8;
-    const bool sq7 = normalPower.squarings == 7;
-    parallelForEach(static_cast<std::size_t>(h), [&](std::size_t rowIndex) {
+    const float sigmaZ = p.sigmaZ > 0.f ? p.sigmaZ : 0.f;
+    const float sigmaL = p.sigmaL > 0.f ? p.sigmaL : 0.f;
+    const float lumEps = p.luminanceEpsilon > 0.f ? p.luminanceEpsilon : 0.f;
+    const float depthEps = p.depthEpsilon > 0.f ? p.depthEpsilon : 0.f;
+    parallelForEach(static_cast<std::size_t>(l.height), [&](std::size_t rowIndex) {
         const int y = static_cast<int>(rowIndex);
         const TapRow t{g.nx.data(), g.ny.data(), g.nz.data(), g.depth.data(), g.gradX.data(), g.gradY.data(),
                        g.geometry.data(), g.footprint.empty() ? nullptr : g.footprint.data(), in.luminance.data(),
-                       invLumScale.data(), in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(),
-                       out.g.data(), out.b.data(), out.variance.data(), out.luminance.data(), w, h, y, step,
-                       l.stride, l.at(0, y), p.sigmaZ, p.depthEpsilon, &normalPower, normalPower.sigma > 0.f};
-        if (sq7) {
-            if (avx2) filterRowAvx2Sq7(t);
-            else filterRow<4, 7>(t);
-        } else {
-            if (avx2) filterRowAvx2(t);
-            else filterRow<4, -1>(t);
-        }
+                       in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(), out.g.data(),
+                       out.b.data(), out.variance.data(), out.luminance.data(), l.width, l.height, y, step,
+                       l.stride, l.at(0, y), normalScale, bias, sigmaZ * static_cast<float>(step), depthEps, sigmaL,
+                       lumEps};
+        filterRowAny(t, avx2, gateSky, checked);
     });
 }
 
@@ -295,7 +354,6 @@ struct AtrousWorkspace::Buffers {
     std::vector<vec2> gradient;
     GuidePlanes guides;
     SignalPlanes a, b;
-    std::vector<float> invLumScale;
 };
 
 AtrousWorkspace::AtrousWorkspace() : buffers_(std::make_unique<Buffers>()) {}
@@ -315,7 +373,7 @@ void atrousIteration(const GuideBuffers& g, std::span<const vec3> color, std::sp
     const Layout layout = Layout::of(g.width, g.height, s);
     w.guides.assign(g, grad, footprintPx, layout);
     loadSignal(color, variance, layout, w.a);
-    iterate(w.guides, w.a, s, params, w.invLumScale, w.b);
+    iterate(w.guides, w.a, s, params, w.b);
     storeColor(w.b, colorOut);
     storeVariance(w.b, varianceOut);
 }
@@ -345,7 +403,7 @@ void atrousFilter(const GuideBuffers& g, std::span<const vec3> color, std::span<
     loadSignal(color, variance, layout, w.a);
     if (!tapColor.empty() && tap == 0) std::copy(color.begin(), color.end(), tapColor.begin());
     for (int it = 0; it < iterations; ++it) {
-        iterate(w.guides, w.a, 1 << std::min(it, 20), params, w.invLumScale, w.b);
+        iterate(w.guides, w.a, 1 << std::min(it, 20), params, w.b);
         std::swap(w.a, w.b);
         if (!tapColor.empty() && it + 1 == tap) storeColor(w.a, tapColor);
     }

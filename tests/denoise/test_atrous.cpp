@@ -58,6 +58,20 @@ TEST(DenoiseAtrous, ConstantImageStaysConstant) {
     }
 }
 
+TEST(DenoiseAtrous, StepsBeyondTheMarginsKeepAConstantImageConstant) {
+    // 8 iterations: steps 64 and 128 reach past the planes' zero margins and the
+    // image (20 x 13), so they take the range-checked path.
+    GuideBuffers g(20, 13);
+    for (int y = 0; y < g.height; ++y)
+        for (int x = 0; x < g.width; ++x) g.depth[y * g.width + x] = 1.f + 0.05f * x + 0.02f * y;
+    const std::vector<vec3> color = constantImage(g.pixelCount(), 0.5f);
+    AtrousParams p;
+    p.iterations = 8;
+    const Filtered f = runAtrous(g, color, std::vector<float>(g.pixelCount(), 0.3f), p);
+    EXPECT_LE(maxRelDiff(f.color, color), 1e-6);
+    for (const float v : f.variance) EXPECT_TRUE(std::isfinite(v) && v >= 0.f);
+}
+
 TEST(DenoiseAtrous, DepthEdgeSurvives) {
     const int w = 32, h = 16;
     const std::vector<vec3> color = halves(w, h, 0.2f, 0.8f);
@@ -87,7 +101,7 @@ TEST(DenoiseAtrous, NormalEdgeSurvives) {
     for (int y = 0; y < h; ++y)
         for (int x = w / 2; x < w; ++x) edge.normal[y * w + x] = glm::normalize(vec3(1.f, 0.f, 1.f));  // 45 deg
     const auto [el, er] = halfErrors(w, h, runAtrous(edge, color, var, p).color, 0.2f, 0.8f);
-    // 0.707^128 = 5e-20: nothing crosses.
+    // exp(-128 (1 - 0.707)) = 5e-17: nothing crosses.
     EXPECT_LT(el, 1e-4f);
     EXPECT_LT(er, 1e-4f);
     // sigmaN = 0 disables the normal weight: the edge blurs (the test can fail).
@@ -158,12 +172,16 @@ TEST(DenoiseAtrous, SkyPixelsPassThroughAndDoNotBleed) {
             g.meshId[y * w + x] = -1;
             g.depth[y * w + x] = kInfinity;  // ignored on sky
         }
-    AtrousParams p;
-    p.sigmaL = 1e6f;
-    const Filtered f = runAtrous(g, color, std::vector<float>(color.size(), 1.f), p);
-    for (std::size_t i = 0; i < color.size(); ++i) {
-        if (g.isSky(i)) { EXPECT_EQ(f.color[i], color[i]); }
-        else { EXPECT_NEAR(f.color[i].r, 0.2f, 1e-6f); }
+    // sigmaN 128: the normal term zeroes a sky tap (normal 0); 8 and 0: the geometry flag does.
+    for (const float sigmaN : {128.f, 8.f, 0.f}) {
+        AtrousParams p;
+        p.sigmaL = 1e6f;
+        p.sigmaN = sigmaN;
+        const Filtered f = runAtrous(g, color, std::vector<float>(color.size(), 1.f), p);
+        for (std::size_t i = 0; i < color.size(); ++i) {
+            if (g.isSky(i)) { EXPECT_EQ(f.color[i], color[i]); }
+            else { EXPECT_NEAR(f.color[i].r, 0.2f, 1e-6f) << sigmaN; }
+        }
     }
 }
 

@@ -111,6 +111,14 @@ TEST(DenoiseSimdMath, FourAndEightWideFiltersAreBitIdentical) {
         std::vector<vec3> out(g.pixelCount());
         std::vector<float> varOut(g.pixelCount());
         atrousFilter(g, noisy, var, {}, out, varOut, 0, {}, footprint);
+        // Steps 32 and 64 (beyond the planes' margins: the range-checked path), sigmaN 8 (sky gated by
+        // the geometry flag, not by the normal term).
+        AtrousParams wide;
+        wide.iterations = 7;
+        wide.sigmaN = 8.f;
+        std::vector<vec3> outWide(g.pixelCount());
+        atrousFilter(g, noisy, var, wide, outWide, varOut, 0, {}, {});
+        out.insert(out.end(), outWide.begin(), outWide.end());
         HistoryBuffers acc;
         acc.resize(w, h);
         for (std::size_t i = 0; i < acc.moments.size(); ++i) {
