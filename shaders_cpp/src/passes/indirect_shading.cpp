@@ -49,11 +49,19 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             const SampleKey key = ctx.key(i, sample, hitStream);
             brdfSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
         }
-        for (std::size_t l = 0; l < ctx.scene.lights.size(); ++l) {
-            const ecs::LightSnapshot& light = ctx.scene.lights[l];
-            if (!emits(light)) continue;
-            const auto dim = static_cast<std::uint32_t>(3 + 2 * l);
-            // Step: the light's own sample.
+        // The shadow ray of one weighted light sample from hit i; its contribution
+        // (path weight x f cos x Le / pdf x fog on fog segment `segment`) counts if unoccluded.
+        const auto shadowed = [&](std::size_t i, const ShadingPoint& sp, const LightSample& ls,
+                                  std::uint32_t segment) -> std::optional<tracer::RayDesc> {
+            const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
+            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf *
+                                   ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
+                                                     stream::transmittance(hitStream, segment));
+            if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
+            return std::optional<tracer::RayDesc>(ray);
+        };
+        // One shadow ray per hit from `sampleFor(i, shading point)`, incoherent.
+        const auto traceFromHits = [&](auto&& sampleFor) {
             counters.add(ctx.pipeline().dispatchCoherent(
                 grid.width, grid.height, args,
                 [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
@@ -61,51 +69,45 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
                     lightContribution[i] = vec3(0.f);
                     const HitPayload& h = hits[i];
                     if (!h.hit) return std::nullopt;
-                    const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
-                    const SampleKey key = ctx.key(i, sample, hitStream);
-                    const bool area = light.light.isArea();
-                    const LightSample ls = area ? sampleAreaLight(light, sp.position,
-                                                                  vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
-                                                : pointLightSample(light, sp.position);
-                    if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
-                    const float mis = area ? powerHeuristic(1, ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;
-                    if (!(mis > 0.f)) return std::nullopt;
-                    const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
-                    lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf * mis *
-                                           ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
-                                                             stream::transmittance(hitStream, 0));
-                    if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
-                    return ray;
+                    return sampleFor(i, shadingPointOf(h, ctx.material(h.material), -incoming[i]));
                 },
                 unoccluded, tracer::RayCoherence::Incoherent));
+        };
+        for (std::size_t l = 0; l < ctx.scene.lights.size(); ++l) {
+            const ecs::LightSnapshot& light = ctx.scene.lights[l];
+            if (!emits(light)) continue;
+            const auto dim = static_cast<std::uint32_t>(3 + 2 * l);
+            // Step: the light's own sample.
+            traceFromHits([&](std::size_t i, const ShadingPoint& sp) -> std::optional<tracer::RayDesc> {
+                const SampleKey key = ctx.key(i, sample, hitStream);
+                const bool area = light.light.isArea();
+                const LightSample ls = area ? sampleAreaLight(light, sp.position,
+                                                              vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
+                                            : pointLightSample(light, sp.position);
+                if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
+                const float mis = area ? powerHeuristic(1, ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;
+                if (!(mis > 0.f)) return std::nullopt;
+                LightSample weighted = ls;
+                weighted.radianceOverPdf *= mis;
+                return shadowed(i, sp, weighted, 0);
+            });
             if (!light.light.isArea()) continue;
             // Step: the specular-lobe sample, where its ray meets this light (lights are
             // not geometry: each one the ray passes through counts, behind
             // its own shadow ray).
-            counters.add(ctx.pipeline().dispatchCoherent(
-                grid.width, grid.height, args,
-                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-                    const std::size_t i = index(x, y);
-                    lightContribution[i] = vec3(0.f);
-                    const HitPayload& h = hits[i];
-                    const BrdfSample& b = brdfSample[i];
-                    if (!h.hit || !b.valid) return std::nullopt;
-                    const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
-                    const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
-                    if (!lh.valid) return std::nullopt;
-                    const float mis = powerHeuristic(1, b.pdf, 1, lh.pdf);
-                    if (!(mis > 0.f)) return std::nullopt;
-                    LightSample target;
-                    target.direction = b.direction;
-                    target.distance = lh.distance;
-                    const tracer::RayDesc ray = shadowRayToward(target, sp.position, sp.geometricNormal, sp.errorScale);
-                    lightContribution[i] = weight[i] * evalBrdfCos(sp, b.direction) * (lh.radiance * (mis / b.pdf)) *
-                                           ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
-                                                             stream::transmittance(hitStream, 2));
-                    if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
-                    return ray;
-                },
-                unoccluded, tracer::RayCoherence::Incoherent));
+            traceFromHits([&](std::size_t i, const ShadingPoint& sp) -> std::optional<tracer::RayDesc> {
+                const BrdfSample& b = brdfSample[i];
+                if (!b.valid) return std::nullopt;
+                const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
+                if (!lh.valid) return std::nullopt;
+                const float mis = powerHeuristic(1, b.pdf, 1, lh.pdf);
+                if (!(mis > 0.f)) return std::nullopt;
+                LightSample target;
+                target.direction = b.direction;
+                target.distance = lh.distance;
+                target.radianceOverPdf = lh.radiance * (mis / b.pdf);
+                return shadowed(i, sp, target, 2);
+            });
         }
         return;
     }

@@ -92,30 +92,23 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
             const std::size_t i = ctx.pixelIndex(x, y);
             if (!p.hit) pointDirect[i] += contribution[i];
         };
-        if (pointLights.size() <= kTraceEveryPointLight) {
-            for (std::uint32_t j = 0; j < pointLights.size(); ++j) {
-                const ecs::LightSnapshot& light = *pointLights[j];
-                const std::uint32_t fogStream = stream::transmittance(stream::kPointLightPick + 1 + j);
-                for (int s = 0; s < spp; ++s)
-                    tracePerPixel(
-                        [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-                            const std::size_t i = ctx.pixelIndex(x, y);
-                            const GPixel& g = ctx.gbuffer[i];
-                            contribution[i] = vec3(0.f);
-                            if (!g.hit) return std::nullopt;
-                            const LightSample ls = pointLightSample(light, g.position);
-                            if (!ls.valid) return std::nullopt;
-                            const vec3 f = evalBrdfCos(shadingPointOf(g), ls.direction) * ls.radianceOverPdf;
-                            if (!(luminance(f) > 0.f)) return std::nullopt;
-                            const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
-                            contribution[i] = f * ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
-                                                                    static_cast<std::uint32_t>(s), fogStream);
-                            return ray;
-                        },
-                        addIfVisible);
-            }
-        } else {
-            for (int s = 0; s < spp; ++s) {
+        // One shadow ray from pixel i toward `light`; the contribution is divided by
+        // the light's pick probability `pdf` (1 when every light is traced).
+        const auto towardLight = [&](std::size_t i, const GPixel& g, const ShadingPoint& sp,
+                                     const ecs::LightSnapshot& light, float pdf, int s,
+                                     std::uint32_t fogStream) -> std::optional<tracer::RayDesc> {
+            const LightSample ls = pointLightSample(light, g.position);
+            if (!ls.valid) return std::nullopt;
+            const vec3 f = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf;
+            if (!(luminance(f) > 0.f)) return std::nullopt;
+            const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
+            contribution[i] = f * ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s),
+                                                    fogStream);
+            return ray;
+        };
+        const bool traceEach = pointLights.size() <= kTraceEveryPointLight;
+        for (std::uint32_t j = 0; j < (traceEach ? pointLights.size() : 1); ++j)
+            for (int s = 0; s < spp; ++s)
                 tracePerPixel(
                     [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
                         const std::size_t i = ctx.pixelIndex(x, y);
@@ -123,6 +116,9 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                         contribution[i] = vec3(0.f);
                         if (!g.hit) return std::nullopt;
                         const ShadingPoint sp = shadingPointOf(g);
+                        if (traceEach)
+                            return towardLight(i, g, sp, *pointLights[j], 1.f, s,
+                                               stream::transmittance(stream::kPointLightPick + 1 + j));
                         // Step: importance = intensity x orientation / distance^2 over the non-area lights.
                         const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kPointLightPick);
                         float pdf = 0.f;
@@ -133,17 +129,9 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                             },
                             sampleUniform(key, 0), pdf);
                         if (!chosen) return std::nullopt;
-                        const LightSample ls = pointLightSample(*chosen, g.position);
-                        const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
-                        contribution[i] = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf *
-                                          ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
-                                                            static_cast<std::uint32_t>(s),
-                                                            stream::transmittance(stream::kPointLightPick));
-                        return ray;
+                        return towardLight(i, g, sp, *chosen, pdf, s, stream::transmittance(stream::kPointLightPick));
                     },
                     addIfVisible);
-            }
-        }
         for (std::size_t i = 0; i < n; ++i) {
             pointDirect[i] /= float(spp);
             direct[i] += pointDirect[i];
