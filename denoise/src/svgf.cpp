@@ -132,10 +132,15 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     // The variance of the long mean, from its own samples' moments (every
     // sample since the last restart: a firefly among them raises it, so that
-    // pixel keeps F).
+    // pixel keeps F). Below kOwnVarianceSamples samples, at least the 3x3
+    // neighbourhood's sample variance: two or three samples can show none
+    // (1-spp GI samples of 0), and trusting that pulled such pixels onto
+    // their few-sample mean (the speckle of make demo's frames 2 and 3).
+    constexpr float kOwnVarianceSamples = 8.f;
     const auto meanVariance = [&](std::size_t j) {
         const vec2 m = staticMoments_[j];
-        const float v = m.y - m.x * m.x;
+        float v = m.y - m.x * m.x;
+        if (staticLength_[j] < kOwnVarianceSamples) v = std::max(v, blurredVariance_[j]);
         return (v > 0.f ? v : 0.f) / staticLength_[j];
     };
     shrinkDiff_.resize(n);
