@@ -6,6 +6,8 @@
 // kTraceEveryPointLight of them), else one picked per pixel by importance.
 #include "../lighting.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
 namespace rtlab::shaders::detail {
 
 // Up to this many point / spot / directional lights each get a shadow ray
@@ -63,17 +65,22 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     tally.record(i, p, mediumT[i], sampleWeight[i]);
                 });
         }
-        for (std::size_t i = 0; i < n; ++i) {
-            const GPixel& g = ctx.gbuffer[i];
-            if (!g.hit) continue;
-            visibility[i] = tally.visibility(i);
-            hitT[i] = tally.meanOccluderDistance(i, 0.f);
-            penumbra[i] = penumbraWidth(light, g.position, hitT[i]);
-            unshadowed[i] = unshadowedAreaLight(light, shadingPointOf(g),
-                                                static_cast<int>(ctx.settings.areaLightUnshadowedSamples),
-                                                ctx.key(i, 0, areaStream), 2);
-            direct[i] += unshadowed[i] * visibility[i];
-        }
+        // Step: per pixel, in parallel by rows (each pixel writes only its own
+        // entries): the unshadowed estimate is most of this pass's work without rays.
+        parallelForEach(static_cast<std::size_t>(ctx.height), [&](std::size_t row) {
+            const std::size_t width = static_cast<std::size_t>(ctx.width);
+            for (std::size_t i = row * width, end = i + width; i < end; ++i) {
+                const GPixel& g = ctx.gbuffer[i];
+                if (!g.hit) continue;
+                visibility[i] = tally.visibility(i);
+                hitT[i] = tally.meanOccluderDistance(i, 0.f);
+                penumbra[i] = penumbraWidth(light, g.position, hitT[i]);
+                unshadowed[i] = unshadowedAreaLight(light, shadingPointOf(g),
+                                                    static_cast<int>(ctx.settings.areaLightUnshadowedSamples),
+                                                    ctx.key(i, 0, areaStream), 2);
+                direct[i] += unshadowed[i] * visibility[i];
+            }
+        });
         out.addRgbLayer("direct.light" + std::to_string(areaIndex), unshadowed);
         ++areaIndex;
     }
