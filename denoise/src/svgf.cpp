@@ -11,6 +11,11 @@ namespace rtlab::denoise {
 namespace {
 // Motion (pixels) below which a pixel counts as static for SvgfParams::convergeStatic.
 constexpr float kStaticMotionPx = 1e-3f;
+// The variance of samples from their first two moments (0 where round-off makes it negative).
+float momentsVariance(const vec2& m) {
+    const float v = m.y - m.x * m.x;
+    return v > 0.f ? v : 0.f;
+}
 }  // namespace
 
 void SvgfFilter::reset() {
@@ -138,10 +143,9 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     // their few-sample mean (the speckle of make demo's frames 2 and 3).
     constexpr float kOwnVarianceSamples = 8.f;
     const auto meanVariance = [&](std::size_t j) {
-        const vec2 m = staticMoments_[j];
-        float v = m.y - m.x * m.x;
+        float v = momentsVariance(staticMoments_[j]);
         if (staticLength_[j] < kOwnVarianceSamples) v = std::max(v, blurredVariance_[j]);
-        return (v > 0.f ? v : 0.f) / staticLength_[j];
+        return v / staticLength_[j];
     };
     shrinkDiff_.resize(n);
     detail::forEachIndex(n, [&](std::size_t i) {
@@ -198,13 +202,6 @@ void SvgfFilter::convergeStatic(int w, int h) {
     const float alpha = std::clamp(params_.temporal.alpha, 1e-3f, 1.f);
     const float momentsAlpha = std::clamp(params_.temporal.momentsAlpha, 1e-3f, 1.f);
     const float steady = (2.f - alpha) / alpha, steadyMoments = (2.f - momentsAlpha) / momentsAlpha;
-    // The long mean's samples: the input, or its firefly-clamped copy.
-    std::span<const vec3> staticInput = input_;
-    if (params_.staticClampFireflies && !params_.clampFireflies) {
-        clampedInput_.resize(n);
-        clampFireflies(w, h, input_, clampedInput_, params_.firefly);
-        staticInput = clampedInput_;
-    }
     const float k = params_.staticResetSigma;
     std::vector<std::uint8_t> reset(n, 0);
     detail::forEachIndex(n, [&](std::size_t i) {
@@ -219,16 +216,16 @@ void SvgfFilter::convergeStatic(int w, int h) {
             return;
         }
         const float len = staticLength_[i] + 1.f;
-        const vec3 sample = staticInput[i];
+        const vec3 sample = input_[i];
         const vec3 mean = staticColor_[i] + (sample - staticColor_[i]) / len;
         // The change test: the long mean against the short-memory luminance moment.
         const float nm = std::clamp(reprojected_.length[i], 1.f, steadyMoments);
         const float d = std::fabs(luminance(mean) - reprojected_.moments[i].x);
         // The samples' variance: the 3x3 average, or (staticResetOwnVariance)
         // the long mean's own samples' where larger.
-        const float ownVariance = staticMoments_[i].y - staticMoments_[i].x * staticMoments_[i].x;
-        const float variance = params_.staticResetOwnVariance && ownVariance > blurredVariance_[i] ? ownVariance
-                                                                                                 : blurredVariance_[i];
+        const float variance = params_.staticResetOwnVariance
+                                   ? std::max(momentsVariance(staticMoments_[i]), blurredVariance_[i])
+                                   : blurredVariance_[i];
         const float tolerance = k * std::sqrt(variance * (1.f / nm + 1.f / len));
         if (d > tolerance && d > 1e-6f * std::fabs(reprojected_.moments[i].x)) {
             staticColor_[i] = fast;

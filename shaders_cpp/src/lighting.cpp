@@ -18,6 +18,20 @@ float lightArea(const ecs::LightSnapshot& l) {
     return 4.f * kPi * l.light.radius * l.light.radius;
 }
 
+// A rect light's world area: its size times the scale of its transform's x and y axes.
+float rectWorldArea(const ecs::LightSnapshot& l) {
+    return lightArea(l) * glm::length(glm::cross(vec3(l.worldFromLight[0]), vec3(l.worldFromLight[1])));
+}
+
+// 1 - cos(theta_max) of the cone a sphere of radius r subtends at squared
+// distance dist2 > r^2, as sin^2 / (1 + cos): the direct form loses every
+// digit for small or distant spheres.
+float sphereConeOneMinusCos(float dist2, float r) {
+    const float sinMax2 = r * r / dist2;
+    const float cosMax = std::sqrt(std::max(0.f, 1.f - sinMax2));
+    return sinMax2 / (1.f + cosMax);
+}
+
 }  // namespace
 
 ShadingPoint shadingPointOf(const GPixel& g) {
@@ -175,7 +189,7 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
         s.distance = dist;
         const float cosLight = glm::dot(-s.direction, lightForward(l));
         if (!(cosLight > 0.f)) return s;  // the back of a one-sided panel
-        const float area = lightArea(l) * glm::length(glm::cross(ax, ay));
+        const float area = rectWorldArea(l);
         s.radianceOverPdf = emitted(l) * (cosLight * area / dist2);
         s.pdf = dist2 / (cosLight * area);
         s.valid = std::isfinite(s.radianceOverPdf.x) && area > 0.f;
@@ -189,9 +203,7 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
     const float r = std::max(l.light.radius, 0.f);
     if (!(dist2 > r * r)) return s;  // inside the light
     const float dist = std::sqrt(dist2);
-    const float sinMax2 = r * r / dist2;
-    const float cosMax = std::sqrt(std::max(0.f, 1.f - sinMax2));
-    const float oneMinusCosMax = sinMax2 / (1.f + cosMax);
+    const float oneMinusCosMax = sphereConeOneMinusCos(dist2, r);
     const float oneMinusCos = std::min(u.x, kOneMinusEpsilon) * oneMinusCosMax;
     const float sinTheta = std::sqrt(std::max(0.f, oneMinusCos * (2.f - oneMinusCos)));
     const float phi = 2.f * kPi * u.y;
@@ -230,7 +242,7 @@ AreaLightHit intersectAreaLight(const ecs::LightSnapshot& l, const vec3& p, cons
         // Step: the same solid-angle pdf as sampleAreaLight's.
         const float cosLight = glm::dot(-direction, lightForward(l));
         if (!(cosLight > 0.f)) return h;  // the back of a one-sided panel
-        const float area = lightArea(l) * std::sqrt(nn);
+        const float area = rectWorldArea(l);
         h.pdf = t * t / (cosLight * area);
         h.distance = t;
     } else if (l.light.type == ecs::LightType::Sphere) {
@@ -243,9 +255,7 @@ AreaLightHit intersectAreaLight(const ecs::LightSnapshot& l, const vec3& p, cons
         const float b = glm::dot(d, direction);
         const float disc = b * b - (dist2 - r * r);
         if (!(b > 0.f) || !(disc >= 0.f)) return h;
-        const float sinMax2 = r * r / dist2;
-        const float cosMax = std::sqrt(std::max(0.f, 1.f - sinMax2));
-        h.pdf = 1.f / (2.f * kPi * (sinMax2 / (1.f + cosMax)));
+        h.pdf = 1.f / (2.f * kPi * sphereConeOneMinusCos(dist2, r));
         h.distance = b - std::sqrt(disc);
     } else {
         return h;
@@ -309,11 +319,11 @@ vec3 sampledRectSpecular(const ecs::LightSnapshot& light, const ShadingPoint& sp
     const vec3 xAxis = vec3(light.worldFromLight[0]), yAxis = vec3(light.worldFromLight[1]);
     const vec3 ax = light.light.size.x * xAxis, ay = light.light.size.y * yAxis;
     const vec3 forward = lightForward(light);
-    const float area = lightArea(light) * glm::length(glm::cross(xAxis, yAxis));
+    const float area = rectWorldArea(light);
     // Step: the surface point's constants.
     const vec3& wo = sp.woLocal;
     const float cosO = std::max(glm::dot(sp.normal, sp.wo), 1e-6f);
-    const float alpha = glm::clamp(ggxAlpha(sp.roughness), kMinGgxAlpha, 1.f);
+    const float alpha = ggxAlpha(sp.roughness);  // in [kMinGgxAlpha, 1]
     const float a2 = alpha * alpha;
     const float oz = std::fabs(wo.z);
     const float smithO = std::sqrt(wo.z * wo.z + a2 * (wo.x * wo.x + wo.y * wo.y));
@@ -365,6 +375,15 @@ vec3 sampledRectSpecular(const ecs::LightSnapshot& light, const ShadingPoint& sp
 }
 
 }  // namespace
+
+void rectCorners(const ecs::LightSnapshot& light, const vec3& toCentre, vec3* corners) {
+    const vec3 ax = 0.5f * light.light.size.x * vec3(light.worldFromLight[0]);
+    const vec3 ay = 0.5f * light.light.size.y * vec3(light.worldFromLight[1]);
+    corners[0] = toCentre - ax - ay;
+    corners[1] = toCentre + ax - ay;
+    corners[2] = toCentre + ax + ay;
+    corners[3] = toCentre - ax + ay;
+}
 
 float polygonCosineIntegral(const vec3* corners, int count, const vec3& n, const vec3& ng) {
     // Step: clip the polygon (points relative to the surface point) to the
@@ -433,9 +452,8 @@ vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp
     if (light.light.type == ecs::LightType::Rect) {
         const vec3 toCentre = lightPosition(light) - sp.position;
         if (!(glm::dot(toCentre, lightForward(light)) < 0.f)) return vec3(0.f);  // behind the one-sided panel
-        const vec3 ax = 0.5f * light.light.size.x * vec3(light.worldFromLight[0]);
-        const vec3 ay = 0.5f * light.light.size.y * vec3(light.worldFromLight[1]);
-        const vec3 corners[4] = {toCentre - ax - ay, toCentre + ax - ay, toCentre + ax + ay, toCentre - ax + ay};
+        vec3 corners[4];
+        rectCorners(light, toCentre, corners);
         cosineIntegral = polygonCosineIntegral(corners, 4, sp.normal, sp.geometricNormal);
     } else {
         cosineIntegral = sphereCosineIntegral(lightPosition(light) - sp.position, std::max(light.light.radius, 0.f),
@@ -479,10 +497,9 @@ const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const Shadi
             const float dist2 = std::max(glm::dot(d, d), 1e-8f);
             bool above = false;
             if (l.light.type == ecs::LightType::Rect) {
-                const vec3 ax = 0.5f * l.light.size.x * vec3(l.worldFromLight[0]);
-                const vec3 ay = 0.5f * l.light.size.y * vec3(l.worldFromLight[1]);
-                for (int c = 0; c < 4 && !above; ++c)
-                    above = glm::dot(sp.normal, d + (c & 1 ? ax : -ax) + (c & 2 ? ay : -ay)) > 0.f;
+                vec3 corners[4];
+                rectCorners(l, d, corners);
+                for (int c = 0; c < 4 && !above; ++c) above = glm::dot(sp.normal, corners[c]) > 0.f;
             } else {
                 above = glm::dot(sp.normal, d) > -l.light.radius;
             }

@@ -114,6 +114,9 @@ vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp
 // after clipping). A Lambertian surface of albedo a under a polygon of
 // uniform radiance L receives a / pi x L x this.
 float polygonCosineIntegral(const vec3* corners, int count, const vec3& n, const vec3& ng);
+// A rect light's four corners in order, relative to a surface point from
+// which the light's centre is at `toCentre`.
+void rectCorners(const ecs::LightSnapshot& light, const vec3& toCentre, vec3* corners);
 // The same for a sphere of `radius` centred at `toCentre` from the surface
 // point, clipped to the n hemisphere (Snyder 1996); nothing when the sphere
 // also crosses the ng horizon and n != ng (no closed form: sample it).

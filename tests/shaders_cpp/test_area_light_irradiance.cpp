@@ -45,10 +45,8 @@ double sampledCosineIntegral(const ecs::LightSnapshot& l, const vec3& p, const v
 }
 
 float rectIntegral(const ecs::LightSnapshot& l, const vec3& p, const vec3& n, const vec3& ng) {
-    const vec3 toCentre = vec3(l.worldFromLight[3]) - p;
-    const vec3 ax = 0.5f * l.light.size.x * vec3(l.worldFromLight[0]);
-    const vec3 ay = 0.5f * l.light.size.y * vec3(l.worldFromLight[1]);
-    const vec3 c[4] = {toCentre - ax - ay, toCentre + ax - ay, toCentre + ax + ay, toCentre - ax + ay};
+    vec3 c[4];
+    rectCorners(l, vec3(l.worldFromLight[3]) - p, c);
     return polygonCosineIntegral(c, 4, n, ng);
 }
 

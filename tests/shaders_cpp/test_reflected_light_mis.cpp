@@ -94,7 +94,9 @@ TEST(ReflectedLightMis, AgreesWithLightPointsAndHasNoHeavyTail) {
             const double error = std::sqrt((points.sd * points.sd + mis.sd * mis.sd) / kSamples);
             EXPECT_NEAR(mis.mean, points.mean, 4.0 * error) << int(type) << " roughness " << roughness;
             EXPECT_LE(mis.sd, 1.05 * points.sd) << int(type) << " roughness " << roughness;
-            if (roughness == 0.1f) EXPECT_LT(mis.sd, 0.1 * points.sd) << int(type);
+            if (roughness == 0.1f) {
+                EXPECT_LT(mis.sd, 0.1 * points.sd) << int(type);
+            }
         }
         // A mirror: light points practically never meet its direction; the
         // lobe sample reflects the light (finite, brighter than the diffuse part alone).

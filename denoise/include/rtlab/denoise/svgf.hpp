@@ -71,13 +71,6 @@ struct SvgfParams {
     // noise explains: weight max(0, 1 - c V' / D^2) with c this (positive-part
     // James-Stein for c = 1; larger keeps more of the filter). Source: rtlab.
     float staticShrinkSigma2 = 1.f;
-    // The long mean takes firefly-clamped samples (FireflyClampParams `firefly`)
-    // even when the filtered signal does not: a heavy-tailed signal's rare huge
-    // sample would otherwise stay in it at weight 1/n. No stack sets it now:
-    // it also pulls a bright, sparse but true signal to its neighbours (the
-    // reflection stack used it until its heavy tail was removed at the
-    // source). Source: rtlab.
-    bool staticClampFireflies = false;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
     FireflyClampParams firefly;
@@ -167,7 +160,6 @@ private:
     std::vector<float> staticLength_;
     std::vector<float> blurredVariance_;
     std::vector<float> shrinkDiff_;
-    std::vector<vec3> clampedInput_;
     std::vector<vec3> shrunk_;
     std::size_t staticResets_ = 0;
     AtrousWorkspace atrousWorkspace_;
