@@ -20,11 +20,17 @@ float toPixels(float worldSize, float pixelWorld, float maxPx) {
     return px < maxPx ? px : maxPx;  // +inf and NaN-free: worldSize, pixelWorld > 0
 }
 
+// Which pixels of the window the mean takes.
+enum class WindowMean {
+    Geometry,   // every geometry pixel (a 0 counts as 0)
+    Estimates,  // geometry pixels with an estimate (> 0); none in the window: maxPx
+};
+
 // Mean over the (2r+1)^2 window of geometry pixels (same-state only), then
 // [minPx, maxPx] where > 0. Separable: row sums of values and of geometry
 // counts, then column sums of those (the same window, in O(r) per pixel).
 std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, std::span<const int> meshId,
-                                  const FootprintParams& p) {
+                                  const FootprintParams& p, WindowMean mean = WindowMean::Geometry) {
     const std::size_t n = px.size();
     std::vector<float> out(n, 0.f), rowSum(n), rowCount(n);
     const int r = std::max(p.smoothRadius, 0);
@@ -33,7 +39,7 @@ std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, st
         const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
         float sum = 0.f, count = 0.f;
         for (int qx = std::max(0, x - r); qx <= std::min(w - 1, x + r); ++qx) {
-            if (meshId[row + qx] < 0) continue;
+            if (meshId[row + qx] < 0 || (mean == WindowMean::Estimates && !(px[row + qx] > 0.f))) continue;
             sum += px[row + qx];
             count += 1.f;
         }
@@ -48,8 +54,8 @@ std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, st
             sum += rowSum[j];
             count += rowCount[j];
         }
-        const float mean = count > 0.f ? sum / count : 0.f;
-        out[i] = std::max(mean > 0.f ? std::clamp(mean, lo, hi) : 0.f, std::min(p.floorPx, hi));
+        const float m = count > 0.f ? sum / count : (mean == WindowMean::Estimates ? hi : 0.f);
+        out[i] = std::max(m > 0.f ? std::clamp(m, lo, hi) : 0.f, std::min(p.floorPx, hi));
     });
     return out;
 }
@@ -120,7 +126,9 @@ std::vector<float> aoFootprint(int width, int height, std::span<const float> hit
     detail::forEachIndex(px.size(), [&](std::size_t i) {
         px[i] = meshId[i] < 0 ? 0.f : toPixels(hitT[i], pixelWorld[i], params.maxPx);
     });
-    return smoothAndClamp(width, height, px, meshId, params);
+    // Only the pixels that saw an occluder: one unoccluded 1-spp sample in a
+    // contact crease must not widen its neighbours' footprint to the open's.
+    return smoothAndClamp(width, height, px, meshId, params, WindowMean::Estimates);
 }
 
 }  // namespace rtlab::denoise

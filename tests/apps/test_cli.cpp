@@ -423,6 +423,9 @@ TEST(Cli, ConvergeMeasuresRawAndDenoisedAgainstACachedReference) {
         for (const char* k : {"ms", "relMse", "ssim", "flip"}) EXPECT_TRUE(std::isfinite(r[k].get<double>())) << k;
         EXPECT_GE(r["flip"].get<double>(), 0.0);
         EXPECT_LE(r["flip"].get<double>(), 1.0);
+        // The worst 1 % of the 1536 pixels (15) hold at least their count's share.
+        EXPECT_GE(r["worstPercentShare"].get<double>(), 15.0 / 1536.0) << r.dump();
+        EXPECT_LE(r["worstPercentShare"].get<double>(), 1.0);
         if (r["method"] == "raw") raw.push_back(r["relMse"].get<double>());
     }
     ASSERT_EQ(raw.size(), 4u);  // 1, 2, 4, 8 spp

@@ -89,6 +89,18 @@ TEST(DenoiseFootprint, AoFromOccluderDistance) {
     EXPECT_EQ(fp[2], p.maxPx);         // open
 }
 
+TEST(DenoiseFootprint, AoUnoccludedPixelsTakeTheirOccludedNeighboursScale) {
+    // A contact crease at 1 spp: occluders 0.05 away (0.5 px), one pixel whose
+    // ray escaped (hitT 0: no estimate), then the open (nothing hit anywhere).
+    FootprintParams p;
+    p.smoothRadius = 1;
+    const std::vector<float> hitT = {0.05f, 0.f, 0.05f, 0.f, 0.f, 0.f, 0.f};
+    const std::vector<float> fp = aoFootprint(7, 1, hitT, std::vector<float>(7, 0.1f), allGeometry(7), p);
+    EXPECT_EQ(fp[1], p.minPx);  // the crease's scale, not the open's
+    EXPECT_EQ(fp[3], p.minPx);  // one occluded neighbour in the window
+    EXPECT_EQ(fp[5], p.maxPx);  // no occluder seen within the window: the open
+}
+
 TEST(DenoiseFootprint, NonFiniteInputGivesFiniteFootprints) {
     const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
     const std::vector<float> bad = {nan, inf, -inf, -1.f, 0.f, 1e30f};
