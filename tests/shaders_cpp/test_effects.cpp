@@ -735,7 +735,8 @@ TEST(Effects, PointLightIsInCandela) {
 // spp); with more, one is picked per pixel by importance (direct.pointPicked,
 // right on average). Lights at height 2 over the floor centre, one apart.
 TEST(Effects, FewPointLightsAreTracedEachManyArePicked) {
-    const auto render = [](int lights, int spp, const char* layer, double& expected) {
+    std::uint64_t shadowRays = 0;
+    const auto render = [&shadowRays](int lights, int spp, const char* layer, double& expected) {
         ecs::World world;
         addGreyFloor(world);
         expected = 0.0;
@@ -756,6 +757,7 @@ TEST(Effects, FewPointLightsAreTracedEachManyArePicked) {
         expectAllFinite(r, layer);
         EXPECT_EQ(r.out.image.hasChannel("direct.point.R"), lights <= 4);
         EXPECT_EQ(r.out.image.hasChannel("direct.pointPicked.R"), lights > 4);
+        shadowRays = r.out.counters.rays[kRayShadow];
         return r.out.image.channel(layer)[4];
     };
     double diffuseFour = 0.0, diffuseSix = 0.0;
@@ -765,7 +767,10 @@ TEST(Effects, FewPointLightsAreTracedEachManyArePicked) {
     EXPECT_NEAR(four, diffuseFour, 0.04 * diffuseFour);
     EXPECT_GT(four, diffuseFour);
     EXPECT_NEAR(six, diffuseSix, 0.08 * diffuseSix);
-    // Traced, the same at 1 and 16 spp but for the rounding of the mean (no noise without fog).
+    EXPECT_EQ(shadowRays, 256u * 9u);  // picked: one light per pixel and sample
+    // Traced without fog, every sample's ray is the same: one per light and
+    // pixel at any spp, and the same value.
     double unused = 0.0;
-    EXPECT_NEAR(render(4, 16, "direct.point.R", unused), four, 1e-6f * four);
+    EXPECT_EQ(render(4, 16, "direct.point.R", unused), four);
+    EXPECT_EQ(shadowRays, 4u * 9u);
 }

@@ -11,7 +11,8 @@
 namespace rtlab::shaders::detail {
 
 // Up to this many point / spot / directional lights each get a shadow ray
-// per pixel and sample; more are sampled by an importance pick.
+// per pixel (and per sample in fog, whose transmittance is sampled); more
+// are sampled by an importance pick, per pixel and sample.
 constexpr std::size_t kTraceEveryPointLight = 4;
 
 std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct,
@@ -114,8 +115,10 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
             return ray;
         };
         const bool traceEach = pointLights.size() <= kTraceEveryPointLight;
+        // Traced one by one without fog, every sample's ray is the same: trace it once.
+        const int samples = traceEach && ctx.media.empty() ? 1 : spp;
         for (std::uint32_t j = 0; j < (traceEach ? pointLights.size() : 1); ++j)
-            for (int s = 0; s < spp; ++s)
+            for (int s = 0; s < samples; ++s)
                 tracePerPixel(
                     [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
                         const std::size_t i = ctx.pixelIndex(x, y);
@@ -140,7 +143,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     },
                     addIfVisible);
         for (std::size_t i = 0; i < n; ++i) {
-            pointDirect[i] /= float(spp);
+            pointDirect[i] /= float(samples);
             direct[i] += pointDirect[i];
         }
         // Traced one by one the layer has no noise but the fog's; picked, it is noisy
