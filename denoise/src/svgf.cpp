@@ -137,24 +137,23 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     // The variance of the long mean, from its own samples' moments (every
     // sample since the last restart: a firefly among them raises it, so that
-    // pixel keeps F). Below kOwnVarianceSamples samples, at least the 3x3
-    // neighbourhood's sample variance: two or three samples can show none
-    // (1-spp GI samples of 0), and trusting that pulled such pixels onto
-    // their few-sample mean (the speckle of make demo's frames 2 and 3).
-    constexpr float kOwnVarianceSamples = 8.f;
-    const auto meanVariance = [&](std::size_t j) {
-        float v = momentsVariance(staticMoments_[j]);
-        if (staticLength_[j] < kOwnVarianceSamples) v = std::max(v, blurredVariance_[j]);
-        return v / staticLength_[j];
-    };
+    // pixel keeps F). Below kMinSamples samples no pixel is shrunk or counted:
+    // so few samples' variance is no guide for heavy-tailed 1-spp signals. A
+    // run of 1-spp GI samples of 0 shows none and pulled pixels onto their
+    // few-sample mean (dark speckle); one firefly among three samples sits
+    // 1.2 sigma from F in the 3x3 mean and pulled its pixel a third of the way
+    // up (bright speckle; both in make demo's frames 1 and 2).
+    constexpr float kMinSamples = 8.f;
+    const auto counted = [&](std::size_t j) { return static_[j] && staticLength_[j] >= kMinSamples; };
+    const auto meanVariance = [&](std::size_t j) { return momentsVariance(staticMoments_[j]) / staticLength_[j]; };
     shrinkDiff_.resize(n);
     detail::forEachIndex(n, [&](std::size_t i) {
-        shrinkDiff_[i] = static_[i] && staticLength_[i] > 0.f ? luminance(out[i]) - luminance(reprojected_.color[i]) : 0.f;
+        shrinkDiff_[i] = counted(i) ? luminance(out[i]) - luminance(reprojected_.color[i]) : 0.f;
     });
     shrunk_.resize(n);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         shrunk_[i] = out[i];
-        if (!static_[i] || !(staticLength_[i] > 0.f)) return;
+        if (!counted(i)) return;
         float sumD = 0.f, sumV = 0.f;
         int count = 0;
         for (int dy = -1; dy <= 1; ++dy)
@@ -162,7 +161,7 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
                 const int px = x + dx, py = y + dy;
                 if (px < 0 || py < 0 || px >= w || py >= h) continue;
                 const std::size_t j = static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px;
-                if (!static_[j] || !(staticLength_[j] > 0.f)) continue;
+                if (!counted(j)) continue;
                 sumD += shrinkDiff_[j];
                 sumV += meanVariance(j);
                 ++count;

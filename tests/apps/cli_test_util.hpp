@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <unistd.h>
+#include <vector>
 #include <sys/wait.h>
 
 namespace rtlab::test {
@@ -34,9 +36,21 @@ inline CliRun runCommand(const std::string& command) {
 // The rtlab executable with `args`.
 inline CliRun runCli(const std::string& args) { return runCommand(std::string(RTLAB_CLI) + " " + args); }
 
+// A directory of this test process (the process id in the name: test runs
+// of two checkouts, or a CI clone's, must not share directories), removed
+// when the process exits.
 inline fs::path freshDir(const std::string& name) {
-    const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + name);
+    struct Created {
+        std::vector<fs::path> dirs;
+        ~Created() {
+            std::error_code ec;
+            for (const fs::path& d : dirs) fs::remove_all(d, ec);
+        }
+    };
+    static Created created;
+    const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + std::to_string(::getpid()) + "_" + name);
     fs::remove_all(d);
+    created.dirs.push_back(d);
     return d;
 }
 
