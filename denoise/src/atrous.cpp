@@ -145,13 +145,18 @@ constexpr float kExpUnit = 8388608.f;           // 2^23: one unit of E in the fl
 constexpr float kLog2e = 1.44269504088896341f;  // exp(-x) = 2^(-x log2(e))
 constexpr float kMaxBits = 127.f * kExpUnit;    // the bits of 1.0f
 
-// One row's pixels: per vector of pixels, the centre and its 24 off-centre
-// taps (12 pairs at +-offset sharing the depth term's denominator),
-// accumulated in registers, then normalised and stored.
+// An iteration's task filters kRowGroup rows, step apart, in runs of kRun pixels (see iterate()).
+constexpr int kRowGroup = 4;
+constexpr int kRun = 128;  // a multiple of the vector widths
+
+// A run of one row's pixels: per vector of pixels, the centre and its 24
+// off-centre taps (12 pairs at +-offset sharing the depth term's
+// denominator), accumulated in registers, then normalised and stored.
 struct TapRow {
     const float *nx, *ny, *nz, *depth, *gradX, *gradY, *geometry, *footprint, *lum, *var, *red, *green, *blue;
     float *outR, *outG, *outB, *outVar, *outLum;
     int w, h, y, step, stride;
+    int x0, x1;          // the run: pixels [x0, x1) (x0 a multiple of the vector width)
     std::size_t row;     // plane index of the row's pixel 0
     float normalScale;   // sigmaN log2(e) 2^23 (the centre's normal is scaled by it)
     float bias;          // 127 2^23 - normalScale: the weight's bits are bias + n.n' normalScale - depth and luminance terms
@@ -187,7 +192,7 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     const float reach = 2.f * static_cast<float>(t.step);
     VI laneIndex;
     for (int lane = 0; lane < N; ++lane) laneIndex[lane] = lane;
-    for (int x = 0; x < w; x += N) {
+    for (int x = t.x0; x < t.x1; x += N) {
         const std::size_t i = t.row + static_cast<std::size_t>(x);
         const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
         const V cVar = simd::loadu<N>(t.var + i), cLum = simd::loadu<N>(t.lum + i);
@@ -319,15 +324,26 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
     const float sigmaL = p.sigmaL > 0.f ? p.sigmaL : 0.f;
     const float lumEps = p.luminanceEpsilon > 0.f ? p.luminanceEpsilon : 0.f;
     const float depthEps = p.depthEpsilon > 0.f ? p.depthEpsilon : 0.f;
-    parallelForEach(static_cast<std::size_t>(l.height), [&](std::size_t rowIndex) {
-        const int y = static_cast<int>(rowIndex);
-        const TapRow t{g.nx.data(), g.ny.data(), g.nz.data(), g.depth.data(), g.gradX.data(), g.gradY.data(),
-                       g.geometry.data(), g.footprint.empty() ? nullptr : g.footprint.data(), in.luminance.data(),
-                       in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(), out.g.data(),
-                       out.b.data(), out.variance.data(), out.luminance.data(), l.width, l.height, y, step,
-                       l.stride, l.at(0, y), normalScale, bias, sigmaZ * static_cast<float>(step), depthEps, sigmaL,
-                       lumEps};
-        filterRowAny(t, avx2, gateSky, checked);
+    const TapRow common{g.nx.data(), g.ny.data(), g.nz.data(), g.depth.data(), g.gradX.data(), g.gradY.data(),
+                        g.geometry.data(), g.footprint.empty() ? nullptr : g.footprint.data(), in.luminance.data(),
+                        in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(), out.g.data(),
+                        out.b.data(), out.variance.data(), out.luminance.data(), l.width, l.height, 0, step,
+                        l.stride, 0, 0, 0, normalScale, bias, sigmaZ * static_cast<float>(step), depthEps, sigmaL,
+                        lumEps};
+    // One task per kRowGroup rows y0 + k step: they share 4 of their 5 tap rows, so the runs of
+    // kRun pixels of the group's rows, filtered one after the other, read the shared taps from L1
+    // (one row after the other, the tap rows of steps >= 4 fall out of L2 between their uses).
+    const std::size_t span = static_cast<std::size_t>(kRowGroup) * static_cast<std::size_t>(step);
+    const std::size_t blocks = (static_cast<std::size_t>(l.height) + span - 1) / span;
+    parallelForEach(blocks * static_cast<std::size_t>(step), [&](std::size_t task) {
+        const std::size_t s = static_cast<std::size_t>(step);
+        const int y0 = static_cast<int>(task / s * span + task % s);
+        for (int x0 = 0; x0 < l.width; x0 += kRun)
+            for (int y = y0; y < std::min(y0 + kRowGroup * step, l.height); y += step) {
+                TapRow t = common;
+                t.y = y, t.x0 = x0, t.x1 = std::min(x0 + kRun, l.width), t.row = l.at(0, y);
+                filterRowAny(t, avx2, gateSky, checked);
+            }
     });
 }
 
