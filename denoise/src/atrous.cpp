@@ -192,6 +192,12 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     const float reach = 2.f * static_cast<float>(t.step);
     VI laneIndex;
     for (int lane = 0; lane < N; ++lane) laneIndex[lane] = lane;
+    const V zero = simd::opaque<N>(simd::splat<N>(0.f)), minDen = simd::opaque<N>(simd::splat<N>(1e-30f));
+    // log2 of 1/h for |offset| 0, 1, 2 per axis: 3/8 = 3/2 2^-2, 1/4 = 2^-2, 1/16 = 2^-4.
+    constexpr int kShift[3] = {2, 2, 4};
+    // The bias less k 2^23 for the taps' k = 4, 6, 8 (kShift[|kx|] + kShift[|ky|]).
+    V biasOf[3];
+    for (int b = 0; b < 3; ++b) biasOf[b] = simd::splat<N>(t.bias - static_cast<float>(4 + 2 * b) * kExpUnit);
     for (int x = t.x0; x < t.x1; x += N) {
         const std::size_t i = t.row + static_cast<std::size_t>(x);
         const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
@@ -234,7 +240,7 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                                  gB + gA2, gB2 - gA2, gB2 - gA, gB2,     gB2 + gA, gB2 + gA2};
             for (int k = 0; k < 12; ++k) {
                 const V den = simd::abs<N>(along[k]) + eps;
-                rZ[k] = simd::splat<N>(kLog2e * kExpUnit) / simd::select<N>(den > 1e-30f, den, simd::splat<N>(1e-30f));
+                rZ[k] = simd::splat<N>(kLog2e * kExpUnit) / simd::max<N>(den, minDen);
             }
         }
         const V cx = simd::loadu<N>(t.nx + i) * t.normalScale, cy = simd::loadu<N>(t.ny + i) * t.normalScale,
@@ -243,15 +249,14 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
           sB = cB * hCentre;
         // A tap's kernel weight h = m 2^-k (m 1 or 3/2) is folded into the bits: 2^-k as k 2^23 less,
         // exact except that weights below 2^-(127-k) become 0.
-        const auto tap = [&](std::ptrdiff_t offset, const V& rz, float bias, bool threeHalves) __attribute__((always_inline)) {
+        const auto tap = [&](std::ptrdiff_t offset, const V& rz, const V& bias, bool threeHalves) __attribute__((always_inline)) {
             const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + offset);
             const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
             const V eZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) * rz;
             const V eL = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j)) * cIL;
             // The terms are >= 0 and finite or +inf: never NaN. Unit normals keep n.n' <= 1 up to
             // round-off, so the bits stay below those of 2^-k * (1 + 1e-5): no upper clamp.
-            V bits = (dot + bias) - (eZ + eL);
-            bits = simd::select<N>(bits > 0.f, bits, simd::splat<N>(0.f));
+            const V bits = simd::max<N>((dot + bias) - (eZ + eL), zero);
             V hw = (V)__builtin_convertvector(bits, VI);
             if constexpr (GateSky) hw = hw * simd::loadu<N>(t.geometry + j);
             if (threeHalves) hw = hw * 1.5f;
@@ -263,12 +268,10 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
         };
         constexpr int kOffsets[12][2] = {{1, 0},  {2, 0},  {-2, 1}, {-1, 1}, {0, 1}, {1, 1},
                                          {2, 1},  {-2, 2}, {-1, 2}, {0, 2},  {1, 2}, {2, 2}};
-        // log2 of 1/h for |offset| 0, 1, 2 per axis: 3/8 = 3/2 2^-2, 1/4 = 2^-2, 1/16 = 2^-4.
-        constexpr int kShift[3] = {2, 2, 4};
 #pragma GCC unroll 12
         for (int k = 0; k < 12; ++k) {
             const int kx = kOffsets[k][0], ky = kOffsets[k][1], ax = kx < 0 ? -kx : kx;
-            const float bias = t.bias - static_cast<float>(kShift[ax] + kShift[ky]) * kExpUnit;
+            const V& bias = biasOf[(kShift[ax] + kShift[ky] - 4) / 2];
             const bool threeHalves = ax == 0 || ky == 0;  // exactly one factor 3/8
             const int dx = kx * t.step, dy = ky * t.step;
             const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(dy) * t.stride + dx;
