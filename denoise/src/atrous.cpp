@@ -156,7 +156,7 @@ struct TapRow {
     const float *nx, *ny, *nz, *depth, *gradX, *gradY, *geometry, *footprint, *lum, *var, *red, *green, *blue;
     float *outR, *outG, *outB, *outVar, *outLum;
     int w, h, y, step, stride;
-    int x0, x1;          // the run: pixels [x0, x1) (x0 a multiple of the vector width)
+    int x0, x1;          // the run: pixels [x0, x1), x0 a multiple of the vector width, at most kRun
     std::size_t row;     // plane index of the row's pixel 0
     float normalScale;   // sigmaN log2(e) 2^23 (the centre's normal is scaled by it)
     float bias;          // 127 2^23 - normalScale: the weight's bits are bias + n.n' normalScale - depth and luminance terms
@@ -198,19 +198,20 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     // The bias less k 2^23 for the taps' k = 4, 6, 8 (kShift[|kx|] + kShift[|ky|]).
     V biasOf[3];
     for (int b = 0; b < 3; ++b) biasOf[b] = simd::splat<N>(t.bias - static_cast<float>(4 + 2 * b) * kExpUnit);
-    for (int x = t.x0; x < t.x1; x += N) {
+    // Pass 1, per vector of the run: which pixels are filtered, the luminance scale and the
+    // depth term's 12 reciprocals (a long chain of latencies: the blur, the square root and
+    // the divisions), kept in L1 so that the taps of pass 2 do not wait for them.
+    constexpr int kVectors = kRun / N;
+    V cILs[kVectors], rZs[kVectors][12];
+    VI actives[kVectors];
+    for (int x = t.x0, v = 0; x < t.x1; x += N, ++v) {
         const std::size_t i = t.row + static_cast<std::size_t>(x);
-        const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
-        const V cVar = simd::loadu<N>(t.var + i), cLum = simd::loadu<N>(t.lum + i);
         // Which of these pixels this iteration filters (geometry, within the footprint, inside the row).
         VI active = simd::loadu<N>(t.geometry + i) != 0.f;
         if (t.footprint) active &= simd::splat<N>(reach) <= simd::loadu<N>(t.footprint + i);
         if (w - x < N) active &= laneIndex < (w - x);
-        if (rtlab::simd::signMask<N>(active) == 0u) {
-            simd::storeu<N>(t.outR + i, cR), simd::storeu<N>(t.outG + i, cG), simd::storeu<N>(t.outB + i, cB);
-            simd::storeu<N>(t.outVar + i, cVar), simd::storeu<N>(t.outLum + i, cLum);
-            continue;
-        }
+        actives[v] = active;
+        if (rtlab::simd::signMask<N>(active) == 0u) continue;
         // The luminance scale log2(e) 2^23 / (sigmaL sqrt(g3x3(Var)) + eps), the 3x3
         // Gaussian of the variance over geometry pixels (sky and the margins add 0 to both sums).
         V sum = simd::splat<N>(0.f), weight = simd::splat<N>(0.f);
@@ -225,24 +226,33 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                                           simd::splat<N>(0.f));
         const V lumDen = sqrtNonNegative<N>(blurred) * t.sigmaL + t.luminanceEps;
         // Finite, so that equal luminances give the term 0 (0 * inf would be NaN).
-        const V cIL = simd::select<N>(lumDen > 0.f, simd::min<N>(simd::splat<N>(kLog2e * kExpUnit) / lumDen, simd::splat<N>(3e38f)),
-                                      simd::splat<N>(3e38f));
-
+        cILs[v] = simd::select<N>(lumDen > 0.f, simd::min<N>(simd::splat<N>(kLog2e * kExpUnit) / lumDen, simd::splat<N>(3e38f)),
+                                  simd::splat<N>(3e38f));
         // The depth term's reciprocal denominators log2(e) 2^23 / max(sigmaZ |grad . offset| + eps |z|, 1e-30)
         // for the 12 offsets (kx, ky) with ky > 0 or ky = 0 < kx (the other 12 are their negatives).
-        const V cDepth = simd::loadu<N>(t.depth + i);
-        V rZ[12];
-        {
-            const V gA = simd::loadu<N>(t.gradX + i) * t.gradScale, gB = simd::loadu<N>(t.gradY + i) * t.gradScale;
-            const V gA2 = gA + gA, gB2 = gB + gB;
-            const V eps = simd::abs<N>(cDepth) * t.depthEps;
-            const V along[12] = {gA,       gA2,      gB - gA2, gB - gA, gB,      gB + gA,
-                                 gB + gA2, gB2 - gA2, gB2 - gA, gB2,     gB2 + gA, gB2 + gA2};
-            for (int k = 0; k < 12; ++k) {
-                const V den = simd::abs<N>(along[k]) + eps;
-                rZ[k] = simd::splat<N>(kLog2e * kExpUnit) / simd::max<N>(den, minDen);
-            }
+        const V gA = simd::loadu<N>(t.gradX + i) * t.gradScale, gB = simd::loadu<N>(t.gradY + i) * t.gradScale;
+        const V gA2 = gA + gA, gB2 = gB + gB;
+        const V eps = simd::abs<N>(simd::loadu<N>(t.depth + i)) * t.depthEps;
+        const V along[12] = {gA,       gA2,      gB - gA2, gB - gA, gB,      gB + gA,
+                             gB + gA2, gB2 - gA2, gB2 - gA, gB2,     gB2 + gA, gB2 + gA2};
+        for (int k = 0; k < 12; ++k) {
+            const V den = simd::abs<N>(along[k]) + eps;
+            rZs[v][k] = simd::splat<N>(kLog2e * kExpUnit) / simd::max<N>(den, minDen);
         }
+    }
+    // Pass 2, per vector: the centre and its 24 taps.
+    for (int x = t.x0, v = 0; x < t.x1; x += N, ++v) {
+        const std::size_t i = t.row + static_cast<std::size_t>(x);
+        const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
+        const V cVar = simd::loadu<N>(t.var + i), cLum = simd::loadu<N>(t.lum + i);
+        const VI active = actives[v];
+        if (rtlab::simd::signMask<N>(active) == 0u) {
+            simd::storeu<N>(t.outR + i, cR), simd::storeu<N>(t.outG + i, cG), simd::storeu<N>(t.outB + i, cB);
+            simd::storeu<N>(t.outVar + i, cVar), simd::storeu<N>(t.outLum + i, cLum);
+            continue;
+        }
+        const V cIL = cILs[v], cDepth = simd::loadu<N>(t.depth + i);
+        const V* rZ = rZs[v];
         const V cx = simd::loadu<N>(t.nx + i) * t.normalScale, cy = simd::loadu<N>(t.ny + i) * t.normalScale,
                 cz = simd::loadu<N>(t.nz + i) * t.normalScale;
         V sW = simd::splat<N>(hCentre), sVar = cVar * (hCentre * hCentre), sR = cR * hCentre, sG = cG * hCentre,
