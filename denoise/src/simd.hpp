@@ -40,6 +40,20 @@ template <int N>
 RTLAB_SIMD_INLINE vfloat<N> min(const vfloat<N>& a, const vfloat<N>& b) {
     return select<N>(a < b, a, b);
 }
+// max(a, b) lane-wise: a > b ? a : b (b where either is NaN), one maxps when
+// b is not a compile-time constant (see opaque).
+template <int N>
+RTLAB_SIMD_INLINE vfloat<N> max(const vfloat<N>& a, const vfloat<N>& b) {
+    return select<N>(a > b, a, b);
+}
+// v, hidden from constant folding: max<N>(x, opaque<N>(splat<N>(0.f))) is one
+// maxps, where GCC compiles a comparison with a literal into a compare and a
+// mask or blend (two instructions). Hoist it out of loops.
+template <int N>
+RTLAB_SIMD_INLINE vfloat<N> opaque(vfloat<N> v) {
+    __asm__("" : "+x"(v));
+    return v;
+}
 // The first `count` lanes 1, the rest 0 (a row's last, partial vector).
 template <int N>
 RTLAB_SIMD_INLINE vfloat<N> tailMask(int count) {
