@@ -209,8 +209,9 @@ TEST(Effects, ShowcaseEveryEffectTracesRays) {
                    Pass::GlobalIllumination, Pass::Translucency, Pass::Volumes})
         EXPECT_GT(report(r, p).rays, 0u) << passName(p);
     // Every ray type but the path tracer's bounce (a workload only planned on request).
-    for (std::uint32_t t = 0; t < kRayTypeCount; ++t)
+    for (std::uint32_t t = 0; t < kRayTypeCount; ++t) {
         if (t != kRayPathBounce) EXPECT_GT(r.out.counters.rays[t], 0u) << "ray type " << t;
+    }
     EXPECT_EQ(r.out.counters.rays[kRayPathBounce], 0u);
     EXPECT_GT(r.out.counters.anyHitInvocations, 0u);  // the foliage's alpha test
     for (const char* layer : {"R", "albedo.R", "normal.R", "geonormal.R", "depth.Z", "roughness.Y", "metalness.Y",
