@@ -210,7 +210,8 @@ TEST(Effects, ShowcaseEveryEffectTracesRays) {
         EXPECT_GT(report(r, p).rays, 0u) << passName(p);
     // Every ray type but the path tracer's bounce (a workload only planned on request).
     for (std::uint32_t t = 0; t < kRayTypeCount; ++t) {
-        if (t != kRayPathBounce) EXPECT_GT(r.out.counters.rays[t], 0u) << "ray type " << t;
+        if (t == kRayPathBounce) continue;
+        EXPECT_GT(r.out.counters.rays[t], 0u) << "ray type " << t;
     }
     EXPECT_EQ(r.out.counters.rays[kRayPathBounce], 0u);
     EXPECT_GT(r.out.counters.anyHitInvocations, 0u);  // the foliage's alpha test
