@@ -191,8 +191,9 @@ TEST_P(SweepKillAndResume, ResumesWithoutRedoingFinishedPoints) {
     const KillAndResumeRun r = killAndResume(sig == SIGKILL ? "kill9" : "int", sig);
     ASSERT_TRUE(r.started);
     ASSERT_TRUE(r.killedBySignal) << "the sweep finished before it could be killed: " << r.firstLog;
-    if (sig == SIGINT)
+    if (sig == SIGINT) {
         EXPECT_NE(r.firstLog.find("sweep interrupted: complete points are kept"), std::string::npos) << r.firstLog;
+    }
     ASSERT_GE(r.kept, 2u);
     ASSERT_LT(r.kept, 10u);
     EXPECT_EQ(r.before.size(), r.kept);

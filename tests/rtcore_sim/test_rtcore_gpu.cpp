@@ -613,7 +613,9 @@ TEST(RtCoreGpu, RayReorderingChangesCyclesNotHitsAndSidesSeeTheCallersIndices) {
     for (std::size_t i = 0; i < rays.size(); ++i) {
         ASSERT_TRUE(sameHit(plain[i].hit, sorted[i].hit)) << i;
         ASSERT_TRUE(sameWork(plain[i].work, sorted[i].work)) << i;
-        if (i % 2 == 1) ASSERT_FALSE(sorted[i].hit.hit) << i;
+        if (i % 2 == 1) {
+            ASSERT_FALSE(sorted[i].hit.hit) << i;
+        }
         hits += sorted[i].hit.hit;
         differentLatency += plain[i].cycles != sorted[i].cycles;
     }
