@@ -564,7 +564,7 @@ std::vector<float> footprintOf(int kind, const Frame& f) {
     switch (kind) {
         case 0: return shadowFootprint(kWidth, kHeight, f.penumbraWorld, f.pixelWorld, f.guides.meshId);
         case 1: return reflectionFootprint(kWidth, kHeight, f.roughness, f.reflectionHitT, f.pixelWorld, f.guides.meshId);
-        default: return aoFootprint(kWidth, kHeight, f.aoHitT, f.pixelWorld, f.guides.meshId);
+        default: return aoFootprint(kWidth, kHeight, f.aoHitT, f.aoV, f.pixelWorld, f.guides.meshId);
     }
 }
 
@@ -630,7 +630,7 @@ struct StackRun {
             footprint = reflectionFootprint(kWidth, kHeight, frame.roughness, frame.reflectionHitT, frame.pixelWorld,
                                             frame.guides.meshId, params.footprint);
         else if (stack == DenoiseStack::AmbientOcclusion)
-            footprint = aoFootprint(kWidth, kHeight, frame.aoHitT, frame.pixelWorld, frame.guides.meshId,
+            footprint = aoFootprint(kWidth, kHeight, frame.aoHitT, frame.aoV, frame.pixelWorld, frame.guides.meshId,
                                     params.footprint);
         filter.filter(frame.guides, signal, out, footprint);
         benchmark::DoNotOptimize(out.data());

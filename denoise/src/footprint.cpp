@@ -20,41 +20,34 @@ float toPixels(float worldSize, float pixelWorld, float maxPx) {
     return px < maxPx ? px : maxPx;  // +inf and NaN-free: worldSize, pixelWorld > 0
 }
 
-// Which pixels of the window the mean takes.
-enum class WindowMean {
-    Geometry,   // every geometry pixel (a 0 counts as 0)
-    Estimates,  // geometry pixels with an estimate (> 0); none in the window: maxPx
-};
-
 // Mean over the (2r+1)^2 window of geometry pixels (same-state only), then
-// [minPx, maxPx] where > 0. Separable: row sums of values and of geometry
-// counts, then column sums of those (the same window, in O(r) per pixel).
+// [minPx, maxPx] where > 0. With `estimate` (one flag per pixel), only the
+// flagged geometry pixels of the window count, and a window without any
+// falls back to all its geometry pixels. Separable: row sums of values and
+// of counts, then column sums of those (the same window, in O(r) per pixel).
 std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, std::span<const int> meshId,
-                                  const FootprintParams& p, WindowMean mean = WindowMean::Geometry) {
+                                  const FootprintParams& p, std::span<const std::uint8_t> estimate = {}) {
     const std::size_t n = px.size();
-    std::vector<float> out(n, 0.f), rowSum(n), rowCount(n);
+    std::vector<float> out(n, 0.f);
+    std::vector<vec4> rowSums(n);  // sum, count over geometry; sum, count over estimates
     const int r = std::max(p.smoothRadius, 0);
     const float lo = std::min(p.minPx, p.maxPx), hi = std::max(p.minPx, p.maxPx);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
-        float sum = 0.f, count = 0.f;
+        vec4 s(0.f);
         for (int qx = std::max(0, x - r); qx <= std::min(w - 1, x + r); ++qx) {
-            if (meshId[row + qx] < 0 || (mean == WindowMean::Estimates && !(px[row + qx] > 0.f))) continue;
-            sum += px[row + qx];
-            count += 1.f;
+            if (meshId[row + qx] < 0) continue;
+            s += vec4(px[row + qx], 1.f, 0.f, 0.f);
+            if (!estimate.empty() && estimate[row + qx]) s += vec4(0.f, 0.f, px[row + qx], 1.f);
         }
-        rowSum[i] = sum;
-        rowCount[i] = count;
+        rowSums[i] = s;
     });
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         if (meshId[i] < 0) return;
-        float sum = 0.f, count = 0.f;
-        for (int qy = std::max(0, y - r); qy <= std::min(h - 1, y + r); ++qy) {
-            const std::size_t j = static_cast<std::size_t>(qy) * static_cast<std::size_t>(w) + x;
-            sum += rowSum[j];
-            count += rowCount[j];
-        }
-        const float m = count > 0.f ? sum / count : (mean == WindowMean::Estimates ? hi : 0.f);
+        vec4 s(0.f);
+        for (int qy = std::max(0, y - r); qy <= std::min(h - 1, y + r); ++qy)
+            s += rowSums[static_cast<std::size_t>(qy) * static_cast<std::size_t>(w) + x];
+        const float m = s.w > 0.f ? s.z / s.w : (s.y > 0.f ? s.x / s.y : 0.f);
         out[i] = std::max(m > 0.f ? std::clamp(m, lo, hi) : 0.f, std::min(p.floorPx, hi));
     });
     return out;
@@ -119,16 +112,20 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
     return out;
 }
 
-std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> pixelWorld,
-                               std::span<const int> meshId, const FootprintParams& params) {
-    checkSizes(width, height, {hitT.size(), pixelWorld.size(), meshId.size()});
+std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> visibility,
+                               std::span<const float> pixelWorld, std::span<const int> meshId,
+                               const FootprintParams& params) {
+    checkSizes(width, height, {hitT.size(), visibility.size(), pixelWorld.size(), meshId.size()});
     std::vector<float> px(hitT.size());
+    std::vector<std::uint8_t> occluded(hitT.size());
     detail::forEachIndex(px.size(), [&](std::size_t i) {
         px[i] = meshId[i] < 0 ? 0.f : toPixels(hitT[i], pixelWorld[i], params.maxPx);
+        occluded[i] = visibility[i] < 1.f ? 1 : 0;  // NaN: no estimate
     });
-    // Only the pixels that saw an occluder: one unoccluded 1-spp sample in a
-    // contact crease must not widen its neighbours' footprint to the open's.
-    return smoothAndClamp(width, height, px, meshId, params, WindowMean::Estimates);
+    // Only the pixels that saw an occluder, where the window has any: one
+    // unoccluded 1-spp sample in a contact crease must not widen its
+    // neighbours' footprint to the AO radius.
+    return smoothAndClamp(width, height, px, meshId, params, occluded);
 }
 
 }  // namespace rtlab::denoise

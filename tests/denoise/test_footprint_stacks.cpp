@@ -83,7 +83,8 @@ TEST(DenoiseFootprint, ReflectionFromRoughnessAndHitDistance) {
 TEST(DenoiseFootprint, AoFromOccluderDistance) {
     FootprintParams p;
     p.smoothRadius = 0;
-    const std::vector<float> fp = aoFootprint(3, 1, std::vector<float>{0.05f, 0.5f, 100.f}, std::vector<float>(3, 0.1f), allGeometry(3), p);
+    const std::vector<float> fp = aoFootprint(3, 1, std::vector<float>{0.05f, 0.5f, 100.f}, std::vector<float>(3, 0.f),
+                                              std::vector<float>(3, 0.1f), allGeometry(3), p);
     EXPECT_EQ(fp[0], p.minPx);         // contact: 0.5 px -> the smallest kernel
     EXPECT_NEAR(fp[1], 5.f, 1e-4f);
     EXPECT_EQ(fp[2], p.maxPx);         // open
@@ -91,14 +92,16 @@ TEST(DenoiseFootprint, AoFromOccluderDistance) {
 
 TEST(DenoiseFootprint, AoUnoccludedPixelsTakeTheirOccludedNeighboursScale) {
     // A contact crease at 1 spp: occluders 0.05 away (0.5 px), one pixel whose
-    // ray escaped (hitT 0: no estimate), then the open (nothing hit anywhere).
+    // ray escaped (visibility 1, hitT = the radius 0.5: 5 px), then the open
+    // (nothing hit anywhere in the window: the radius's 5 px).
     FootprintParams p;
     p.smoothRadius = 1;
-    const std::vector<float> hitT = {0.05f, 0.f, 0.05f, 0.f, 0.f, 0.f, 0.f};
-    const std::vector<float> fp = aoFootprint(7, 1, hitT, std::vector<float>(7, 0.1f), allGeometry(7), p);
-    EXPECT_EQ(fp[1], p.minPx);  // the crease's scale, not the open's
-    EXPECT_EQ(fp[3], p.minPx);  // one occluded neighbour in the window
-    EXPECT_EQ(fp[5], p.maxPx);  // no occluder seen within the window: the open
+    const std::vector<float> hitT = {0.05f, 0.5f, 0.05f, 0.5f, 0.5f, 0.5f, 0.5f};
+    const std::vector<float> visibility = {0.f, 1.f, 0.f, 1.f, 1.f, 1.f, 1.f};
+    const std::vector<float> fp = aoFootprint(7, 1, hitT, visibility, std::vector<float>(7, 0.1f), allGeometry(7), p);
+    EXPECT_EQ(fp[1], p.minPx);           // the crease's scale, not the open's
+    EXPECT_EQ(fp[3], p.minPx);           // one occluded neighbour in the window
+    EXPECT_NEAR(fp[5], 5.f, 1e-5f);      // no occluder within the window: the AO radius
 }
 
 TEST(DenoiseFootprint, NonFiniteInputGivesFiniteFootprints) {
@@ -107,8 +110,8 @@ TEST(DenoiseFootprint, NonFiniteInputGivesFiniteFootprints) {
     const std::vector<int> mesh = allGeometry(bad.size());
     EXPECT_TRUE(allFinite(shadowFootprint(6, 1, bad, bad, mesh)));
     EXPECT_TRUE(allFinite(reflectionFootprint(6, 1, bad, bad, bad, mesh)));
-    EXPECT_TRUE(allFinite(aoFootprint(6, 1, bad, bad, mesh)));
-    EXPECT_THROW(aoFootprint(5, 1, bad, bad, mesh), std::invalid_argument);
+    EXPECT_TRUE(allFinite(aoFootprint(6, 1, bad, bad, bad, mesh)));
+    EXPECT_THROW(aoFootprint(5, 1, bad, bad, bad, mesh), std::invalid_argument);
 }
 
 namespace {

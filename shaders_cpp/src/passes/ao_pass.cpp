@@ -31,7 +31,7 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
     for (std::size_t i = 0; i < n; ++i) {
         if (!tally.tested[i]) continue;
         visibility[i] = tally.visibility(i);
-        hitT[i] = tally.meanOccluderDistance(i, 0.f);
+        hitT[i] = tally.meanOccluderDistance(i, radius);
     }
     return n * 2 * sizeof(float) + tally.bytes();
 }

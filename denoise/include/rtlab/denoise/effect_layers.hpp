@@ -53,7 +53,7 @@ struct StackParams {
     // a moving occluder must not leave a ghost shadow).
     static StackParams shadow();
     // Reflections: the paper's set, the footprint from the glossy lobe (at
-    // least 8 px: a mirror's reflection is sharp but the light sampled at the
+    // least 4 px: a mirror's reflection is sharp but the light sampled at the
     // reflected surface is noisy), luminance sigma 10 (Falcor's PhiColor;
     // the paper's 4 keeps a 1-spp reflection's sparse bright samples apart:
     // relMSE 0.0020 -> 0.0013 on builtin:showcase), and the same history

@@ -56,12 +56,14 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
                                        std::span<const int> meshId, const FootprintParams& params = {},
                                        float lobeScale = 2.f);
 
-// Ambient occlusion: the mean occluder distance (ao.hitT; 0 where nothing
-// was hit) over the pixel's world width: small in contact regions, wide in
-// the open (Jimenez et al. 2016 use the same scale). The window mean takes
-// only the pixels that saw an occluder (an unoccluded 1-spp sample in a
-// crease says nothing about its scale); a window without any gives maxPx.
-std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> pixelWorld,
-                               std::span<const int> meshId, const FootprintParams& params = {});
+// Ambient occlusion: the mean occluder distance (ao.hitT; the AO radius
+// where nothing was hit) over the pixel's world width: small in contact
+// regions, wide in the open (Jimenez et al. 2016 use the same scale). The
+// window mean takes only the pixels that saw an occluder (visibility ao.V
+// below 1): an unoccluded 1-spp sample in a crease says nothing about its
+// scale. A window without any takes all its pixels (the AO radius).
+std::vector<float> aoFootprint(int width, int height, std::span<const float> hitT, std::span<const float> visibility,
+                               std::span<const float> pixelWorld, std::span<const int> meshId,
+                               const FootprintParams& params = {});
 
 }  // namespace rtlab::denoise

@@ -69,7 +69,9 @@ struct SvgfParams {
     // The filtered output of a static pixel is shrunk toward the long mean
     // where their 3x3-averaged luminance difference D exceeds what the mean's
     // noise explains: weight max(0, 1 - c V' / D^2) with c this (positive-part
-    // James-Stein for c = 1; larger keeps more of the filter). Source: rtlab.
+    // James-Stein for c = 1; larger keeps more of the filter). Pixels whose
+    // long mean has fewer than 8 samples are neither shrunk nor counted in
+    // the 3x3 average (so few samples' variance misleads). Source: rtlab.
     float staticShrinkSigma2 = 1.f;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
