@@ -4,7 +4,7 @@
 // relMSE against one shared many-sample reference after 64 frames is at most
 // a quarter of its value after 8 frames. Measured (relMSE after 8 / 64
 // frames): shadows 0.000247 / 6.07e-5, reflections 3.1e-4 / 4.3e-5, AO
-// 0.00582 / 0.00123, GI 0.0163 / 0.00376 (docs/denoise.md has the
+// 0.00578 / 0.00123, GI 0.0163 / 0.00376 (docs/denoise.md has the
 // history of these figures); before SvgfParams::convergeStatic
 // 0.00288 / 0.00306, 3.5e-4 / 3.5e-4, 0.0146 / 0.0151, 0.0065 / 0.0061
 // (reflections: with the reflected hit's light sampled without MIS, whose
