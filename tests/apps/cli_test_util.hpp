@@ -8,9 +8,9 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
-#include <vector>
 #include <sys/wait.h>
+
+#include "../temp_dir.hpp"
 
 namespace rtlab::test {
 
@@ -36,23 +36,8 @@ inline CliRun runCommand(const std::string& command) {
 // The rtlab executable with `args`.
 inline CliRun runCli(const std::string& args) { return runCommand(std::string(RTLAB_CLI) + " " + args); }
 
-// A directory of this test process (the process id in the name: test runs
-// of two checkouts, or a CI clone's, must not share directories), removed
-// when the process exits.
-inline fs::path freshDir(const std::string& name) {
-    struct Created {
-        std::vector<fs::path> dirs;
-        ~Created() {
-            std::error_code ec;
-            for (const fs::path& d : dirs) fs::remove_all(d, ec);
-        }
-    };
-    static Created created;
-    const fs::path d = fs::temp_directory_path() / ("rtlab_cli_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(d);
-    created.dirs.push_back(d);
-    return d;
-}
+// A directory of this test process, removed at exit (temp_dir.hpp).
+inline fs::path freshDir(const std::string& name) { return rtlab::test::freshTempDir("cli_" + name); }
 
 // DIR/stats.json without its "timing" and "measured" entries (everything
 // else is deterministic).

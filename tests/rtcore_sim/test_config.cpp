@@ -4,6 +4,7 @@
 #include <rtlab/rtcore_sim/config.hpp>
 
 #include <gtest/gtest.h>
+#include "temp_dir.hpp"
 
 #include <filesystem>
 #include <fstream>
@@ -66,7 +67,7 @@ TEST(RtCoreConfig, JsonOverlaysDefaultsAndRoundTrips) {
 }
 
 TEST(RtCoreConfig, LoadsFilesAndNamesThemInErrors) {
-    const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rtlab_rtcore_config_test";
+    const std::filesystem::path dir = rtlab::test::freshTempDir("rtcore_config_test");
     std::filesystem::create_directories(dir);
     const std::filesystem::path good = dir / "good.json";
     std::ofstream(good) << R"({"bvh": {"width": 2}})";

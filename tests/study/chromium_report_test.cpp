@@ -49,8 +49,7 @@ std::size_t count(const std::string& text, const std::string& what) {
 TEST(ReportInChromium, LoadsWithoutConsoleErrorsAndShowsPlots) {
     const std::string browser = chromium();
     if (browser.empty()) GTEST_SKIP() << "no chromium (scripts/install-deps.sh installs it)";
-    const fs::path dir = fs::temp_directory_path() / "rtlab_chromium_report";
-    fs::remove_all(dir);
+    const fs::path dir = rtlab::test::freshDir("chromium_report");
     fs::create_directories(dir);
     std::ofstream(dir / "study.json") << R"({"workloads": ["builtin:cornell", "builtin:terrain?triangles=2000"],
         "render": {"width": 24, "height": 24, "effects": "gbuffer"},

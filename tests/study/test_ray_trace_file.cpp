@@ -9,6 +9,7 @@
 #include <rtlab/study/ray_trace_file.hpp>
 
 #include <gtest/gtest.h>
+#include "temp_dir.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -23,7 +24,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path scratch(const std::string& name) {
-    const fs::path d = fs::temp_directory_path() / "rtlab_study_tests";
+    static const fs::path d = rtlab::test::freshTempDir("ray_trace_file_tests");
     fs::create_directories(d);
     fs::remove(d / name);
     return d / name;

@@ -8,6 +8,7 @@
 #include <rtlab/study/study.hpp>
 
 #include <gtest/gtest.h>
+#include "temp_dir.hpp"
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -35,11 +36,7 @@ std::string errorOf(const json& j) {
     return "(no error)";
 }
 
-fs::path freshDir(const std::string& name) {
-    const fs::path d = fs::temp_directory_path() / ("rtlab_study_" + name);
-    fs::remove_all(d);
-    return d;
-}
+fs::path freshDir(const std::string& name) { return rtlab::test::freshTempDir("study_" + name); }
 
 // A stats.json tree as `rtlab render --backend rtcore` writes it (the parts metrics read).
 json fakeStats(double cycles0, double cycles1) {
