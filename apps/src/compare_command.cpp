@@ -23,6 +23,7 @@ int runCompare(const CompareOptions& o) {
     if (std::isinf(d.psnr)) std::printf("psnr: inf\n");
     else std::printf("psnr: %.4f\n", d.psnr);
     std::printf("relmse: %.9g\n", d.relMse);
+    std::printf("relmse_worst_percent_share: %.6f\n", d.relMseWorstPercentShare);
     if (std::isnan(d.ssim)) std::printf("ssim: n/a (no R, G, B in both)\n");
     else std::printf("ssim: %.6f\n", d.ssim);
     if (d.nonFiniteValues) std::printf("non_finite_values: %zu\n", d.nonFiniteValues);

@@ -108,10 +108,7 @@ struct Measured {
     int frames = 1;
     double ms = 0;       // wall ms of everything that produced this image (all its frames)
     double relMse = 0, psnr = 0, ssim = 0, flip = 0;
-    // Share of the relMSE sum held by the worst 1 % of pixels: near 1, the
-    // error is a few pixels (fireflies, a thin feature blurred away); near
-    // 0.01, it is spread like noise.
-    double worstPercentShare = 0;
+    double worstPercentShare = 0;  // ImageDifference::relMseWorstPercentShare
     // Equal-error speed-ups: ms raw needs for this error / ms, against raw
     // samples in one frame (spp) and against accumulated 1-spp frames.
     double rawMsAtEqualError = 0, speedup = 0;
@@ -119,29 +116,6 @@ struct Measured {
     double rawFramesMsAtEqualError = 0, speedupFrames = 0;
     bool extrapolatedFrames = false;
 };
-
-// Share of sum_p relMSE_p held by the worst 1 % of pixels (at least one).
-double worstPercentShare(const std::vector<vec3>& test, const std::vector<vec3>& reference) {
-    std::vector<double> perPixel(reference.size());
-    double total = 0;
-    for (std::size_t p = 0; p < reference.size(); ++p) {
-        double e = 0;
-        for (int c = 0; c < 3; ++c) {  // non-finite channels skipped, as compareImages does
-            const double d = double(test[p][c]) - double(reference[p][c]);
-            const double term = d * d / (double(reference[p][c]) * double(reference[p][c]) + 1e-2);
-            if (std::isfinite(term)) e += term;
-        }
-        perPixel[p] = e;
-        total += perPixel[p];
-    }
-    if (!(total > 0) || perPixel.empty()) return 0;
-    const std::size_t worst = std::max<std::size_t>(1, perPixel.size() / 100);
-    std::nth_element(perPixel.begin(), perPixel.begin() + static_cast<std::ptrdiff_t>(worst - 1), perPixel.end(),
-                     std::greater<>());
-    double top = 0;
-    for (std::size_t k = 0; k < worst; ++k) top += perPixel[k];
-    return std::min(1.0, top / total);  // rounding may put top a hair above total
-}
 
 // Milliseconds raw accumulation needs to reach `error`, interpolated
 // log-log between the raw points (sorted by spp); beyond the last point
@@ -292,7 +266,7 @@ int runConverge(const ConvergeOptions& o) {
         const ImageDifference d = compareImages(test, referenceImage);
         const FlipResult flip = hdrFlip(contribution, reference, w, h);
         m.relMse = d.relMse;
-        m.worstPercentShare = worstPercentShare(contribution, reference);
+        m.worstPercentShare = d.relMseWorstPercentShare;
         m.psnr = d.psnr;
         m.ssim = d.ssim;
         m.flip = flip.mean;

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -161,6 +162,7 @@ ImageDifference compareImages(const Image& test, const Image& reference) {
     double sumSquared = 0.0;
     double sumRelative = 0.0;
     std::size_t finitePairs = 0;
+    std::vector<double> pixelRelative(n, 0.0);  // per pixel, over the shared channels
     for (const std::string& name : shared) {
         const float* t = test.channel(name);
         const float* r = reference.channel(name);
@@ -179,7 +181,9 @@ ImageDifference compareImages(const Image& test, const Image& reference) {
             const double squared = delta * delta;
             diff.maxAbsDiff = std::max(diff.maxAbsDiff, std::abs(delta));
             sumSquared += squared;
-            sumRelative += squared / (ref * ref + 1e-2);
+            const double relative = squared / (ref * ref + 1e-2);
+            sumRelative += relative;
+            pixelRelative[i] += relative;
             ++finitePairs;
         }
     }
@@ -189,6 +193,15 @@ ImageDifference compareImages(const Image& test, const Image& reference) {
     diff.rmse = std::sqrt(mse);
     diff.relMse = finitePairs > 0 ? sumRelative / static_cast<double>(finitePairs) : 0.0;
     diff.psnr = mse == 0.0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(peak * peak / mse);
+    // The worst 1 % of pixels' share of the relative error.
+    if (sumRelative > 0.0 && n > 0) {
+        const std::size_t worst = std::max<std::size_t>(1, n / 100);
+        std::nth_element(pixelRelative.begin(), pixelRelative.begin() + static_cast<std::ptrdiff_t>(worst - 1),
+                         pixelRelative.end(), std::greater<>());
+        double top = 0.0;
+        for (std::size_t k = 0; k < worst; ++k) top += pixelRelative[k];
+        diff.relMseWorstPercentShare = std::min(1.0, top / sumRelative);  // rounding may put top a hair above
+    }
 
     // SSIM of the display-referred luminance.
     diff.ssim = std::numeric_limits<double>::quiet_NaN();

@@ -146,11 +146,9 @@ StackParams StackParams::ambientOcclusion() {
     StackParams p = svgfAuto();
     // Shrink toward the long mean where F's bias exceeds one standard
     // deviation of the difference (showcase 96x54, relMSE after 8 / 64 frames:
-    // c = 1 0.00582 / 0.00123 (0.00578 / 0.00123 once windows without an
-    // occluded pixel took the AO radius again), c = 2 0.00543 / 0.00127, c = 3 0.00539 / 0.00138;
-    // c = 3 was best before the AO footprint ignored unoccluded pixels; with
-    // it, c = 3 misses StaticConvergence's 64/8 <= 1/4 at 0.256 although
-    // both errors are lower than before: c = 1 has the lowest 64-frame one).
+    // c = 1 0.00578 / 0.00123; with the footprint's first version c = 2
+    // 0.00543 / 0.00127, c = 3 0.00539 / 0.00138, over StaticConvergence's
+    // 64/8 <= 1/4 at 0.256).
     p.svgf.staticShrinkSigma2 = 1.f;
     p.svgf.varianceOfMean = true;
     p.svgf.atrous.sigmaL = 10.f;

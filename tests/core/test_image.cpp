@@ -358,6 +358,8 @@ TEST(CompareImages, KnownDifference) {
     EXPECT_DOUBLE_EQ(diff.psnr, 10.0 * std::log10(9.0 / 0.0625));
     // relMse = (0.25 / 0.01 + 0.25 / (2.25 + 0.01)) / 8
     EXPECT_NEAR(diff.relMse, (25.0 + 0.25 / 2.26) / 8.0, 1e-12);
+    // The worst 1 % of 4 pixels is one pixel: pixel 0's share of the sum.
+    EXPECT_NEAR(diff.relMseWorstPercentShare, 25.0 / (25.0 + 0.25 / 2.26), 1e-12);
     EXPECT_EQ(diff.nonFiniteValues, 0u);
 }
 

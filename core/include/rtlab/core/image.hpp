@@ -86,6 +86,11 @@ struct ImageDifference {
     double rmse = 0.0;
     double psnr = 0.0;    // 10 log10(peak^2 / MSE), peak = max(1, max |reference|); +inf when identical
     double relMse = 0.0;  // mean of (t - r)^2 / (r^2 + 1e-2)
+    // Share of the relMSE sum held by the worst 1 % of pixels (at least one;
+    // a pixel's term summed over the shared channels): near 1 the error is a
+    // few pixels (fireflies, a thin feature blurred away), near 0.01 it is
+    // spread like noise. 0 when there is no error.
+    double relMseWorstPercentShare = 0.0;
     bool identical = false;          // every shared channel bit-identical and channel sets equal
     std::size_t channelsCompared = 0;
     std::size_t nonFiniteValues = 0;  // NaN/Inf found in either image (excluded from the sums)
