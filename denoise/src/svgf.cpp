@@ -126,14 +126,16 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
 void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     // Static pixels: the filtered value F and the long mean M estimate the
     // same signal; F has little variance and some bias, M no bias and the
-    // variance of the mean V = Var / n. F is shrunk toward M by the
-    // positive-part James-Stein weight w = max(0, 1 - c V' / D^2), D the
-    // luminance difference F - M averaged over the 3x3 static neighbourhood
-    // (a bias is spatially coherent, M's noise is not) and V' its variance
-    // (the neighbours' V summed / count^2): where F departs from M by more
-    // than M's noise explains (c = staticShrinkSigma2 > 1: more conservative),
-    // F's bias shows and the output moves to M. As n
-    // grows V -> 0, so the output tends to the converged accumulation.
+    // variance of the mean V = Var / n. Two positive-part James-Stein steps:
+    //  1. the bias: D = M - F averaged over the 3x3 static neighbourhood (a
+    //     bias is spatially coherent, M's noise is not), V' its variance (the
+    //     neighbours' V summed / count^2), weight w = max(0, 1 - c V' / d^2)
+    //     on D's luminance d (c = staticShrinkSigma2 > 1: more conservative);
+    //  2. the pixel's own rest R = (M - F) - D, weight
+    //     w_own = max(0, 1 - c_own V / r^2) on R's luminance r and this
+    //     pixel's own V (c_own = staticShrinkOwnSigma2; 0 takes R whole).
+    // The output is F + w (D + w_own R). As n grows V -> 0, both weights -> 1
+    // and the output tends to M, the converged accumulation.
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     // The variance of the long mean, from its own samples' moments (every
     // sample since the last restart: a firefly among them raises it, so that
@@ -146,15 +148,15 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     constexpr float kMinSamples = 8.f;
     const auto counted = [&](std::size_t j) { return static_[j] && staticLength_[j] >= kMinSamples; };
     const auto meanVariance = [&](std::size_t j) { return momentsVariance(staticMoments_[j]) / staticLength_[j]; };
+    const float c = params_.staticShrinkSigma2, cOwn = params_.staticShrinkOwnSigma2;
     shrinkDiff_.resize(n);
-    detail::forEachIndex(n, [&](std::size_t i) {
-        shrinkDiff_[i] = counted(i) ? luminance(out[i]) - luminance(reprojected_.color[i]) : 0.f;
-    });
+    detail::forEachIndex(n, [&](std::size_t i) { shrinkDiff_[i] = counted(i) ? reprojected_.color[i] - out[i] : vec3(0.f); });
     shrunk_.resize(n);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         shrunk_[i] = out[i];
         if (!counted(i)) return;
-        float sumD = 0.f, sumV = 0.f;
+        vec3 sumD(0.f);
+        float sumV = 0.f;
         int count = 0;
         for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
@@ -166,12 +168,20 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
                 sumV += meanVariance(j);
                 ++count;
             }
-        const float d = sumD / static_cast<float>(count);
-        const float v = params_.staticShrinkSigma2 * sumV / static_cast<float>(count * count);
-        const float d2 = d * d;
-        if (!(d2 > v)) return;
-        const float wgt = 1.f - v / d2;
-        shrunk_[i] = out[i] + wgt * (reprojected_.color[i] - out[i]);
+        // Step 1: the neighbourhood's coherent difference.
+        const vec3 d = sumD / static_cast<float>(count);
+        const float dL = luminance(d), v = c * sumV / static_cast<float>(count * count);
+        if (!(dL * dL > v)) return;
+        const float wgt = 1.f - v / (dL * dL);
+        // Step 2: the pixel's own rest, by its own mean's variance.
+        const vec3 rest = shrinkDiff_[i] - d;
+        float restWgt = 1.f;
+        if (cOwn > 0.f) {
+            const float rL = luminance(rest);
+            const float own = cOwn * std::max(meanVariance(i), blurredVariance_[i] / staticLength_[i]);
+            restWgt = rL * rL > own ? 1.f - own / (rL * rL) : 0.f;
+        }
+        shrunk_[i] = out[i] + wgt * (d + restWgt * rest);
     });
     std::copy(shrunk_.begin(), shrunk_.end(), out.begin());
 }

@@ -66,13 +66,23 @@ struct SvgfParams {
     // the test until the next restart (GI's 64-frame error on showcase 0.0038
     // -> 0.0082). Source: rtlab.
     bool staticResetOwnVariance = false;
-    // The filtered output of a static pixel is shrunk toward the long mean
-    // where their 3x3-averaged luminance difference D exceeds what the mean's
-    // noise explains: weight max(0, 1 - c V' / D^2) with c this (positive-part
-    // James-Stein for c = 1; larger keeps more of the filter). Pixels whose
-    // long mean has fewer than 8 samples are neither shrunk nor counted in
-    // the 3x3 average (so few samples' variance misleads). Source: rtlab.
+    // The filtered output F of a static pixel is shrunk toward the long mean
+    // M where their 3x3-averaged difference D (colour; its luminance d)
+    // exceeds what the mean's noise explains: weight w = max(0, 1 - c V' / d^2)
+    // with c = staticShrinkSigma2 (positive-part James-Stein for c = 1; larger
+    // keeps more of the filter). The output moves by w (D + w_own R), R the
+    // pixel's own rest (M - F) - D: w_own = max(0, 1 - c_own V_own / r^2)
+    // with c_own = staticShrinkOwnSigma2, V_own the variance of this pixel's
+    // mean (its own samples' or the 3x3 average's, the larger, / n), r R's
+    // luminance; c_own = 0 takes R whole (the pixel moves by w (M - F)). A
+    // positive c_own keeps heavy-tailed 1-spp signals (GI) from speckle: one
+    // pixel's mean of 8-16 such samples is mostly noise, and taking it whole
+    // wherever the neighbourhood showed a bias put that noise in the output
+    // (showcase GI after 8-12 frames). Pixels whose long mean has fewer than
+    // 8 samples are neither shrunk nor counted in the 3x3 average (so few
+    // samples' variance misleads). Source: rtlab.
     float staticShrinkSigma2 = 1.f;
+    float staticShrinkOwnSigma2 = 0.f;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
     FireflyClampParams firefly;
@@ -161,7 +171,7 @@ private:
     std::vector<vec2> staticMoments_;   // its luminance moments
     std::vector<float> staticLength_;
     std::vector<float> blurredVariance_;
-    std::vector<float> shrinkDiff_;
+    std::vector<vec3> shrinkDiff_;
     std::vector<vec3> shrunk_;
     std::size_t staticResets_ = 0;
     AtrousWorkspace atrousWorkspace_;
