@@ -103,11 +103,18 @@ StackParams StackParams::svgfPaper() { return {SvgfParams::paper(), {}}; }
 StackParams StackParams::svgfAuto() {
     StackParams p = svgfPaper();
     p.svgf.convergeStatic = true;
-    // A pixel's own rest in the static shrink only beyond sqrt(2) standard
-    // deviations of its mean. Taking it whole, showcase GI (96x54, relMSE
-    // after 8 / 64 frames) read 0.0159 / 0.0031, and 1.8 % of the pixels
-    // after 12 frames were isolated outliers (0.08 % in the reference); with
-    // c_own = 2: 0.00879 / 0.00215 and 0.25 % (test_static_convergence.cpp).
+    // The static shrink: the neighbourhood's difference beyond sqrt(3)
+    // standard deviations, a pixel's own rest beyond sqrt(2) of its mean.
+    // Showcase GI (96x54, test_static_convergence.cpp), relMSE after 8 / 16 /
+    // 32 / 64 frames and the isolated outliers after 12 frames (reference
+    // 0.08 %):
+    //   c = 1, own rest whole:  0.0159  / 0.00832 / 0.00452 / 0.0031,  1.78 %
+    //   c = 1, c_own = 2:       0.00879 / 0.00479 / 0.00295 / 0.00215, 0.25 %
+    //   c = 3, c_own = 2:       0.00683 / 0.00399 / 0.00271 / 0.00203, 0.18 %
+    //   no shrink:              0.00619 / 0.00387 / 0.0027  / 0.00207, 0.10 %
+    // c = 1 met the 64 / 8 <= 1/4 only by being worse after 8
+    // frames (and at 640x360 it left a visible grain on the walls).
+    p.svgf.staticShrinkSigma2 = 3.f;
     p.svgf.staticShrinkOwnSigma2 = 2.f;
     return p;
 }
@@ -159,10 +166,11 @@ StackParams StackParams::reflection() {
 StackParams StackParams::ambientOcclusion() {
     StackParams p = svgfAuto();
     // Shrink toward the long mean where F's bias exceeds one standard
-    // deviation of the difference (showcase 96x54, relMSE after 8 / 64 frames:
-    // c = 1 0.00578 / 0.00123; with the footprint's first version c = 2
-    // 0.00543 / 0.00127, c = 3 0.00539 / 0.00138, over StaticConvergence's
-    // 64/8 <= 1/4 at 0.256).
+    // deviation of the difference: lower at 8 and at 64 frames than c = 3
+    // (showcase 96x54, relMSE after 8 / 64 frames, with c_own = 2: c = 1
+    // 0.00501 / 0.0011, c = 3 0.00528 / 0.00133, c = 9 0.00537 / 0.00155;
+    // before c_own, with the footprint's first version: c = 2 0.00543 /
+    // 0.00127, c = 3 0.00539 / 0.00138).
     p.svgf.staticShrinkSigma2 = 1.f;
     p.svgf.varianceOfMean = true;
     p.svgf.atrous.sigmaL = 10.f;
