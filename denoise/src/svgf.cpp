@@ -30,6 +30,7 @@ void SvgfFilter::reset() {
     staticColor_.clear();
     staticMoments_.clear();
     staticLength_.clear();
+    staticReach_.clear();
     staticResets_ = 0;
 }
 
@@ -109,10 +110,23 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
             variance_[i] /= nEff;
         });
     }
+    // Static pixels' reach: (8 / n)^p of the full one once the long mean has more than 8 samples.
+    std::span<const float> reach = footprintPx;
+    if (params_.convergeStatic && params_.staticReachExponent > 0.f) {
+        const float full = std::ldexp(1.f, std::clamp(params_.atrous.iterations, 0, 30));
+        staticReach_.resize(n);
+        detail::forEachIndex(n, [&](std::size_t i) {
+            float r = footprintPx.empty() ? full : footprintPx[i];
+            if (static_[i] && staticLength_[i] > 8.f)
+                r = std::min(r, full * std::pow(8.f / staticLength_[i], params_.staticReachExponent));
+            staticReach_[i] = r;
+        });
+        reach = staticReach_;
+    }
     filteredVariance_.resize(n);
     tapColor_.resize(n);
     atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
-                 params_.historyTap, tapColor_, footprintPx, &atrousWorkspace_);
+                 params_.historyTap, tapColor_, reach, &atrousWorkspace_);
     if (params_.convergeStatic) shrinkTowardStaticMean(w, h, out);
 
     // The next frame's history: the feedback-tap colour, the accumulated moments and lengths.

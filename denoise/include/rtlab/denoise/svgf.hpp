@@ -83,6 +83,14 @@ struct SvgfParams {
     // samples' variance misleads). Source: rtlab.
     float staticShrinkSigma2 = 1.f;
     float staticShrinkOwnSigma2 = 0.f;
+    // The a-trous reach of a static pixel falls as its long mean grows: from
+    // the full 2^iterations pixels while n <= 8 to 2^iterations (8 / n)^p,
+    // p this (an iteration of step s runs where 2 s <= the reach; a stack's
+    // own footprint still bounds it). The mean's noise falls with n, so the
+    // spatial filter's bias, not its variance, comes to dominate; a shorter
+    // reach trades the one for the other. 0: the full reach at every n.
+    // Source: rtlab.
+    float staticReachExponent = 0.f;
     // Firefly clamp of the noisy input. Source: rtlab (off; not in the paper).
     bool clampFireflies = false;
     FireflyClampParams firefly;
@@ -173,6 +181,7 @@ private:
     std::vector<float> blurredVariance_;
     std::vector<vec3> shrinkDiff_;
     std::vector<vec3> shrunk_;
+    std::vector<float> staticReach_;
     std::size_t staticResets_ = 0;
     AtrousWorkspace atrousWorkspace_;
 };
