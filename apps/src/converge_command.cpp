@@ -419,7 +419,7 @@ int runConverge(const ConvergeOptions& o) {
     j["displayExposure"] = exposure;
     j["rows"] = nlohmann::json::array();
     std::string csv = "method,kind,spp,frames,ms,relmse,psnr,ssim,flip,raw_ms_at_equal_error,speedup,extrapolated,"
-                      "raw_frames_ms_at_equal_error,speedup_frames,extrapolated_frames\n";
+                      "raw_frames_ms_at_equal_error,speedup_frames,extrapolated_frames,worst_percent_share\n";
     for (const Measured& m : rows) {
         nlohmann::json r = {{"method", m.method}, {"kind", m.kind}, {"spp", m.spp}, {"frames", m.frames},
                             {"ms", m.ms}, {"relMse", m.relMse}, {"psnr", std::isinf(m.psnr) ? 1e300 : m.psnr},
@@ -435,7 +435,7 @@ int runConverge(const ConvergeOptions& o) {
                formatDouble(m.ssim) + "," + formatDouble(m.flip) + "," + formatDouble(m.rawMsAtEqualError) + "," +
                formatDouble(m.speedup) + "," + (m.extrapolated ? "true" : "false") + "," +
                formatDouble(m.rawFramesMsAtEqualError) + "," + formatDouble(m.speedupFrames) + "," +
-               (m.extrapolatedFrames ? "true" : "false") + "\n";
+               (m.extrapolatedFrames ? "true" : "false") + "," + formatDouble(m.worstPercentShare) + "\n";
     }
     // The headline: the effect's own stack at 1 spp, one frame.
     const auto headline = std::find_if(rows.begin(), rows.end(), [&](const Measured& m) {

@@ -430,6 +430,19 @@ TEST(Cli, ConvergeMeasuresRawAndDenoisedAgainstACachedReference) {
     }
     ASSERT_EQ(raw.size(), 4u);  // 1, 2, 4, 8 spp
     for (std::size_t i = 1; i < raw.size(); ++i) EXPECT_LT(raw[i], raw[i - 1]);
+    // converge.csv: one line per JSON row, the worst-1 % share in its last column.
+    std::ifstream csv(out / "converge.csv");
+    std::string header, line;
+    std::getline(csv, header);
+    EXPECT_EQ(header.substr(header.rfind(',') + 1), "worst_percent_share");
+    std::size_t lines = 0;
+    while (std::getline(csv, line)) {
+        const double share = std::stod(line.substr(line.rfind(',') + 1));
+        const double expected = j["rows"][lines]["worstPercentShare"].get<double>();
+        EXPECT_NEAR(share, expected, 1e-5 * expected) << line;  // %.6g in the CSV
+        ++lines;
+    }
+    EXPECT_EQ(lines, j["rows"].size());
     EXPECT_EQ(j["summary"]["stack"], "ao");
     EXPECT_GT(j["summary"]["relMseReduction"].get<double>(), 2.0);
     EXPECT_GT(j["summary"]["equalErrorSpeedup"].get<double>(), 0.0);
