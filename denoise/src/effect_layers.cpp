@@ -234,9 +234,13 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
             if (forceSvgf_ || pixelWorld.empty()) s.stack = DenoiseStack::Svgf;
             // A forced comparison runs the paper's SVGF as published.
             StackParams params = forceSvgf_ ? StackParams::svgfPaper() : StackParams::of(s.stack);
-            // The shadows' point-light layer: the shadow stack's shrink (measured
-            // on showcase: with c = 1 the shadows' 64-frame error is not lower).
-            if (s.demodulateAlbedo && !forceSvgf_) params.svgf.staticShrinkSigma2 = 3.f;
+            // The shadows' point-light layer (SVGF stack): the shadow stack's
+            // shrink, c = 3 and each pixel's rest whole (measured on showcase:
+            // with c = 1 the shadows' 64-frame error is not lower).
+            if (s.demodulateAlbedo && !forceSvgf_) {
+                params.svgf.staticShrinkSigma2 = StackParams::shadow().svgf.staticShrinkSigma2;
+                params.svgf.staticShrinkOwnSigma2 = StackParams::shadow().svgf.staticShrinkOwnSigma2;
+            }
             const std::vector<float> footprint = footprintOf(frame, s, guides, pixelWorld, params.footprint);
             std::vector<vec3> noisy(n), out(n);
             if (s.scalar) {

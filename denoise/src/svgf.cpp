@@ -11,6 +11,10 @@ namespace rtlab::denoise {
 namespace {
 // Motion (pixels) below which a pixel counts as static for SvgfParams::convergeStatic.
 constexpr float kStaticMotionPx = 1e-3f;
+// Samples a static pixel's long mean needs before it is shrunk toward or
+// counted as a neighbour (shrinkTowardStaticMean), and beyond which its
+// a-trous reach starts to fall (staticReachExponent).
+constexpr float kStaticMinSamples = 8.f;
 // The variance of samples from their first two moments (0 where round-off makes it negative).
 float momentsVariance(const vec2& m) {
     const float v = m.y - m.x * m.x;
@@ -117,8 +121,8 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
         staticReach_.resize(n);
         detail::forEachIndex(n, [&](std::size_t i) {
             float r = footprintPx.empty() ? full : footprintPx[i];
-            if (static_[i] && staticLength_[i] > 8.f)
-                r = std::min(r, full * std::pow(8.f / staticLength_[i], params_.staticReachExponent));
+            if (static_[i] && staticLength_[i] > kStaticMinSamples)
+                r = std::min(r, full * std::pow(kStaticMinSamples / staticLength_[i], params_.staticReachExponent));
             staticReach_[i] = r;
         });
         reach = staticReach_;
@@ -146,21 +150,21 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     //     neighbours' V summed / count^2), weight w = max(0, 1 - c V' / d^2)
     //     on D's luminance d (c = staticShrinkSigma2 > 1: more conservative);
     //  2. the pixel's own rest R = (M - F) - D, weight
-    //     w_own = max(0, 1 - c_own V / r^2) on R's luminance r and this
-    //     pixel's own V (c_own = staticShrinkOwnSigma2; 0 takes R whole).
+    //     w_own = max(0, 1 - c_own V / r^2) on R's luminance r, V this
+    //     pixel's mean variance (its own samples' or the 3x3 average's, the
+    //     larger, / n; c_own = staticShrinkOwnSigma2; 0 takes R whole).
     // The output is F + w (D + w_own R). As n grows V -> 0, both weights -> 1
     // and the output tends to M, the converged accumulation.
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     // The variance of the long mean, from its own samples' moments (every
     // sample since the last restart: a firefly among them raises it, so that
-    // pixel keeps F). Below kMinSamples samples no pixel is shrunk or counted:
+    // pixel keeps F). Below kStaticMinSamples samples no pixel is shrunk or counted:
     // so few samples' variance is no guide for heavy-tailed 1-spp signals. A
     // run of 1-spp GI samples of 0 shows none and pulled pixels onto their
     // few-sample mean (dark speckle); one firefly among three samples sits
     // 1.2 sigma from F in the 3x3 mean and pulled its pixel a third of the way
-    // up (bright speckle; both in make demo's frames 1 and 2).
-    constexpr float kMinSamples = 8.f;
-    const auto counted = [&](std::size_t j) { return static_[j] && staticLength_[j] >= kMinSamples; };
+    // up (bright speckle; both in make demo's frame_0001 and frame_0002).
+    const auto counted = [&](std::size_t j) { return static_[j] && staticLength_[j] >= kStaticMinSamples; };
     const auto meanVariance = [&](std::size_t j) { return momentsVariance(staticMoments_[j]) / staticLength_[j]; };
     const float c = params_.staticShrinkSigma2, cOwn = params_.staticShrinkOwnSigma2;
     shrinkDiff_.resize(n);
@@ -187,14 +191,17 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
         const float dL = luminance(d), v = c * sumV / static_cast<float>(count * count);
         if (!(dL * dL > v)) return;
         const float wgt = 1.f - v / (dL * dL);
-        // Step 2: the pixel's own rest, by its own mean's variance.
-        const vec3 rest = shrinkDiff_[i] - d;
-        float restWgt = 1.f;
-        if (cOwn > 0.f) {
-            const float rL = luminance(rest);
-            const float own = cOwn * std::max(meanVariance(i), blurredVariance_[i] / staticLength_[i]);
-            restWgt = rL * rL > own ? 1.f - own / (rL * rL) : 0.f;
+        // Step 2: the pixel's own rest, by its own mean's variance (c_own = 0:
+        // the whole M - F, the one-step rule).
+        if (!(cOwn > 0.f)) {
+            shrunk_[i] = out[i] + wgt * shrinkDiff_[i];
+            return;
         }
+        const vec3 rest = shrinkDiff_[i] - d;
+        const float rL = luminance(rest);
+        const float own = cOwn * std::max(meanVariance(i), blurredVariance_[i] / staticLength_[i]);
+        // A mean without variance (own = 0) is taken whole, as c_own = 0 would.
+        const float restWgt = !(own > 0.f) ? 1.f : rL * rL > own ? 1.f - own / (rL * rL) : 0.f;
         shrunk_[i] = out[i] + wgt * (d + restWgt * rest);
     });
     std::copy(shrunk_.begin(), shrunk_.end(), out.begin());

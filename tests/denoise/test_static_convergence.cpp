@@ -1,8 +1,10 @@
 // SvgfParams::convergeStatic (issue 16, item 2) on synthetic frames: the long
 // mean grows without a cap on a static view, a change of the signal on a
 // static pixel restarts it (no ghost), pixels that move are filtered
-// exactly as without it, and the shrink toward a short, heavy-tailed mean
-// does not take a pixel's own noise whole (staticShrinkOwnSigma2).
+// exactly as without it, the a-trous reach falls only once the mean has
+// more than 8 samples (staticReachExponent), and the shrink toward a short,
+// heavy-tailed mean does not take a pixel's own noise whole
+// (staticShrinkOwnSigma2).
 #include "denoise/denoise_test_util.hpp"
 
 #include <rtlab/denoise/svgf.hpp>
@@ -21,7 +23,6 @@ namespace {
 SvgfParams staticParams() {
     SvgfParams p;
     p.convergeStatic = true;
-    p.staticReachExponent = 0.5f;  // as the stacks have it (moving pixels: no effect)
     return p;
 }
 
@@ -113,6 +114,54 @@ TEST(DenoiseStaticConvergence, MovingPixelsAreFilteredAsWithout) {
         for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], b[i]) << "frame " << f << " pixel " << i;
     }
     for (float len : with.staticLength()) EXPECT_EQ(len, 0.f);
+    // The same with the stacks' static settings (own-rest threshold, shorter
+    // reach) and a footprint given to both.
+    SvgfParams full = staticParams();
+    full.staticShrinkOwnSigma2 = 2.f;
+    full.staticReachExponent = 0.5f;
+    SvgfFilter withFull(full), withoutFull;
+    const std::vector<float> footprint(g.pixelCount(), 6.f);
+    for (std::uint32_t f = 0; f < 12; ++f) {
+        const std::vector<vec3> in = noisyGrey(g.pixelCount(), 0.5f, 0.4f, f);
+        withFull.filter(g, in, a, footprint);
+        withoutFull.filter(g, in, b, footprint);
+        for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], b[i]) << "frame " << f << " pixel " << i;
+    }
+}
+
+TEST(DenoiseStaticConvergence, ReachFallsOnlyOnceTheMeanHasMoreThanEightSamples) {
+    // staticReachExponent on the ramp of the first test: up to 8 frames the
+    // filter is the same as with the full reach; after 64 the output differs
+    // (3 of the 5 iterations) and the error stays close (measured: MSE
+    // 0.000613 full, 0.000622 shorter; uniform noise leaves the full reach
+    // little bias to lose; its gain is on showcase GI, test_static_convergence
+    // in tests/shaders_cpp: 0.00203 -> 0.0017 after 64 frames).
+    const int w = 48, h = 32;
+    const GuideBuffers g = flatGuides(w, h);
+    const auto truth = [&](int x, int y) { return 0.2 + 0.6 * double(x) / w + 0.1 * ((x / 6 + y / 6) % 2); };
+    const auto run = [&](float exponent, std::vector<vec3>& at8, std::vector<vec3>& at64) {
+        SvgfParams p = staticParams();
+        p.staticReachExponent = exponent;
+        SvgfFilter filter(p);
+        std::vector<vec3> out(g.pixelCount());
+        for (std::uint32_t f = 0; f < 64; ++f) {
+            std::vector<vec3> in(g.pixelCount());
+            for (std::size_t i = 0; i < in.size(); ++i)
+                in[i] = vec3(float(truth(int(i % w), int(i / w))) + 0.8f * uniformNoise(i, f));
+            filter.filter(g, in, out);
+            if (f + 1 == 8) at8 = out;
+        }
+        at64 = out;
+    };
+    std::vector<vec3> full8, full64, shorter8, shorter64;
+    run(0.f, full8, full64);
+    run(0.5f, shorter8, shorter64);
+    EXPECT_EQ(full8, shorter8);
+    EXPECT_NE(full64, shorter64);
+    ASSERT_TRUE(allFinite(shorter64));
+    const double full = mse(full64, w, truth), shorter = mse(shorter64, w, truth);
+    std::printf("MSE after 64 frames: full reach %.4g, shorter %.4g\n", full, shorter);
+    EXPECT_LT(shorter, 1.05 * full);
 }
 
 TEST(DenoiseStaticConvergence, HeavyTailedSamplesAreNotTakenWholeFromAShortMean) {
@@ -122,7 +171,7 @@ TEST(DenoiseStaticConvergence, HeavyTailedSamplesAreNotTakenWholeFromAShortMean)
     // rest whole (staticShrinkOwnSigma2 = 0) wherever its neighbourhood shows
     // a bias puts that noise in the output; with c_own = 2 the output keeps
     // the neighbourhood's smooth correction and has a lower error (measured:
-    // MSE 0.0345 with c_own = 0, 0.0167 with c_own = 2).
+    // MSE 0.0354 with c_own = 0, 0.0170 with c_own = 2).
     const int w = 48, h = 32;
     const GuideBuffers g = flatGuides(w, h);
     const auto truth = [&](int x, int y) { return 0.2 + 0.6 * double(x) / w + 0.1 * ((x / 6 + y / 6) % 2); };
@@ -142,6 +191,5 @@ TEST(DenoiseStaticConvergence, HeavyTailedSamplesAreNotTakenWholeFromAShortMean)
     };
     const double whole = run(0.f), guarded = run(2.f);
     std::printf("MSE after 12 frames: c_own 0 %.4g, c_own 2 %.4g\n", whole, guarded);
-    EXPECT_GT(guarded, 0.0);
     EXPECT_LT(guarded, 0.8 * whole) << "c_own 0: " << whole << ", c_own 2: " << guarded;
 }

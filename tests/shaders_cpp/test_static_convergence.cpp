@@ -77,8 +77,8 @@ TEST(StaticConvergence, ShowcaseStacksKeepConvergingWithHistory) {
     // samples with their own seed (the unshadowed area-light estimate takes a
     // fixed number of samples per frame, so the reference spans many frames).
     // GI, whose 1-spp samples are heavy-tailed, gets kGiRefFrames (a GI-only
-    // plan beyond kRefFrames): with 32 its own error (~8e-4) was a quarter of
-    // the measured 64-frame error.
+    // plan beyond kRefFrames): with 32 its own error (~8e-4) was a third of
+    // the 64-frame GI errors measured then (0.0022-0.0031).
     constexpr int kRefFrames = 32, kGiRefFrames = 128, kRefSpp = 64;
     const std::size_t giIndex = 3;
     PlanOptions giOnly;
@@ -141,8 +141,9 @@ TEST(StaticConvergence, ShowcaseStacksKeepConvergingWithHistory) {
         EXPECT_TRUE(std::isfinite(relMse[e][0]) && std::isfinite(relMse[e][3]));
         EXPECT_GT(relMse[e][0], 0.0) << effects[e];
         EXPECT_LE(relMse[e][3], 0.25 * relMse[e][0]) << effects[e];
-        // No speckle while the long means are short: after 12 frames at most 4x
-        // the reference's isolated outliers, + 0.1 % (5 pixels).
+        // No speckle field while the long means are short: after 12 frames at
+        // most 4x the reference's isolated outliers + 0.1 % (5 pixels). Loose:
+        // it catches the one-step shrink's 1.78 % on GI, not a few pixels more.
         const double referenceOutliers = isolatedOutliers(s.width, s.height, reference[e].rgbLayer(""));
         std::printf("%-12s isolated outliers after 12 frames: %.2f %% (reference %.2f %%)\n", effects[e].c_str(),
                     100.0 * outliers12[e], 100.0 * referenceOutliers);
