@@ -26,12 +26,28 @@ SvgfParams staticParams() {
     return p;
 }
 
-// Mean squared error of the red channel against `truth` (a ramp's value per pixel).
-template <class F>
-double mse(std::span<const vec3> img, int w, F truth) {
+// The static tests' signal on a 48 x 32 view: a ramp with a 6-pixel checker
+// (which the spatial filter biases).
+constexpr int kRampW = 48, kRampH = 32;
+double ramp(int x, int y) { return 0.2 + 0.6 * double(x) / kRampW + 0.1 * ((x / 6 + y / 6) % 2); }
+
+// Frame f of the ramp under noise: the ramp + 0.8 x uniform noise, or
+// (sparse) 10x the ramp for one sample in ten and 0 otherwise (mean = the
+// ramp; heavy-tailed as 1-spp GI is).
+std::vector<vec3> rampFrame(std::uint32_t f, bool sparse = false) {
+    std::vector<vec3> in(std::size_t(kRampW) * kRampH);
+    for (std::size_t i = 0; i < in.size(); ++i) {
+        const float t = float(ramp(int(i % kRampW), int(i / kRampW)));
+        in[i] = vec3(sparse ? (uniformNoise(i, f) < -0.4f ? 10.f * t : 0.f) : t + 0.8f * uniformNoise(i, f));
+    }
+    return in;
+}
+
+// Mean squared error of the red channel against the ramp.
+double rampMse(std::span<const vec3> img) {
     double s = 0.0;
     for (std::size_t i = 0; i < img.size(); ++i) {
-        const double d = double(img[i].r) - truth(int(i % w), int(i / w));
+        const double d = double(img[i].r) - ramp(int(i % kRampW), int(i / kRampW));
         s += d * d;
     }
     return s / double(img.size());
@@ -41,19 +57,14 @@ double mse(std::span<const vec3> img, int w, F truth) {
 
 TEST(DenoiseStaticConvergence, LongMeanGrowsWithoutCapAndTheErrorKeepsFalling) {
     // A ramp (which the spatial filter biases) under uniform noise, static view.
-    const int w = 48, h = 32;
-    const GuideBuffers g = flatGuides(w, h);
-    const auto truth = [&](int x, int y) { return 0.2 + 0.6 * double(x) / w + 0.1 * ((x / 6 + y / 6) % 2); };
+    const GuideBuffers g = flatGuides(kRampW, kRampH);
     SvgfFilter filter(staticParams());
     std::vector<vec3> out(g.pixelCount());
     double at8 = 0, at64 = 0;
     for (std::uint32_t f = 0; f < 64; ++f) {
-        std::vector<vec3> in(g.pixelCount());
-        for (std::size_t i = 0; i < in.size(); ++i)
-            in[i] = vec3(float(truth(int(i % w), int(i / w))) + 0.8f * uniformNoise(i, f));
-        filter.filter(g, in, out);
-        if (f + 1 == 8) at8 = mse(out, w, truth);
-        if (f + 1 == 64) at64 = mse(out, w, truth);
+        filter.filter(g, rampFrame(f), out);
+        if (f + 1 == 8) at8 = rampMse(out);
+        if (f + 1 == 64) at64 = rampMse(out);
     }
     for (float len : filter.staticLength()) EXPECT_EQ(len, 64.f);  // no cap of 32, no alpha floor
     EXPECT_EQ(filter.staticResets(), 0u);
@@ -65,13 +76,8 @@ TEST(DenoiseStaticConvergence, LongMeanGrowsWithoutCapAndTheErrorKeepsFalling) {
     EXPECT_LE(at64, 0.64 / 12.0 / 64.0) << "after 64 frames " << at64;
     // The paper's SVGF plateaus on the same frames.
     SvgfFilter paper;
-    for (std::uint32_t f = 0; f < 64; ++f) {
-        std::vector<vec3> in(g.pixelCount());
-        for (std::size_t i = 0; i < in.size(); ++i)
-            in[i] = vec3(float(truth(int(i % w), int(i / w))) + 0.8f * uniformNoise(i, f));
-        paper.filter(g, in, out);
-    }
-    EXPECT_GT(mse(out, w, truth), at64);
+    for (std::uint32_t f = 0; f < 64; ++f) paper.filter(g, rampFrame(f), out);
+    EXPECT_GT(rampMse(out), at64);
 }
 
 TEST(DenoiseStaticConvergence, AChangeOnAStaticPixelRestartsTheLongMean) {
@@ -136,19 +142,14 @@ TEST(DenoiseStaticConvergence, ReachFallsOnlyOnceTheMeanHasMoreThanEightSamples)
     // 0.000613 full, 0.000622 shorter; uniform noise leaves the full reach
     // little bias to lose; its gain is on showcase GI, test_static_convergence
     // in tests/shaders_cpp: 0.00203 -> 0.0017 after 64 frames).
-    const int w = 48, h = 32;
-    const GuideBuffers g = flatGuides(w, h);
-    const auto truth = [&](int x, int y) { return 0.2 + 0.6 * double(x) / w + 0.1 * ((x / 6 + y / 6) % 2); };
+    const GuideBuffers g = flatGuides(kRampW, kRampH);
     const auto run = [&](float exponent, std::vector<vec3>& at8, std::vector<vec3>& at64) {
         SvgfParams p = staticParams();
         p.staticReachExponent = exponent;
         SvgfFilter filter(p);
         std::vector<vec3> out(g.pixelCount());
         for (std::uint32_t f = 0; f < 64; ++f) {
-            std::vector<vec3> in(g.pixelCount());
-            for (std::size_t i = 0; i < in.size(); ++i)
-                in[i] = vec3(float(truth(int(i % w), int(i / w))) + 0.8f * uniformNoise(i, f));
-            filter.filter(g, in, out);
+            filter.filter(g, rampFrame(f), out);
             if (f + 1 == 8) at8 = out;
         }
         at64 = out;
@@ -159,7 +160,7 @@ TEST(DenoiseStaticConvergence, ReachFallsOnlyOnceTheMeanHasMoreThanEightSamples)
     EXPECT_EQ(full8, shorter8);
     EXPECT_NE(full64, shorter64);
     ASSERT_TRUE(allFinite(shorter64));
-    const double full = mse(full64, w, truth), shorter = mse(shorter64, w, truth);
+    const double full = rampMse(full64), shorter = rampMse(shorter64);
     std::printf("MSE after 64 frames: full reach %.4g, shorter %.4g\n", full, shorter);
     EXPECT_LT(shorter, 1.05 * full);
 }
@@ -172,22 +173,15 @@ TEST(DenoiseStaticConvergence, HeavyTailedSamplesAreNotTakenWholeFromAShortMean)
     // a bias puts that noise in the output; with c_own = 2 the output keeps
     // the neighbourhood's smooth correction and has a lower error (measured:
     // MSE 0.0354 with c_own = 0, 0.0170 with c_own = 2).
-    const int w = 48, h = 32;
-    const GuideBuffers g = flatGuides(w, h);
-    const auto truth = [&](int x, int y) { return 0.2 + 0.6 * double(x) / w + 0.1 * ((x / 6 + y / 6) % 2); };
+    const GuideBuffers g = flatGuides(kRampW, kRampH);
     const auto run = [&](float cOwn) {
         SvgfParams p = staticParams();
         p.staticShrinkOwnSigma2 = cOwn;
         SvgfFilter filter(p);
         std::vector<vec3> out(g.pixelCount());
-        for (std::uint32_t f = 0; f < 12; ++f) {
-            std::vector<vec3> in(g.pixelCount());
-            for (std::size_t i = 0; i < in.size(); ++i)
-                in[i] = vec3(uniformNoise(i, f) < -0.4f ? 10.f * float(truth(int(i % w), int(i / w))) : 0.f);
-            filter.filter(g, in, out);
-        }
+        for (std::uint32_t f = 0; f < 12; ++f) filter.filter(g, rampFrame(f, true), out);
         EXPECT_TRUE(allFinite(out));
-        return mse(out, w, truth);
+        return rampMse(out);
     };
     const double whole = run(0.f), guarded = run(2.f);
     std::printf("MSE after 12 frames: c_own 0 %.4g, c_own 2 %.4g\n", whole, guarded);
