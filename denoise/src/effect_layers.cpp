@@ -99,6 +99,24 @@ const char* stackName(DenoiseStack stack) {
     return "?";
 }
 
+namespace {
+// The shadow and reflection stacks' common part (their sparse 1-spp signals).
+StackParams sparseSignalStack() {
+    StackParams p = StackParams::svgfAuto();
+    // Shrink toward the long mean only where F's bias exceeds sqrt(3) standard
+    // deviations of the difference (measured on showcase: with c = 1 the
+    // 8-frame error is lower but the 64-frame one is not).
+    p.svgf.staticShrinkSigma2 = 3.f;
+    // Each pixel's own rest taken whole: with c_own = 2 the 64-frame error
+    // is higher (showcase 96x54, 8 / 64 frames: shadows 2.41e-4 / 6.43e-5,
+    // reflections 3.17e-4 / 8.39e-5), and these signals show no speckle.
+    p.svgf.staticShrinkOwnSigma2 = 0.f;
+    p.svgf.varianceOfMean = true;
+    p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
+    return p;
+}
+}  // namespace
+
 StackParams StackParams::svgfPaper() { return {SvgfParams::paper(), {}}; }
 StackParams StackParams::svgfAuto() {
     StackParams p = svgfPaper();
@@ -123,32 +141,9 @@ StackParams StackParams::svgfAuto() {
     p.svgf.staticReachExponent = 0.5f;
     return p;
 }
-StackParams StackParams::shadow() {
-    StackParams p = svgfAuto();
-    // Their sparse 1-spp signals: shrink toward the long mean only where F's bias
-    // exceeds sqrt(3) standard deviations of the difference (measured on showcase:
-    // with c = 1 the 8-frame error is lower but the 64-frame one is not).
-    p.svgf.staticShrinkSigma2 = 3.f;
-    // Each pixel's own rest taken whole: with c_own = 2 the 64-frame error
-    // is higher (showcase 96x54, 8 / 64 frames: shadows 2.41e-4 / 6.43e-5,
-    // reflections 3.17e-4 / 8.39e-5), and these signals show no speckle.
-    p.svgf.staticShrinkOwnSigma2 = 0.f;
-    p.svgf.varianceOfMean = true;
-    p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
-    return p;
-}
+StackParams StackParams::shadow() { return sparseSignalStack(); }
 StackParams StackParams::reflection() {
-    StackParams p = svgfAuto();
-    // Their sparse 1-spp signals: shrink toward the long mean only where F's bias
-    // exceeds sqrt(3) standard deviations of the difference (measured on showcase:
-    // with c = 1 the 8-frame error is lower but the 64-frame one is not).
-    p.svgf.staticShrinkSigma2 = 3.f;
-    // Each pixel's own rest taken whole: with c_own = 2 the 64-frame error
-    // is higher (showcase 96x54, 8 / 64 frames: shadows 2.41e-4 / 6.43e-5,
-    // reflections 3.17e-4 / 8.39e-5), and these signals show no speckle.
-    p.svgf.staticShrinkOwnSigma2 = 0.f;
-    p.svgf.varianceOfMean = true;
-    p.svgf.historyClamp = {HistoryClampMode::MeanSigma, 2, 1.f};
+    StackParams p = sparseSignalStack();
     // Two iterations at least: the light at the reflected hit is noisy even
     // where the lobe is narrow. 8 px blurred the glossy floor's images of the
     // boxes' edges (showcase, rtlab converge, denoised relMSE at 1 / 4 spp:
@@ -238,8 +233,9 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
             // shrink, c = 3 and each pixel's rest whole (measured on showcase:
             // with c = 1 the shadows' 64-frame error is not lower).
             if (s.demodulateAlbedo && !forceSvgf_) {
-                params.svgf.staticShrinkSigma2 = StackParams::shadow().svgf.staticShrinkSigma2;
-                params.svgf.staticShrinkOwnSigma2 = StackParams::shadow().svgf.staticShrinkOwnSigma2;
+                const SvgfParams shadow = StackParams::shadow().svgf;
+                params.svgf.staticShrinkSigma2 = shadow.staticShrinkSigma2;
+                params.svgf.staticShrinkOwnSigma2 = shadow.staticShrinkOwnSigma2;
             }
             const std::vector<float> footprint = footprintOf(frame, s, guides, pixelWorld, params.footprint);
             std::vector<vec3> noisy(n), out(n);

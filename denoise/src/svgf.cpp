@@ -115,8 +115,14 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
         });
     }
     // Static pixels' reach: (8 / n)^p of the full one once the long mean has more than 8 samples.
+    // (Until some pixel has that many, the footprint as given: a full reach
+    // everywhere would filter the same, on the a-trous passes' slower
+    // per-pixel path.)
     std::span<const float> reach = footprintPx;
-    if (params_.convergeStatic && params_.staticReachExponent > 0.f) {
+    const bool anyLongMean = params_.convergeStatic && params_.staticReachExponent > 0.f &&
+                             std::any_of(staticLength_.begin(), staticLength_.end(),
+                                         [](float len) { return len > kStaticMinSamples; });
+    if (anyLongMean) {
         const float full = std::ldexp(1.f, std::clamp(params_.atrous.iterations, 0, 30));
         staticReach_.resize(n);
         detail::forEachIndex(n, [&](std::size_t i) {
@@ -165,10 +171,13 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     // 1.2 sigma from F in the 3x3 mean and pulled its pixel a third of the way
     // up (bright speckle; both in make demo's frame_0001 and frame_0002).
     const auto counted = [&](std::size_t j) { return static_[j] && staticLength_[j] >= kStaticMinSamples; };
-    const auto meanVariance = [&](std::size_t j) { return momentsVariance(staticMoments_[j]) / staticLength_[j]; };
     const float c = params_.staticShrinkSigma2, cOwn = params_.staticShrinkOwnSigma2;
-    shrinkDiff_.resize(n);
-    detail::forEachIndex(n, [&](std::size_t i) { shrinkDiff_[i] = counted(i) ? reprojected_.color[i] - out[i] : vec3(0.f); });
+    // Per counted pixel once: M - F and the variance of its mean.
+    shrinkTerms_.resize(n);
+    detail::forEachIndex(n, [&](std::size_t i) {
+        shrinkTerms_[i] = counted(i) ? vec4(reprojected_.color[i] - out[i], momentsVariance(staticMoments_[i]) / staticLength_[i])
+                                     : vec4(0.f);
+    });
     shrunk_.resize(n);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         shrunk_[i] = out[i];
@@ -182,8 +191,8 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
                 if (px < 0 || py < 0 || px >= w || py >= h) continue;
                 const std::size_t j = static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px;
                 if (!counted(j)) continue;
-                sumD += shrinkDiff_[j];
-                sumV += meanVariance(j);
+                sumD += vec3(shrinkTerms_[j]);
+                sumV += shrinkTerms_[j].w;
                 ++count;
             }
         // Step 1: the neighbourhood's coherent difference.
@@ -193,13 +202,14 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
         const float wgt = 1.f - v / (dL * dL);
         // Step 2: the pixel's own rest, by its own mean's variance (c_own = 0:
         // the whole M - F, the one-step rule).
+        const vec3 diff(shrinkTerms_[i]);
         if (!(cOwn > 0.f)) {
-            shrunk_[i] = out[i] + wgt * shrinkDiff_[i];
+            shrunk_[i] = out[i] + wgt * diff;
             return;
         }
-        const vec3 rest = shrinkDiff_[i] - d;
+        const vec3 rest = diff - d;
         const float rL = luminance(rest);
-        const float own = cOwn * std::max(meanVariance(i), blurredVariance_[i] / staticLength_[i]);
+        const float own = cOwn * std::max(shrinkTerms_[i].w, blurredVariance_[i] / staticLength_[i]);
         // A mean without variance (own = 0) is taken whole, as c_own = 0 would.
         const float restWgt = !(own > 0.f) ? 1.f : rL * rL > own ? 1.f - own / (rL * rL) : 0.f;
         shrunk_[i] = out[i] + wgt * (d + restWgt * rest);

@@ -179,7 +179,7 @@ private:
     std::vector<vec2> staticMoments_;   // its luminance moments
     std::vector<float> staticLength_;
     std::vector<float> blurredVariance_;
-    std::vector<vec3> shrinkDiff_;
+    std::vector<vec4> shrinkTerms_;  // per static pixel: M - F, the variance of M
     std::vector<vec3> shrunk_;
     std::vector<float> staticReach_;
     std::size_t staticResets_ = 0;
