@@ -121,11 +121,12 @@ StackParams StackParams::svgfPaper() { return {SvgfParams::paper(), {}}; }
 StackParams StackParams::svgfAuto() {
     StackParams p = svgfPaper();
     p.svgf.convergeStatic = true;
-    // The static shrink: the neighbourhood's difference beyond sqrt(3)
+    // The static shrink: the neighbourhood's difference beyond sqrt(2)
     // standard deviations, a pixel's own rest beyond sqrt(2) of its mean; the
     // a-trous reach over the long mean falls as (8 / n)^0.5. Showcase GI
     // (96x54, test_static_convergence.cpp), relMSE after 8 / 16 / 32 / 64
-    // frames and the isolated outliers after 12 frames (reference 0.08 %):
+    // frames and the isolated outliers after 12 frames (reference 0.08 %),
+    // first with the GI samples of before 2026-11-25:
     //   c = 1, own rest whole:  0.0159  / 0.00832 / 0.00452 / 0.0031,  1.78 %
     //   c = 1, c_own = 2:       0.00879 / 0.00479 / 0.00295 / 0.00215, 0.25 %
     //   c = 3, c_own = 2:       0.00683 / 0.00399 / 0.00271 / 0.00203, 0.18 %
@@ -136,7 +137,17 @@ StackParams StackParams::svgfAuto() {
     // met 64 / 8 <= 1/4 only by being worse after 8 frames, and at 640x360
     // it left a visible grain on the walls; the shorter reach is what lowers
     // the late error (shadows, whose stack inherits it: 6.07e-5 -> 5.94e-5).
-    p.svgf.staticShrinkSigma2 = 3.f;
+    // Then with the light pick that follows glossy highlights and the lobe
+    // MIS at glossy hits (lighting.hpp pickLight, indirect_shading.hpp;
+    // reference 0.06 %; the reach 0.5 throughout):
+    //   c = 1:                  0.00402 / 0.0021  / 0.00143 / 0.00104  (0.258)
+    //   c = 2:                  0.00338 / 0.00183 / 0.0013  / 0.000833 (0.246)
+    //   c = 3:                  0.00318 / 0.00178 / 0.00129 / 0.000826 (0.260)
+    // c = 2 is 6 % above c = 3 after 8 frames and meets 1/4 after 64. Its
+    // grain at 640x360 after 12 frames (mean |L - its 8 neighbours' mean| of
+    // the 8-bit luminance, `rtlab render --frames 12 --effects gi`) is 0.92
+    // (c = 3: 0.85; the samples of before with c = 3: 1.08).
+    p.svgf.staticShrinkSigma2 = 2.f;
     p.svgf.staticShrinkOwnSigma2 = 2.f;
     p.svgf.staticReachExponent = 0.5f;
     return p;

@@ -297,9 +297,12 @@ LightSample pointLightSample(const ecs::LightSnapshot& l, const vec3& p) {
 float pointLightImportance(const ecs::LightSnapshot& l, const ShadingPoint& sp) {
     const LightSample s = pointLightSample(l, sp.position);
     if (!s.valid) return 0.f;
+    // Irradiance (cos Le / d^2, as the area lights' weights) plus pi x the
+    // specular lobe's response: a glossy or grazing highlight is not picked rarely.
     const float cosI = glm::dot(sp.normal, s.direction);
     if (!(cosI > 0.f) || glm::dot(sp.geometricNormal, s.direction) <= 0.f) return 0.f;
-    return luminance(s.radianceOverPdf) * cosI;
+    const float importance = luminance(s.radianceOverPdf) * (cosI + kPi * luminance(evalSpecularCos(sp, s.direction)));
+    return std::isfinite(importance) ? importance : 0.f;
 }
 
 namespace {
@@ -485,27 +488,36 @@ bool emits(const ecs::LightSnapshot& l) {
     return l.light.intensity > 0.f && glm::length(l.light.color) > 0.f && std::isfinite(l.light.intensity);
 }
 
+float lightPickWeight(const ecs::LightSnapshot& l, const ShadingPoint& sp) {
+    if (!emits(l)) return 0.f;
+    if (!l.light.isArea()) return pointLightImportance(l, sp);
+    // Area lights: intensity x area / distance^2, zero only when the whole
+    // light is below the surface (any rect corner / the sphere's top above
+    // it) or the point is behind a one-sided panel.
+    const vec3 d = lightPosition(l) - sp.position;
+    const float dist2 = std::max(glm::dot(d, d), 1e-8f);
+    bool above = false;
+    if (l.light.type == ecs::LightType::Rect) {
+        vec3 corners[4];
+        rectCorners(l, d, corners);
+        for (int c = 0; c < 4 && !above; ++c) above = glm::dot(sp.normal, corners[c]) > 0.f;
+        above = above && glm::dot(d, lightForward(l)) < 0.f;
+    } else {
+        above = glm::dot(sp.normal, d) > -l.light.radius;
+    }
+    return above ? luminance(emitted(l)) * lightArea(l) / dist2 : 0.f;
+}
+
 const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf) {
     return pickByWeight(
-        scene.lights,
-        [&](const ecs::LightSnapshot& l) -> float {
-            if (!emits(l)) return 0.f;
-            if (!l.light.isArea()) return pointLightImportance(l, sp);
-            // Area lights: intensity x area / distance^2, zero only when the
-            // whole light is below the surface (any rect corner / the sphere's top above it).
-            const vec3 d = lightPosition(l) - sp.position;
-            const float dist2 = std::max(glm::dot(d, d), 1e-8f);
-            bool above = false;
-            if (l.light.type == ecs::LightType::Rect) {
-                vec3 corners[4];
-                rectCorners(l, d, corners);
-                for (int c = 0; c < 4 && !above; ++c) above = glm::dot(sp.normal, corners[c]) > 0.f;
-            } else {
-                above = glm::dot(sp.normal, d) > -l.light.radius;
-            }
-            return above ? luminance(emitted(l)) * lightArea(l) / dist2 : 0.f;
-        },
-        u, pdf);
+        scene.lights, [&](const ecs::LightSnapshot& l) { return lightPickWeight(l, sp); }, u, pdf,
+        kDefensiveLightPickShare);
+}
+
+float lightPickPdf(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, const ecs::LightSnapshot& light) {
+    return pickPdfByWeight(
+        scene.lights, [&](const ecs::LightSnapshot& l) { return lightPickWeight(l, sp); }, light,
+        kDefensiveLightPickShare);
 }
 
 }  // namespace rtlab::shaders::detail

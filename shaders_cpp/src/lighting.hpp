@@ -6,8 +6,10 @@
 
 #include <rtlab/shaders_cpp/sampling.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace rtlab::shaders::detail {
@@ -96,8 +98,10 @@ AreaLightHit intersectAreaLight(const ecs::LightSnapshot& light, const vec3& p, 
 float penumbraWidth(const ecs::LightSnapshot& light, const vec3& p, float occluderDistance);
 // Point, spot or directional light toward `p` (no sampling needed).
 LightSample pointLightSample(const ecs::LightSnapshot& light, const vec3& p);
-// Importance of a point/spot/directional light for a surface: intensity x
-// orientation / distance^2, zero out of range or facing away.
+// Importance of a point/spot/directional light for a surface: its
+// irradiance (intensity x cos / distance^2) plus pi x the specular lobe's
+// response toward it, so that f cos Le / importance <= 1 / pi for any lobe
+// (a glossy highlight is never a rare pick); zero out of range or facing away.
 float pointLightImportance(const ecs::LightSnapshot& light, const ShadingPoint& sp);
 
 // The unshadowed direct light of one area light (the shadow pass's
@@ -125,40 +129,90 @@ std::optional<float> sphereCosineIntegral(const vec3& toCentre, float radius, co
 // Whether a light emits at all (the planner counts the same lights).
 bool emits(const ecs::LightSnapshot& light);
 
+// A light's pick weight with non-finite or negative values as 0.
+template <class Weight>
+float cleanPickWeight(Weight& weight, const ecs::LightSnapshot& l) {
+    const float w = weight(l);
+    return std::isfinite(w) && w > 0.f ? w : 0.f;
+}
+
+// The sum of the weights and how many are non-zero.
+template <class Weight>
+std::pair<double, std::size_t> pickWeightTotal(const std::vector<ecs::LightSnapshot>& lights, Weight& weight) {
+    double total = 0.0;
+    std::size_t count = 0;
+    for (const ecs::LightSnapshot& l : lights) {
+        const float w = cleanPickWeight(weight, l);
+        total += w;
+        count += w > 0.f;
+    }
+    return {total, count};
+}
+
+// The uniform share actually mixed in: none when one light (or none) has weight.
+inline double effectiveUniformShare(float uniformShare, std::size_t count) {
+    return count > 1 ? std::clamp(double(uniformShare), 0.0, 1.0) : 0.0;
+}
+
 // One light of `lights` picked with probability weight(light) / sum of
 // weights (non-finite or negative weights count as 0); nullptr when every
 // weight is 0. `pdf` is the pick probability. Deterministic, any number of
 // lights, no allocation (the weights are evaluated twice: sum, then walk).
+// uniformShare > 0 mixes in a uniform pick among the lights of non-zero
+// weight (defensive importance sampling, Hesterberg 1995): a light the
+// weights underrate is still picked with probability >= uniformShare / count,
+// so its f cos Le / pdf stays bounded.
 template <class Weight>
 const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& lights, Weight&& weight, float u,
-                                       float& pdf) {
-    const auto clean = [&](const ecs::LightSnapshot& l) {
-        const float w = weight(l);
-        return std::isfinite(w) && w > 0.f ? w : 0.f;
-    };
-    double total = 0.0;
-    for (const ecs::LightSnapshot& l : lights) total += clean(l);
+                                       float& pdf, float uniformShare = 0.f) {
+    const auto [total, count] = pickWeightTotal(lights, weight);
     pdf = 0.f;
     if (!(total > 0.0)) return nullptr;
-    const double target = double(u) * total;
+    // Step: which of the two strategies, and u rescaled to [0, 1) within it.
+    const double share = effectiveUniformShare(uniformShare, count);
+    const bool uniform = double(u) < share;
+    const double v = uniform ? double(u) / share : (double(u) - share) / (1.0 - share);
+    const double target = v * (uniform ? double(count) : total);
     double running = 0.0;
     const ecs::LightSnapshot* chosen = nullptr;
     float chosenWeight = 0.f;
     for (const ecs::LightSnapshot& l : lights) {
-        const float w = clean(l);
+        const float w = cleanPickWeight(weight, l);
         if (w <= 0.f) continue;
         chosen = &l;  // rounding can leave target at the very end: the last contributing light
         chosenWeight = w;
-        running += w;
+        running += uniform ? 1.0 : double(w);
         if (target < running) break;
     }
-    pdf = static_cast<float>(chosenWeight / total);
+    // Step: the mixture's pdf of the light picked (either strategy could have picked it).
+    pdf = static_cast<float>((1.0 - share) * (chosenWeight / total) + share / double(count));
     return chosen;
 }
 
-// One light picked among all lights by importance (area lights weighted by
-// intensity x area / distance^2); nullptr when none contributes. `pdf` is
-// the pick probability.
+// The probability with which pickByWeight (same weights and share) picks `light`.
+template <class Weight>
+float pickPdfByWeight(const std::vector<ecs::LightSnapshot>& lights, Weight&& weight, const ecs::LightSnapshot& light,
+                      float uniformShare = 0.f) {
+    const auto [total, count] = pickWeightTotal(lights, weight);
+    const float w = cleanPickWeight(weight, light);
+    if (!(total > 0.0) || !(w > 0.f)) return 0.f;
+    const double share = effectiveUniformShare(uniformShare, count);
+    return static_cast<float>((1.0 - share) * (w / total) + share / double(count));
+}
+
+// The importance pickLight gives a light at a surface point: for point,
+// spot and directional lights pointLightImportance; for area lights
+// intensity x area / distance^2 (an overestimate near their plane), 0 where
+// the light is wholly below the surface or the point behind a one-sided panel.
+float lightPickWeight(const ecs::LightSnapshot& light, const ShadingPoint& sp);
+// The share of pickLight's probability spread evenly over the lights of
+// non-zero weight: bounds what a light the weights underrate costs.
+inline constexpr float kDefensiveLightPickShare = 0.1f;
+// One light picked among all lights by lightPickWeight, mixed with
+// kDefensiveLightPickShare of a uniform pick; nullptr when none contributes.
+// `pdf` is the pick probability.
 const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf);
+// The probability with which pickLight picks `light` at sp (0 if never).
+float lightPickPdf(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, const ecs::LightSnapshot& light);
 
 }  // namespace rtlab::shaders::detail

@@ -111,33 +111,76 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         }
         return;
     }
-    // Step: emission at the hit, and one light picked by importance with its shadow query.
+    // Step: emission at the hit, and one light picked by importance with its
+    // shadow query. At a glossy hit (roughness in [kLobeMisFromRoughness,
+    // kLobeMisBelowRoughness)) an area light's sample is weighted by MIS
+    // against one specular-lobe sample (dimensions 3, 4), which counts where
+    // its ray meets an area light (below): the light's highlight comes from
+    // the lobe's samples, not from rare light points of huge f / pdf.
+    const auto glossy = [&](const ShadingPoint& sp) {
+        return sp.roughness >= kLobeMisFromRoughness && sp.roughness < kLobeMisBelowRoughness;
+    };
+    std::vector<BrdfSample> lobeSample(n);
     counters.add(ctx.pipeline().dispatchCoherent(
         grid.width, grid.height, args,
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
             const std::size_t i = index(x, y);
             const HitPayload& h = hits[i];
+            lightContribution[i] = vec3(0.f);
             if (!h.hit) return std::nullopt;
             const ecs::Material& m = ctx.material(h.material);
             radiance[i] += weight[i] * m.emissive;
             const ShadingPoint sp = shadingPointOf(h, m, -incoming[i]);
             const SampleKey key = ctx.key(i, sample, hitStream);
+            if (glossy(sp)) lobeSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 3), sampleUniform(key, 4)));
             float pickPdf = 0.f;
             const ecs::LightSnapshot* light = pickLight(ctx.scene, sp, sampleUniform(key, 0), pickPdf);
             if (!light) return std::nullopt;
-            const LightSample ls = light->light.isArea()
-                                       ? sampleAreaLight(*light, sp.position,
-                                                         vec2(sampleUniform(key, 1), sampleUniform(key, 2)))
-                                       : pointLightSample(*light, sp.position);
+            const bool area = light->light.isArea();
+            const LightSample ls = area ? sampleAreaLight(*light, sp.position,
+                                                          vec2(sampleUniform(key, 1), sampleUniform(key, 2)))
+                                        : pointLightSample(*light, sp.position);
             if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
+            const float mis =
+                area && glossy(sp) ? powerHeuristic(1, pickPdf * ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;
+            if (!(mis > 0.f)) return std::nullopt;
             const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
-            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pickPdf *
+            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf * (mis / pickPdf) *
                                    ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
                                                      stream::transmittance(hitStream, 0));
             if (!isFinite(lightContribution[i])) return std::nullopt;
             return ray;
         },
         unoccluded, tracer::RayCoherence::Incoherent));
+    // Step: the specular-lobe samples, one shadow dispatch per area light
+    // (lights are not geometry: each one the ray passes through counts).
+    for (const ecs::LightSnapshot& light : ctx.scene.lights) {
+        if (!light.light.isArea() || !emits(light)) continue;
+        counters.add(ctx.pipeline().dispatchCoherent(
+            grid.width, grid.height, args,
+            [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                const std::size_t i = index(x, y);
+                lightContribution[i] = vec3(0.f);
+                const BrdfSample& b = lobeSample[i];
+                if (!b.valid) return std::nullopt;
+                const HitPayload& h = hits[i];
+                const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
+                const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
+                if (!lh.valid) return std::nullopt;
+                const float mis = powerHeuristic(1, b.pdf, 1, lightPickPdf(ctx.scene, sp, light) * lh.pdf);
+                if (!(mis > 0.f)) return std::nullopt;
+                LightSample target;
+                target.direction = b.direction;
+                target.distance = lh.distance;
+                const tracer::RayDesc ray = shadowRayToward(target, sp.position, sp.geometricNormal, sp.errorScale);
+                lightContribution[i] = weight[i] * evalBrdfCos(sp, b.direction) * lh.radiance * (mis / b.pdf) *
+                                       ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
+                                                         stream::transmittance(hitStream, 2));
+                if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
+                return ray;
+            },
+            unoccluded, tracer::RayCoherence::Incoherent));
+    }
 }
 
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,

@@ -37,9 +37,24 @@ RayGrid imageGrid(const RenderContext& ctx);
 void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<SecondaryRay>& rays, RayType rayType,
                     std::vector<HitPayload>& hits, tracer::TraceCounters& counters);
 
+// An indirect hit's picked area-light sample is combined by MIS with one
+// sample of the hit's specular lobe where kLobeMisFromRoughness <= roughness
+// < kLobeMisBelowRoughness. Rougher lobes gain little (showcase GI: the same
+// errors with every hit included). Mirrors and glass are left out: their lobe
+// sample would add the caustics of lights seen in them (light -> mirror ->
+// the surface that cast the indirect ray), rare and bright samples that
+// light points alone never find (their f is 0 off the mirror direction), so
+// the indirect estimators leave those caustics out, as before. With them,
+// showcase GI (96x54) after 8 / 64 frames was 0.00361 / 0.00112 instead of
+// 0.00318 / 0.000826, the raw 64-frame mean 0.0134 instead of 0.00895.
+inline constexpr float kLobeMisFromRoughness = 0.05f;
+inline constexpr float kLobeMisBelowRoughness = 0.5f;
+
 // Outgoing radiance toward -incoming[i] at every hit: emission + one light
-// picked by importance with its shadow ray (type kRayShadow), times
-// weight[i], added to radiance[i]. `hitStream` (namespace stream) keys the
+// picked by importance with its shadow ray (type kRayShadow), at a glossy hit
+// (kLobeMisBelowRoughness) combined by MIS with one specular-lobe sample per
+// hit that counts where it meets an area light (a shadow dispatch per area
+// light), times weight[i], added to radiance[i]. `hitStream` (namespace stream) keys the
 // random numbers. everyLight: every emitting light instead, no pick noise:
 // a point/spot/directional light by one shadow ray; an area light by one
 // point on it and one sample of the specular lobe per hit, combined by MIS
