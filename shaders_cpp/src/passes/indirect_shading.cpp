@@ -1,5 +1,7 @@
 #include "indirect_shading.hpp"
 
+#include <algorithm>
+
 namespace rtlab::shaders::detail {
 
 RayGrid imageGrid(const RenderContext& ctx) { return RayGrid{ctx.width, ctx.height}; }
@@ -154,6 +156,7 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         unoccluded, tracer::RayCoherence::Incoherent));
     // Step: the specular-lobe samples, one shadow dispatch per area light
     // (lights are not geometry: each one the ray passes through counts).
+    if (std::none_of(lobeSample.begin(), lobeSample.end(), [](const BrdfSample& b) { return b.valid; })) return;
     for (const ecs::LightSnapshot& light : ctx.scene.lights) {
         if (!light.light.isArea() || !emits(light)) continue;
         counters.add(ctx.pipeline().dispatchCoherent(
