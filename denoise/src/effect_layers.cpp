@@ -146,7 +146,11 @@ StackParams StackParams::svgfAuto() {
     // c = 2 is 6 % above c = 3 after 8 frames and meets 1/4 after 64. Its
     // grain at 640x360 after 12 frames (mean |L - its 8 neighbours' mean| of
     // the 8-bit luminance, `rtlab render --frames 12 --effects gi`) is 0.92
-    // (c = 3: 0.85; the samples of before with c = 3: 1.08).
+    // (c = 3: 0.85; the samples of before with c = 3: 1.08). The other SVGF
+    // stacks hardly move (`rtlab converge --width 160 --height 90
+    // --reference-spp 2048 --max-spp 1 --denoise-max-spp 1 --frames 64`, 8 /
+    // 64 frames): translucency c = 3 1.09e-4 / 2.34e-5, c = 2 1.08e-4 /
+    // 2.31e-5; volumes c = 3 1.39e-4 / 3.96e-5, c = 2 1.43e-4 / 3.96e-5.
     p.svgf.staticShrinkSigma2 = 2.f;
     p.svgf.staticShrinkOwnSigma2 = 2.f;
     p.svgf.staticReachExponent = 0.5f;

@@ -505,7 +505,8 @@ float lightPickWeight(const ecs::LightSnapshot& l, const ShadingPoint& sp) {
     } else {
         above = glm::dot(sp.normal, d) > -l.light.radius;
     }
-    return above ? luminance(emitted(l)) * lightArea(l) / dist2 : 0.f;
+    const float area = l.light.type == ecs::LightType::Rect ? rectWorldArea(l) : lightArea(l);
+    return above ? luminance(emitted(l)) * area / dist2 : 0.f;
 }
 
 const ecs::LightSnapshot* pickLight(const ecs::SceneSnapshot& scene, const ShadingPoint& sp, float u, float& pdf) {

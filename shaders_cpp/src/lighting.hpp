@@ -100,8 +100,10 @@ float penumbraWidth(const ecs::LightSnapshot& light, const vec3& p, float occlud
 LightSample pointLightSample(const ecs::LightSnapshot& light, const vec3& p);
 // Importance of a point/spot/directional light for a surface: its
 // irradiance (intensity x cos / distance^2) plus pi x the specular lobe's
-// response toward it, so that f cos Le / importance <= 1 / pi for any lobe
-// (a glossy highlight is never a rare pick); zero out of range or facing away.
+// response toward it, so that a glossy highlight is never a rare pick: for a
+// white light f cos Le / importance <= 1 / pi for any lobe (coloured light
+// on a coloured lobe can exceed it, by at most 1 / the smallest luminance
+// weight, 0.0722); zero out of range or facing away.
 float pointLightImportance(const ecs::LightSnapshot& light, const ShadingPoint& sp);
 
 // The unshadowed direct light of one area light (the shadow pass's

@@ -21,16 +21,17 @@ inline constexpr std::uint32_t kAreaLight = 0x100;         // + area-light index
 inline constexpr std::uint32_t kPointLightPick = 0x200;    // importance pick among point lights (0); + 1 + j: point light j when every one is traced
 inline constexpr std::uint32_t kAmbientOcclusion = 0x300;  // direction (0, 1)
 inline constexpr std::uint32_t kGiBounce = 0x400;          // direction (0, 1)
-inline constexpr std::uint32_t kGiHit = 0x410;             // light pick and point at the GI hit (0, 1, 2)
+inline constexpr std::uint32_t kGiHit = 0x410;             // light pick and point at the GI hit (0, 1, 2), glossy lobe (3, 4)
 inline constexpr std::uint32_t kReflection = 0x500;        // visible normal (0, 1)
 inline constexpr std::uint32_t kReflectionHit = 0x510;     // at the reflection hit: specular-lobe direction (1, 2), light l's point (3 + 2l, 4 + 2l)
 inline constexpr std::uint32_t kTranslucency = 0x600;      // + event depth: Fresnel choice (0)
-inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;   // light at the opaque end (0, 1, 2)
+inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;   // light at the opaque end (0, 1, 2), glossy lobe (3, 4)
 inline constexpr std::uint32_t kVolumeScatter = 0x700;     // distance, light pick, light point (0 .. 3)
-inline constexpr std::uint32_t kDdgiHit = 0x800;           // light at a probe ray's hit (0, 1, 2)
+inline constexpr std::uint32_t kDdgiHit = 0x800;           // light at a probe ray's hit (0, 1, 2), glossy lobe (3, 4)
 inline constexpr std::uint32_t kPathBounce = 0x900;        // + path vertex: lobe choice (0), direction (1, 2)
-inline constexpr std::uint32_t kPathHit = 0xa00;           // + path vertex: light pick and point there (0, 1, 2)
-// Fog transmittance along a ray of stream s: kTransmittance + 4 s + segment (dimensions 0 .. 255).
+inline constexpr std::uint32_t kPathHit = 0xa00;           // + path vertex: light pick and point there (0, 1, 2), glossy lobe (3, 4)
+// Fog transmittance along a ray of stream s: kTransmittance + 4 s + segment (dimensions 0 .. 255);
+// at hits: 0 the light's shadow ray, 1 the ray to the hit, 2 the lobe sample's shadow ray.
 inline constexpr std::uint32_t kTransmittance = 0x10000;
 constexpr std::uint32_t transmittance(std::uint32_t s, std::uint32_t segment = 0) { return kTransmittance + 4 * s + segment; }
 }  // namespace stream

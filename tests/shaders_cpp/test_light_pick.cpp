@@ -145,12 +145,22 @@ TEST(LightPick, APanelDoesNotTakeThePickFromBehind) {
     const ecs::LightSnapshot* picked = pickLight(scene, ceiling, 0.3f, pdf);
     EXPECT_EQ(picked, &scene.lights[1]);
     EXPECT_EQ(pdf, 1.f);
-    // Below the panel's plane the panel is picked by its weight again.
+    EXPECT_EQ(lightPickPdf(scene, ceiling, scene.lights[0]), 0.f);
+    // Below the panel's plane the panel is picked by its weight again: u = 0.15
+    // lies past the uniform share (0.1), in the weighted part.
     const ShadingPoint wall = surface(vec3(3.9f, 4.f, 0.f), vec3(-1.f, 0.f, 0.f), vec3(-1.f, 0.f, 0.f), 0.7f, 1.f, 0.f);
-    picked = pickLight(scene, wall, 0.f, pdf);
+    ASSERT_LT(kDefensiveLightPickShare, 0.15f);
+    picked = pickLight(scene, wall, 0.15f, pdf);
     EXPECT_EQ(picked, &scene.lights[0]);
-    EXPECT_GT(pdf, 0.f);
-    EXPECT_LT(pdf, 1.f);
+    const float w0 = lightPickWeight(scene.lights[0], wall), w1 = lightPickWeight(scene.lights[1], wall);
+    ASSERT_GT(w0, 0.f);
+    ASSERT_GT(w1, 0.f);
+    EXPECT_NEAR(pdf, (1.f - kDefensiveLightPickShare) * w0 / (w0 + w1) + kDefensiveLightPickShare / 2.f, 1e-6f);
+    // lightPickPdf (the lobe's MIS weight) returns exactly what pickLight reported.
+    EXPECT_EQ(lightPickPdf(scene, wall, scene.lights[0]), pdf);
+    picked = pickLight(scene, wall, 0.999f, pdf);
+    EXPECT_EQ(picked, &scene.lights[1]);
+    EXPECT_EQ(lightPickPdf(scene, wall, scene.lights[1]), pdf);
 }
 
 

@@ -5,7 +5,7 @@
 // most a quarter of its value after 8 frames, and after 12 frames no
 // effect shows a field of speckle (isolated outliers). Measured (relMSE
 // after 8 / 64 frames): shadows 0.000247 / 5.94e-5, reflections 3.1e-4 /
-// 4.3e-5, AO 0.00501 / 0.0011, GI 0.00683 / 0.0017 (docs/denoise.md has
+// 4.3e-5, AO 0.00501 / 0.0011, GI 0.00338 / 0.000833 (docs/denoise.md has
 // the history of these figures); before SvgfParams::convergeStatic
 // 0.00288 / 0.00306, 3.5e-4 / 3.5e-4, 0.0146 / 0.0151, 0.0065 / 0.0061
 // (reflections: with the reflected hit's light sampled without MIS, whose

@@ -170,7 +170,9 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
                 const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
                 const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
                 if (!lh.valid) return std::nullopt;
-                const float mis = powerHeuristic(1, b.pdf, 1, lightPickPdf(ctx.scene, sp, light) * lh.pdf);
+                // (the lobe's pdf as the light strategy's weight computes it, so the two weights are exact complements)
+                const float mis =
+                    powerHeuristic(1, specularLobePdf(sp, b.direction), 1, lightPickPdf(ctx.scene, sp, light) * lh.pdf);
                 if (!(mis > 0.f)) return std::nullopt;
                 LightSample target;
                 target.direction = b.direction;

@@ -129,7 +129,7 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                         if (traceEach)
                             return towardLight(i, g, sp, *pointLights[j], 1.f, s,
                                                stream::transmittance(stream::kPointLightPick + 1 + j));
-                        // Step: importance = intensity x orientation / distance^2 over the non-area lights.
+                        // Step: pick among the non-area lights by pointLightImportance.
                         const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kPointLightPick);
                         float pdf = 0.f;
                         const ecs::LightSnapshot* chosen = pickByWeight(
