@@ -33,6 +33,52 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         const std::size_t i = index(x, y);
         if (p.missed) radiance[i] += lightContribution[i];
     };
+    // The shadow ray of one weighted light sample from hit i; its contribution
+    // (path weight x f cos x Le / pdf x fog on fog segment `segment`) counts if unoccluded.
+    const auto shadowed = [&](std::size_t i, const ShadingPoint& sp, const LightSample& ls,
+                              std::uint32_t segment) -> std::optional<tracer::RayDesc> {
+        const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
+        lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf *
+                               ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
+                                                 stream::transmittance(hitStream, segment));
+        if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
+        return std::optional<tracer::RayDesc>(ray);
+    };
+    // One shadow ray per hit from `sampleFor(i, shading point)`, incoherent.
+    const auto traceFromHits = [&](auto&& sampleFor) {
+        counters.add(ctx.pipeline().dispatchCoherent(
+            grid.width, grid.height, args,
+            [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
+                const std::size_t i = index(x, y);
+                lightContribution[i] = vec3(0.f);
+                const HitPayload& h = hits[i];
+                if (!h.hit) return std::nullopt;
+                return sampleFor(i, shadingPointOf(h, ctx.material(h.material), -incoming[i]));
+            },
+            unoccluded, tracer::RayCoherence::Incoherent));
+    };
+    // The specular-lobe sample of each hit (lobeSample), where its ray meets
+    // area light `light` (lights are not geometry: each one the ray passes
+    // through counts, behind its own shadow ray), weighted by MIS (power
+    // heuristic) against the light's own strategy, whose pdf is
+    // pickPdf(shading point) x the light's solid-angle pdf. Both weights use
+    // specularLobePdf, so they are exact complements.
+    std::vector<BrdfSample> lobeSample(n);
+    const auto lobeMeetingLight = [&](const ecs::LightSnapshot& light, auto&& pickPdf) {
+        traceFromHits([&](std::size_t i, const ShadingPoint& sp) -> std::optional<tracer::RayDesc> {
+            const BrdfSample& b = lobeSample[i];
+            if (!b.valid) return std::nullopt;
+            const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
+            if (!lh.valid) return std::nullopt;
+            const float mis = powerHeuristic(1, specularLobePdf(sp, b.direction), 1, pickPdf(sp) * lh.pdf);
+            if (!(mis > 0.f)) return std::nullopt;
+            LightSample target;
+            target.direction = b.direction;
+            target.distance = lh.distance;
+            target.radianceOverPdf = lh.radiance * (mis / b.pdf);
+            return shadowed(i, sp, target, 2);
+        });
+    };
     if (everyLight) {
         // Every emitting light, no pick. A point, spot or directional light:
         // one shadow ray toward it. An area light: two strategies combined by
@@ -43,38 +89,13 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         // glossy hit's highlight of a light larger than its lobe then comes
         // from the lobe's samples, not from rare light points of huge f / pdf
         // (nor from the rare pick of the specular lobe of the whole BRDF).
-        std::vector<BrdfSample> brdfSample(n);
         for (std::size_t i = 0; i < n; ++i) {
             if (!hits[i].hit) continue;
             radiance[i] += weight[i] * ctx.material(hits[i].material).emissive;
             const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
             const SampleKey key = ctx.key(i, sample, hitStream);
-            brdfSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
+            lobeSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
         }
-        // The shadow ray of one weighted light sample from hit i; its contribution
-        // (path weight x f cos x Le / pdf x fog on fog segment `segment`) counts if unoccluded.
-        const auto shadowed = [&](std::size_t i, const ShadingPoint& sp, const LightSample& ls,
-                                  std::uint32_t segment) -> std::optional<tracer::RayDesc> {
-            const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
-            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf *
-                                   ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
-                                                     stream::transmittance(hitStream, segment));
-            if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
-            return std::optional<tracer::RayDesc>(ray);
-        };
-        // One shadow ray per hit from `sampleFor(i, shading point)`, incoherent.
-        const auto traceFromHits = [&](auto&& sampleFor) {
-            counters.add(ctx.pipeline().dispatchCoherent(
-                grid.width, grid.height, args,
-                [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-                    const std::size_t i = index(x, y);
-                    lightContribution[i] = vec3(0.f);
-                    const HitPayload& h = hits[i];
-                    if (!h.hit) return std::nullopt;
-                    return sampleFor(i, shadingPointOf(h, ctx.material(h.material), -incoming[i]));
-                },
-                unoccluded, tracer::RayCoherence::Incoherent));
-        };
         for (std::size_t l = 0; l < ctx.scene.lights.size(); ++l) {
             const ecs::LightSnapshot& light = ctx.scene.lights[l];
             if (!emits(light)) continue;
@@ -94,22 +115,8 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
                 return shadowed(i, sp, weighted, 0);
             });
             if (!light.light.isArea()) continue;
-            // Step: the specular-lobe sample, where its ray meets this light (lights are
-            // not geometry: each one the ray passes through counts, behind
-            // its own shadow ray).
-            traceFromHits([&](std::size_t i, const ShadingPoint& sp) -> std::optional<tracer::RayDesc> {
-                const BrdfSample& b = brdfSample[i];
-                if (!b.valid) return std::nullopt;
-                const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
-                if (!lh.valid) return std::nullopt;
-                const float mis = powerHeuristic(1, b.pdf, 1, lh.pdf);
-                if (!(mis > 0.f)) return std::nullopt;
-                LightSample target;
-                target.direction = b.direction;
-                target.distance = lh.distance;
-                target.radianceOverPdf = lh.radiance * (mis / b.pdf);
-                return shadowed(i, sp, target, 2);
-            });
+            // Step: the specular-lobe sample, where its ray meets this light.
+            lobeMeetingLight(light, [](const ShadingPoint&) { return 1.f; });
         }
         return;
     }
@@ -122,7 +129,6 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
     const auto glossy = [&](const ShadingPoint& sp) {
         return sp.roughness >= kLobeMisFromRoughness && sp.roughness < kLobeMisBelowRoughness;
     };
-    std::vector<BrdfSample> lobeSample(n);
     counters.add(ctx.pipeline().dispatchCoherent(
         grid.width, grid.height, args,
         [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
@@ -154,38 +160,11 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             return ray;
         },
         unoccluded, tracer::RayCoherence::Incoherent));
-    // Step: the specular-lobe samples, one shadow dispatch per area light
-    // (lights are not geometry: each one the ray passes through counts).
+    // Step: the specular-lobe samples, one shadow dispatch per area light.
     if (std::none_of(lobeSample.begin(), lobeSample.end(), [](const BrdfSample& b) { return b.valid; })) return;
-    for (const ecs::LightSnapshot& light : ctx.scene.lights) {
-        if (!light.light.isArea() || !emits(light)) continue;
-        counters.add(ctx.pipeline().dispatchCoherent(
-            grid.width, grid.height, args,
-            [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-                const std::size_t i = index(x, y);
-                lightContribution[i] = vec3(0.f);
-                const BrdfSample& b = lobeSample[i];
-                if (!b.valid) return std::nullopt;
-                const HitPayload& h = hits[i];
-                const ShadingPoint sp = shadingPointOf(h, ctx.material(h.material), -incoming[i]);
-                const AreaLightHit lh = intersectAreaLight(light, sp.position, b.direction);
-                if (!lh.valid) return std::nullopt;
-                // (the lobe's pdf as the light strategy's weight computes it, so the two weights are exact complements)
-                const float mis =
-                    powerHeuristic(1, specularLobePdf(sp, b.direction), 1, lightPickPdf(ctx.scene, sp, light) * lh.pdf);
-                if (!(mis > 0.f)) return std::nullopt;
-                LightSample target;
-                target.direction = b.direction;
-                target.distance = lh.distance;
-                const tracer::RayDesc ray = shadowRayToward(target, sp.position, sp.geometricNormal, sp.errorScale);
-                lightContribution[i] = weight[i] * evalBrdfCos(sp, b.direction) * lh.radiance * (mis / b.pdf) *
-                                       ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
-                                                         stream::transmittance(hitStream, 2));
-                if (!isFinite(lightContribution[i]) || lightContribution[i] == vec3(0.f)) return std::nullopt;
-                return ray;
-            },
-            unoccluded, tracer::RayCoherence::Incoherent));
-    }
+    for (const ecs::LightSnapshot& light : ctx.scene.lights)
+        if (light.light.isArea() && emits(light))
+            lobeMeetingLight(light, [&](const ShadingPoint& sp) { return lightPickPdf(ctx.scene, sp, light); });
 }
 
 void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>& rays, RayType rayType,
