@@ -156,6 +156,11 @@ inline double effectiveUniformShare(float uniformShare, std::size_t count) {
     return count > 1 ? std::clamp(double(uniformShare), 0.0, 1.0) : 0.0;
 }
 
+// The pick probability of a light of weight w: (1 - share) w / total + share / count.
+inline float mixturePickPdf(float w, double total, std::size_t count, double share) {
+    return static_cast<float>((1.0 - share) * (double(w) / total) + share / double(count));
+}
+
 // One light of `lights` picked with probability weight(light) / sum of
 // weights (non-finite or negative weights count as 0); nullptr when every
 // weight is 0. `pdf` is the pick probability. Deterministic, any number of
@@ -187,7 +192,7 @@ const ecs::LightSnapshot* pickByWeight(const std::vector<ecs::LightSnapshot>& li
         if (target < running) break;
     }
     // Step: the mixture's pdf of the light picked (either strategy could have picked it).
-    pdf = static_cast<float>((1.0 - share) * (chosenWeight / total) + share / double(count));
+    pdf = mixturePickPdf(chosenWeight, total, count, share);
     return chosen;
 }
 
@@ -198,8 +203,7 @@ float pickPdfByWeight(const std::vector<ecs::LightSnapshot>& lights, Weight&& we
     const auto [total, count] = pickWeightTotal(lights, weight);
     const float w = cleanPickWeight(weight, light);
     if (!(total > 0.0) || !(w > 0.f)) return 0.f;
-    const double share = effectiveUniformShare(uniformShare, count);
-    return static_cast<float>((1.0 - share) * (w / total) + share / double(count));
+    return mixturePickPdf(w, total, count, effectiveUniformShare(uniformShare, count));
 }
 
 // The importance pickLight gives a light at a surface point: for point,

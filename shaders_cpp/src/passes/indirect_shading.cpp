@@ -152,12 +152,9 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             const float mis =
                 area && glossy(sp) ? powerHeuristic(1, pickPdf * ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;
             if (!(mis > 0.f)) return std::nullopt;
-            const tracer::RayDesc ray = shadowRayToward(ls, sp.position, sp.geometricNormal, sp.errorScale);
-            lightContribution[i] = weight[i] * evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf * (mis / pickPdf) *
-                                   ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, sample,
-                                                     stream::transmittance(hitStream, 0));
-            if (!isFinite(lightContribution[i])) return std::nullopt;
-            return ray;
+            LightSample weighted = ls;
+            weighted.radianceOverPdf *= mis / pickPdf;
+            return shadowed(i, sp, weighted, 0);
         },
         unoccluded, tracer::RayCoherence::Incoherent));
     // Step: the specular-lobe samples, one shadow dispatch per area light.
