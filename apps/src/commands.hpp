@@ -6,6 +6,7 @@
 #include <rtlab/tracer/pipeline.hpp>
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
+#include <rtlab/shaders_cpp/frame_renderer.hpp>
 
 #include <cstdint>
 #include <string>
@@ -35,13 +36,14 @@ struct RenderOptions {
     std::string gi = "path";                // --gi path|ddgi
     float reflectionRoughness = 0.3f;       // --reflection-roughness: reflections where roughness <= this
     float aoRadius = 1.0f;                  // --ao-radius (world units)
+    int aoContactSamples = shaders::RenderSettings{}.aoContactExtraSamples;  // --ao-contact-samples
     int maxTranslucencyDepth = 8;           // --max-translucency-depth
     int maxDepth = 4;                       // --max-depth: path-tracer bounces (--effects pathtrace)
     std::string recordRays;                 // --record-rays DIR: DIR/frame_NNNN.rays per frame
 };
 void addRenderCommand(CLI::App& app, RenderOptions& options);
-// --reflection-roughness and --ao-radius, shared by render and converge.
-void addEffectSettingOptions(CLI::App& command, float& reflectionRoughness, float& aoRadius);
+// --reflection-roughness, --ao-radius and --ao-contact-samples, shared by render and converge.
+void addEffectSettingOptions(CLI::App& command, float& reflectionRoughness, float& aoRadius, int& aoContactSamples);
 int runRender(const RenderOptions& options);
 
 // --backend embree|rtcore, --rtcore-config FILE and --rtcore-set k=v..., shared by render and replay.
@@ -110,6 +112,7 @@ struct ConvergeOptions {
     std::uint32_t seed = 0;
     float reflectionRoughness = 0.3f;
     float aoRadius = 1.0f;
+    int aoContactSamples = shaders::RenderSettings{}.aoContactExtraSamples;
 };
 void addConvergeCommand(CLI::App& app, ConvergeOptions& options);
 int runConverge(const ConvergeOptions& options);

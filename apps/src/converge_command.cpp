@@ -53,7 +53,7 @@ void addConvergeCommand(CLI::App& app, ConvergeOptions& o) {
         ->capture_default_str();
     cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
     cmd->add_option("--seed", o.seed, "Random seed (the reference uses a different, derived seed)")->capture_default_str();
-    addEffectSettingOptions(*cmd, o.reflectionRoughness, o.aoRadius);
+    addEffectSettingOptions(*cmd, o.reflectionRoughness, o.aoRadius, o.aoContactSamples);
 }
 
 namespace {
@@ -193,6 +193,7 @@ int runConverge(const ConvergeOptions& o) {
         s.frame = frame;
         s.seed = seed;
         s.aoRadius = o.aoRadius;
+        s.aoContactExtraSamples = o.aoContactSamples;
         return s;
     };
     const auto render = [&](const shaders::RenderSettings& s, shaders::FrameHistory& history, double& ms) {
@@ -202,7 +203,9 @@ int runConverge(const ConvergeOptions& o) {
         return std::move(frame.image);
     };
 
-    // Step: the reference, from the cache or accumulated now.
+    // Step: the reference, from the cache or accumulated now. The key leaves
+    // out --ao-contact-samples: it spreads the reference's samples
+    // differently, not what they converge to (the estimate is unbiased).
     std::ostringstream key;
     key << sceneIdentity(o.scene) << "|" << o.effect << "|" << w << "x" << h << "|" << o.referenceSpp << "|" << o.seed
         << "|" << formatDouble(o.reflectionRoughness, "%.9g") << "|" << formatDouble(o.aoRadius, "%.9g");
@@ -403,7 +406,8 @@ int runConverge(const ConvergeOptions& o) {
     j["settings"] = {{"width", w}, {"height", h}, {"referenceSpp", o.referenceSpp}, {"maxSpp", o.maxSpp},
                      {"denoiseMaxSpp", o.denoiseMaxSpp}, {"frames", o.frames}, {"threads", o.threads},
                      {"threadsUsed", static_cast<int>(tbb::this_task_arena::max_concurrency())},
-                     {"seed", o.seed}, {"reflectionRoughness", o.reflectionRoughness}, {"aoRadius", o.aoRadius}};
+                     {"seed", o.seed}, {"reflectionRoughness", o.reflectionRoughness}, {"aoRadius", o.aoRadius},
+                     {"aoContactSamples", o.aoContactSamples}};
     j["reference"] = {{"file", cacheFile.string()}, {"cached", referenceCached}, {"ms", referenceMs},
                       {"seed", o.seed ^ kReferenceSeedSalt}};
     j["plan"] = planJson;

@@ -27,12 +27,17 @@
 
 namespace rtlab::app {
 
-void addEffectSettingOptions(CLI::App& cmd, float& reflectionRoughness, float& aoRadius) {
+void addEffectSettingOptions(CLI::App& cmd, float& reflectionRoughness, float& aoRadius, int& aoContactSamples) {
     cmd.add_option("--reflection-roughness", reflectionRoughness, "Reflections trace where roughness <= this")
         ->check(CLI::Range(0.f, 1.f))
         ->capture_default_str();
     cmd.add_option("--ao-radius", aoRadius, "Ambient-occlusion ray length (world units)")
         ->check(CLI::Range(0.f, 1e30f))
+        ->capture_default_str();
+    cmd.add_option("--ao-contact-samples", aoContactSamples,
+                   "More AO samples per sample at pixels next to a contact (an occluder nearer than a quarter of "
+                   "--ao-radius within 2 pixels); 0 = the same count everywhere")
+        ->check(CLI::Range(0, 1024))
         ->capture_default_str();
 }
 
@@ -70,7 +75,7 @@ void addRenderCommand(CLI::App& app, RenderOptions& o) {
                                             "(gbuffer alone: primary rays only)")
         ->capture_default_str();
     cmd->add_option("--gi", o.gi, "Diffuse GI technique")->check(CLI::IsMember({"path", "ddgi"}))->capture_default_str();
-    addEffectSettingOptions(*cmd, o.reflectionRoughness, o.aoRadius);
+    addEffectSettingOptions(*cmd, o.reflectionRoughness, o.aoRadius, o.aoContactSamples);
     cmd->add_option("--max-translucency-depth", o.maxTranslucencyDepth,
                     "Refraction/reflection events along a translucent path")
         ->check(CLI::Range(1, 64))
@@ -220,6 +225,7 @@ int runRender(const RenderOptions& o) {
     stats["settings"]["gi"] = o.gi;
     stats["settings"]["reflectionRoughness"] = o.reflectionRoughness;
     stats["settings"]["aoRadius"] = o.aoRadius;
+    stats["settings"]["aoContactSamples"] = o.aoContactSamples;
     stats["settings"]["maxTranslucencyDepth"] = o.maxTranslucencyDepth;
     stats["settings"]["maxDepth"] = o.maxDepth;
     stats["settings"]["denoise"] = o.denoise;
@@ -253,6 +259,7 @@ int runRender(const RenderOptions& o) {
         settings.frame = static_cast<std::uint32_t>(f);
         settings.seed = o.seed;
         settings.aoRadius = o.aoRadius;
+        settings.aoContactExtraSamples = o.aoContactSamples;
         settings.maxTranslucencyDepth = o.maxTranslucencyDepth;
         settings.pathMaxDepth = o.maxDepth;
         rtcore_sim::ModelUpdateStats modelStats;

@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace rtlab::shaders::detail {
@@ -164,6 +165,17 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
 // light to `direct`.
 std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct, tracer::TraceCounters& counters);
 std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::TraceCounters& counters);
+// AO contact sampling (RenderSettings::aoContactExtraSamples) looks this many
+// pixels around a pixel (a 5x5 window).
+inline constexpr int kAoContactWindow = 2;
+// The pixels that get contact samples: geometry pixels whose window holds
+// another pixel with occluderDistance (the mean over its samples, +inf for
+// none) below nearDistance. A pixel's own samples never decide whether it
+// gets more: a count that depended on them would bias its mean (more samples
+// after a near hit would pull it down); its neighbours' samples are
+// independent of its own.
+std::vector<std::uint8_t> aoContactPixels(int width, int height, std::span<const float> occluderDistance,
+                                          std::span<const std::uint8_t> geometry, float nearDistance);
 // Writes the irradiance (albedo demodulated) per pixel.
 std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vector<vec3>& irradiance,
                                         tracer::TraceCounters& counters);

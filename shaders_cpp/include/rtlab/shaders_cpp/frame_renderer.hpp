@@ -46,6 +46,12 @@ struct RenderSettings {
     tracer::TraversalBackend* backend = nullptr;  // nullptr = Embree
     bool recordRayOrder = false;  // FrameOutput::primaryRayPixels (order-dependent back ends only)
     float aoRadius = 1.0f;        // world units
+    // AO contact sampling: a pixel whose neighbourhood (5x5) saw an occluder
+    // nearer than aoContactFraction x aoRadius gets this many more AO samples
+    // per sample (0 = every pixel the same count). Contact creases are dark,
+    // so their noise weighs most, and the denoiser's footprint there is small.
+    int aoContactExtraSamples = 8;
+    float aoContactFraction = 0.25f;
     int maxTranslucencyDepth = 8; // refraction/reflection events along a translucent path
     float throughputCutoff = 1e-3f;  // a translucent path ends below this throughput
     float areaLightUnshadowedSamples = 16;  // samples of the unshadowed area-light estimate (no rays)
