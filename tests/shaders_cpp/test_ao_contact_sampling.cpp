@@ -5,6 +5,7 @@
 #include "../../shaders_cpp/src/render_context.hpp"
 
 #include <rtlab/ecs/load/mesh_builders.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
@@ -191,4 +192,28 @@ TEST(AoContactSampling, NeighboursOfANearOccluderButNotThePixelItself) {
         }
     // Not nearer than the threshold: nobody.
     for (const std::uint8_t f : detail::aoContactPixels(w, h, distance, geometry, 0.1f)) EXPECT_EQ(f, 0);
+}
+
+// Where contacts are everywhere (a hairball: nearly every pixel flagged) the
+// extra rays stay within the budget: AO traces at most three times its
+// uniform rays, and still more than them.
+TEST(AoContactSampling, ExtraRaysStayWithinTheBudget) {
+    ecs::World world;
+    ecs::load::loadScene(world, "builtin:hairball?triangles=20000");
+    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
+    tracer::AccelManager accel;
+    accel.update(scene);
+    PlanOptions options;
+    options.requested = {Pass::AmbientOcclusion};
+    const FramePlan plan = planFrame(scene, options);
+    RenderSettings s;
+    s.width = kWidth;
+    s.height = kHeight;
+    s.aoContactExtraSamples = 0;
+    const std::uint64_t uniform = aoRays(renderFrame(accel, scene, plan, s));
+    s.aoContactExtraSamples = 8;
+    const std::uint64_t contact = aoRays(renderFrame(accel, scene, plan, s));
+    ASSERT_GT(uniform, 100u);
+    EXPECT_GT(contact, uniform);
+    EXPECT_LE(contact, 3 * uniform);
 }
