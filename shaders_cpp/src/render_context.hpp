@@ -168,14 +168,20 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
 // AO contact sampling (RenderSettings::aoContactExtraSamples) looks this many
 // pixels around a pixel (a 5x5 window).
 inline constexpr int kAoContactWindow = 2;
-// The pixels that get contact samples: geometry pixels whose window holds
-// another pixel with occluderDistance (the mean over its samples, +inf for
-// none) below nearDistance. A pixel's own samples never decide whether it
-// gets more: a count that depended on them would bias its mean (more samples
-// after a near hit would pull it down); its neighbours' samples are
-// independent of its own.
-std::vector<std::uint8_t> aoContactPixels(int width, int height, std::span<const float> occluderDistance,
-                                          std::span<const std::uint8_t> geometry, float nearDistance);
+// The contact samples per sample of each pixel: perSample for geometry
+// pixels whose window holds another pixel with occluderDistance (the mean
+// over its samples, +inf for none) below nearDistance, else 0; lowered where
+// needed so that the counts sum to at most budgetPerPixel x the geometry
+// pixels. A pixel's own samples never decide its count: a count that
+// depended on them would bias its mean (more samples after a near hit would
+// pull it down). Its neighbours' samples are independent of its own, and the
+// budget's share is computed as if its own samples had seen no near
+// occluder (the pixels that only it flags are taken off the flagged count,
+// and the most it could flag added back). Throws std::invalid_argument when
+// the buffers do not match width x height.
+std::vector<std::uint32_t> aoContactSampleCounts(int width, int height, std::span<const float> occluderDistance,
+                                                 std::span<const std::uint8_t> geometry, float nearDistance,
+                                                 std::uint32_t perSample, std::size_t budgetPerPixel);
 // Writes the irradiance (albedo demodulated) per pixel.
 std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vector<vec3>& irradiance,
                                         tracer::TraceCounters& counters);

@@ -8,37 +8,65 @@
 #include "../lighting.hpp"
 
 #include <rtlab/core/parallel.hpp>
-#include <utility>
+#include <stdexcept>
 
 namespace rtlab::shaders::detail {
 
-std::vector<std::uint8_t> aoContactPixels(int width, int height, std::span<const float> occluderDistance,
-                                          std::span<const std::uint8_t> geometry, float nearDistance) {
+std::vector<std::uint32_t> aoContactSampleCounts(int width, int height, std::span<const float> occluderDistance,
+                                                 std::span<const std::uint8_t> geometry, float nearDistance,
+                                                 std::uint32_t perSample, std::size_t budgetPerPixel) {
     const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-    std::vector<std::uint8_t> flagged(n, 0);
-    if (occluderDistance.size() != n || geometry.size() != n) return flagged;
+    if (occluderDistance.size() != n || geometry.size() != n)
+        throw std::invalid_argument("aoContactSampleCounts: buffers do not match the image size");
+    std::vector<std::uint32_t> counts(n, 0);
+    if (perSample == 0) return counts;
     const auto index = [&](int x, int y) { return static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + x; };
+    // Calls visit(qx, qy) for every other pixel of (x, y)'s window.
+    const auto forWindow = [&](int x, int y, auto&& visit) {
+        for (int qy = std::max(0, y - kAoContactWindow); qy <= std::min(height - 1, y + kAoContactWindow); ++qy)
+            for (int qx = std::max(0, x - kAoContactWindow); qx <= std::min(width - 1, x + kAoContactWindow); ++qx)
+                if (qx != x || qy != y) visit(qx, qy);
+    };
+    // Step: the sources (pixels that saw a near occluder) in each geometry pixel's window, itself left out.
+    std::vector<std::uint8_t> source(n), sources(n, 0);
+    for (std::size_t i = 0; i < n; ++i) source[i] = occluderDistance[i] < nearDistance;
+    parallelForEach(static_cast<std::size_t>(height), [&](std::size_t row) {
+        const int y = static_cast<int>(row);
+        for (int x = 0; x < width; ++x)
+            if (geometry[index(x, y)])
+                forWindow(x, y, [&](int qx, int qy) { sources[index(x, y)] += source[index(qx, qy)]; });
+    });
+    std::size_t geometryPixels = 0, flagged = 0;
+    for (std::size_t i = 0; i < n; ++i) geometryPixels += geometry[i] != 0, flagged += sources[i] != 0;
+    // Step: per flagged pixel, the count the budget affords, from the number
+    // of flagged pixels had its own samples seen no near occluder (those
+    // whose only source it is are taken off), plus the most it can flag
+    // (24): its own samples do not move its count, and the counts still sum
+    // to at most budgetPerPixel x the geometry pixels.
+    constexpr std::size_t kMostFlaggedByOne = (2 * kAoContactWindow + 1) * (2 * kAoContactWindow + 1) - 1;
     parallelForEach(static_cast<std::size_t>(height), [&](std::size_t row) {
         const int y = static_cast<int>(row);
         for (int x = 0; x < width; ++x) {
-            if (!geometry[index(x, y)]) continue;
-            bool found = false;
-            for (int qy = std::max(0, y - kAoContactWindow); qy <= std::min(height - 1, y + kAoContactWindow) && !found; ++qy)
-                for (int qx = std::max(0, x - kAoContactWindow); qx <= std::min(width - 1, x + kAoContactWindow) && !found; ++qx)
-                    found = (qx != x || qy != y) && occluderDistance[index(qx, qy)] < nearDistance;
-            flagged[index(x, y)] = found;
+            const std::size_t i = index(x, y);
+            if (!sources[i]) continue;
+            std::size_t onlyThroughMe = 0;
+            if (source[i])
+                forWindow(x, y, [&](int qx, int qy) { onlyThroughMe += sources[index(qx, qy)] == 1; });
+            const std::size_t others = flagged - onlyThroughMe + kMostFlaggedByOne;
+            counts[i] = static_cast<std::uint32_t>(std::min<std::size_t>(perSample, budgetPerPixel * geometryPixels / others));
         }
     });
-    return flagged;
+    return counts;
 }
 
 namespace {
 
-// The extra samples are traced on a grid this wide (item = row x width + column).
-constexpr int kListGridWidth = 64;
+// The flagged pixels are traced on a grid this wide (item = row x width +
+// column): a 16x16 tile of the dispatch is 256 consecutive pixels of the list.
+constexpr int kListGridWidth = 16;
 // At most this many contact samples per geometry pixel and sample on
 // average: where contacts are everywhere (a hairball, dense foliage) the
-// per-pixel count falls so that AO costs at most three times its uniform
+// per-pixel counts fall so that AO costs at most three times its uniform
 // rays (showcase flags 21 % of the pixels at 96x54, 12 % at 320x180).
 constexpr std::size_t kContactBudgetPerPixel = 2;
 
@@ -51,6 +79,7 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
     float* visibility = out.addChannel("ao.V", 1.f);
     float* hitT = out.addChannel("ao.hitT", 0.f);
     VisibilityTally tally(n);
+    std::uint64_t bytes = n * 2 * sizeof(float) + tally.bytes();
     // Sample s of pixel i: a cosine direction, or nullopt where nothing is traced.
     const auto aoRay = [&](std::size_t i, std::uint32_t s) -> std::optional<tracer::RayDesc> {
         const GPixel& g = ctx.gbuffer[i];
@@ -73,10 +102,10 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
             [&](int x, int y, const HitPayload& p) { tally.record(ctx.pixelIndex(x, y), p); },
             tracer::RayCoherence::Incoherent));
 
-    // Step: contact sampling. Samples spp .. spp + extra - 1 of the pixels
-    // near a contact, as one list (a pixel's samples adjacent, so a packet
-    // shares its origin); each result lands in its own slot and is tallied
-    // in sample order afterwards (the same sums for any thread count).
+    // Step: contact sampling. Samples spp .. spp + count - 1 of the pixels
+    // near a contact (aoContactSampleCounts), one dispatch per extra sample
+    // over the list of those pixels: a pixel appears once per dispatch, so
+    // its tally grows in sample order (the same sums for any thread count).
     const int perSample = std::max(ctx.settings.aoContactExtraSamples, 0);
     if (perSample > 0 && radius > 0.f) {
         // The mean occluder distance each pixel saw (+inf: none) decides its neighbours' counts.
@@ -86,51 +115,31 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
             geometry[i] = ctx.gbuffer[i].hit;
             if (tally.occluded[i]) occluderDistance[i] = tally.meanOccluderDistance(i, kInfinity);
         }
-        const std::vector<std::uint8_t> flagged =
-            aoContactPixels(ctx.width, ctx.height, occluderDistance, geometry,
-                            std::max(ctx.settings.aoContactFraction, 0.f) * radius);
-        // Step: within the budget, the same count for every flagged pixel.
-        std::size_t geometryPixels = 0, flaggedPixels = 0;
-        for (std::size_t i = 0; i < n; ++i) geometryPixels += geometry[i], flaggedPixels += flagged[i];
-        const std::size_t affordable =
-            flaggedPixels ? kContactBudgetPerPixel * geometryPixels / flaggedPixels : std::size_t(perSample);
-        const int extra = static_cast<int>(std::min<std::size_t>(std::size_t(perSample), affordable)) * spp;
-        // The list: (pixel, sample index), a pixel's samples adjacent.
-        std::vector<std::pair<std::uint32_t, std::uint32_t>> list;
+        const std::vector<std::uint32_t> counts = aoContactSampleCounts(
+            ctx.width, ctx.height, occluderDistance, geometry, std::max(ctx.settings.aoContactFraction, 0.f) * radius,
+            static_cast<std::uint32_t>(perSample), kContactBudgetPerPixel);
+        std::vector<std::uint32_t> pixels;  // the flagged pixels; a pixel's extra count is counts[i] x spp
+        std::uint32_t most = 0;
         for (std::size_t i = 0; i < n; ++i)
-            if (flagged[i])
-                for (int e = 0; e < extra; ++e)
-                    list.emplace_back(static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(spp + e));
-        const std::size_t items = list.size();
-        if (items > 0) {
-            struct Result {
-                bool traced = false, hit = false;
-                float t = 0.f;
-            };
-            std::vector<Result> results(items);
-            const int rows = static_cast<int>((items + kListGridWidth - 1) / kListGridWidth);
-            const auto itemOf = [&](int x, int y) { return static_cast<std::size_t>(y) * kListGridWidth + x; };
+            if (counts[i]) pixels.push_back(static_cast<std::uint32_t>(i)), most = std::max(most, counts[i]);
+        bytes += n * (sizeof(float) + sizeof(std::uint8_t) + sizeof(std::uint32_t)) + pixels.size() * sizeof(std::uint32_t);
+        const int rows = static_cast<int>((pixels.size() + kListGridWidth - 1) / kListGridWidth);
+        const auto pixelOf = [&](int x, int y) -> std::optional<std::size_t> {
+            const std::size_t item = static_cast<std::size_t>(y) * kListGridWidth + static_cast<std::size_t>(x);
+            return item < pixels.size() ? std::optional<std::size_t>(pixels[item]) : std::nullopt;
+        };
+        for (std::uint32_t e = 0; e < most * static_cast<std::uint32_t>(spp); ++e)
             counters.add(ctx.pipeline().dispatchCoherent(
                 kListGridWidth, rows, ctx.args(kRayOcclusion),
                 [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
-                    const std::size_t item = itemOf(x, y);
-                    if (item >= items) return std::nullopt;
-                    return aoRay(list[item].first, list[item].second);
+                    const std::optional<std::size_t> i = pixelOf(x, y);
+                    if (!i || e >= counts[*i] * static_cast<std::uint32_t>(spp)) return std::nullopt;
+                    std::optional<tracer::RayDesc> ray = aoRay(*i, static_cast<std::uint32_t>(spp) + e);
+                    if (ray) ++tally.tested[*i];
+                    return ray;
                 },
-                [&](int x, int y, const HitPayload& p) {
-                    results[itemOf(x, y)] = Result{true, p.hit, p.t};
-                },
+                [&](int x, int y, const HitPayload& p) { tally.record(*pixelOf(x, y), p); },
                 tracer::RayCoherence::Incoherent));
-            for (std::size_t item = 0; item < items; ++item) {
-                if (!results[item].traced) continue;
-                const std::size_t i = list[item].first;
-                HitPayload p;
-                p.hit = results[item].hit;
-                p.t = results[item].t;
-                ++tally.tested[i];
-                tally.record(i, p);
-            }
-        }
     }
 
     for (std::size_t i = 0; i < n; ++i) {
@@ -138,7 +147,7 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
         visibility[i] = tally.visibility(i);
         hitT[i] = tally.meanOccluderDistance(i, radius);
     }
-    return n * 2 * sizeof(float) + tally.bytes();
+    return bytes;
 }
 
 }  // namespace rtlab::shaders::detail
