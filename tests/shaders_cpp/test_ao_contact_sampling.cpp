@@ -25,28 +25,15 @@ namespace {
 
 constexpr int kWidth = 40, kHeight = 30;
 
-struct BoxOnFloor {
+// A world rendered with the AO pass alone at kWidth x kHeight.
+struct AoOnly {
     ecs::World world;
     ecs::SceneSnapshot scene;
     tracer::AccelManager accel;
     FramePlan plan;
 
-    BoxOnFloor() {
-        ecs::Material grey;
-        grey.baseColor = vec4(0.5f, 0.5f, 0.5f, 1.f);
-        const ecs::MaterialId m = world.addMaterial(grey);
-        const auto place = [&](ecs::Geometry g, const vec3& at) {
-            const ecs::Entity e = world.create();
-            world.emplace(e, ecs::LocalTransform{at, quat(1, 0, 0, 0), vec3(1.f)});
-            world.emplace(e, ecs::MeshInstance{world.addMesh(ecs::load::makeMesh("part", std::move(g)))});
-        };
-        place(ecs::load::makeGrid(40.f, 1, m), vec3(0.f));
-        place(ecs::load::makeBox(vec3(1.f), m), vec3(0.f, 0.5f, 0.f));
-        const ecs::Entity camera = world.create("camera");
-        const vec3 eye(2.2f, 1.8f, 2.6f), target(0.f, 0.3f, 0.f);
-        world.emplace(camera, ecs::LocalTransform{eye, orientationLookingAlong(target - eye), vec3(1.f)});
-        world.emplace(camera, ecs::Camera{0.9f, 0.01f, 1000.f, 0.f});
-        world.setActiveCamera(camera);
+    // After the world is built: its snapshot, acceleration structures and plan.
+    void prepare() {
         scene = ecs::makeSnapshot(world, world.update(0.f));
         accel.update(scene);
         PlanOptions options;
@@ -63,6 +50,27 @@ struct BoxOnFloor {
         s.aoRadius = 1.f;
         s.aoContactExtraSamples = contactSamples;
         return renderFrame(accel, scene, plan, s);
+    }
+};
+
+struct BoxOnFloor : AoOnly {
+    BoxOnFloor() {
+        ecs::Material grey;
+        grey.baseColor = vec4(0.5f, 0.5f, 0.5f, 1.f);
+        const ecs::MaterialId m = world.addMaterial(grey);
+        const auto place = [&](ecs::Geometry g, const vec3& at) {
+            const ecs::Entity e = world.create();
+            world.emplace(e, ecs::LocalTransform{at, quat(1, 0, 0, 0), vec3(1.f)});
+            world.emplace(e, ecs::MeshInstance{world.addMesh(ecs::load::makeMesh("part", std::move(g)))});
+        };
+        place(ecs::load::makeGrid(40.f, 1, m), vec3(0.f));
+        place(ecs::load::makeBox(vec3(1.f), m), vec3(0.f, 0.5f, 0.f));
+        const ecs::Entity camera = world.create("camera");
+        const vec3 eye(2.2f, 1.8f, 2.6f), target(0.f, 0.3f, 0.f);
+        world.emplace(camera, ecs::LocalTransform{eye, orientationLookingAlong(target - eye), vec3(1.f)});
+        world.emplace(camera, ecs::Camera{0.9f, 0.01f, 1000.f, 0.f});
+        world.setActiveCamera(camera);
+        prepare();
     }
 };
 
@@ -232,23 +240,12 @@ TEST(AoContactSampling, TheBudgetSplitsEvenlyAndIgnoresThePixelsOwnSamples) {
 // extra rays stay within the budget: AO traces at most three times its
 // uniform rays, and still more than them.
 TEST(AoContactSampling, ExtraRaysStayWithinTheBudget) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:hairball?triangles=20000");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
-    tracer::AccelManager accel;
-    accel.update(scene);
-    PlanOptions options;
-    options.requested = {Pass::AmbientOcclusion};
-    const FramePlan plan = planFrame(scene, options);
-    RenderSettings s;
-    s.width = kWidth;
-    s.height = kHeight;
-    s.aoContactExtraSamples = 0;
-    const std::uint64_t uniform = aoRays(renderFrame(accel, scene, plan, s));
-    s.aoContactExtraSamples = 8;
-    const std::uint64_t contact = aoRays(renderFrame(accel, scene, plan, s));
-    s.aoContactExtraSamples = 16;
-    const std::uint64_t more = aoRays(renderFrame(accel, scene, plan, s));
+    AoOnly hairball;
+    ecs::load::loadScene(hairball.world, "builtin:hairball?triangles=20000");
+    hairball.prepare();
+    const std::uint64_t uniform = aoRays(hairball.render(0, 0));
+    const std::uint64_t contact = aoRays(hairball.render(8, 0));
+    const std::uint64_t more = aoRays(hairball.render(16, 0));
     ASSERT_GT(uniform, 100u);
     EXPECT_GT(contact, uniform);
     EXPECT_LE(contact, 3 * uniform);
