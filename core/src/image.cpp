@@ -1,6 +1,7 @@
 // Image storage, atomic file writes and image comparison metrics.
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/parallel.hpp>
 
 #include <unistd.h>
 
@@ -69,31 +70,48 @@ std::vector<std::string> Image::channelNames() const {
     return names;
 }
 
-void Image::addRgbLayer(const std::string& layer, const std::vector<vec3>& pixels) {
-    if (pixels.size() != pixelCount())
-        throw std::invalid_argument("Image: layer '" + layer + "' has " + std::to_string(pixels.size()) +
-                                    " pixels, image has " + std::to_string(pixelCount()));
+std::array<float*, 3> Image::addRgbPlanes(const std::string& layer, float fill) {
     const std::string names[3] = {layerChannelName(layer, "R"), layerChannelName(layer, "G"),
                                   layerChannelName(layer, "B")};
     // Check all three first so a clash leaves the image unchanged.
     for (const std::string& name : names)
         if (hasChannel(name)) throw std::logic_error("Image: channel '" + name + "' already exists");
-    for (int c = 0; c < 3; ++c) {
-        float* out = addChannel(names[c]);
-        for (std::size_t i = 0; i < pixels.size(); ++i) out[i] = pixels[i][c];
-    }
+    // A channel's data moves with the Channel when channels_ grows: the buffer, not the floats.
+    return {addChannel(names[0], fill), addChannel(names[1], fill), addChannel(names[2], fill)};
+}
+
+std::array<const float*, 3> Image::rgbPlanes(const std::string& layer) const {
+    std::array<const float*, 3> planes = {channel(layerChannelName(layer, "R")), channel(layerChannelName(layer, "G")),
+                                          channel(layerChannelName(layer, "B"))};
+    if (!planes[0] || !planes[1] || !planes[2]) planes = {nullptr, nullptr, nullptr};
+    return planes;
+}
+
+void Image::addRgbLayer(const std::string& layer, const std::vector<vec3>& pixels) {
+    if (pixels.size() != pixelCount())
+        throw std::invalid_argument("Image: layer '" + layer + "' has " + std::to_string(pixels.size()) +
+                                    " pixels, image has " + std::to_string(pixelCount()));
+    const std::array<float*, 3> out = addRgbPlanes(layer);
+    parallelForChunks(pixels.size(), kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            out[0][i] = pixels[i].x;
+            out[1][i] = pixels[i].y;
+            out[2][i] = pixels[i].z;
+        }
+    });
 }
 
 std::vector<vec3> Image::rgbLayer(const std::string& layer) const {
-    const float* planes[3];
     const char* components[3] = {"R", "G", "B"};
-    for (int c = 0; c < 3; ++c) {
-        const std::string name = layerChannelName(layer, components[c]);
-        planes[c] = channel(name);
-        if (planes[c] == nullptr) throw std::out_of_range("Image: no channel '" + name + "'");
+    for (const char* component : components) {
+        const std::string name = layerChannelName(layer, component);
+        if (!hasChannel(name)) throw std::out_of_range("Image: no channel '" + name + "'");
     }
+    const std::array<const float*, 3> planes = rgbPlanes(layer);
     std::vector<vec3> pixels(pixelCount());
-    for (std::size_t i = 0; i < pixels.size(); ++i) pixels[i] = vec3(planes[0][i], planes[1][i], planes[2][i]);
+    parallelForChunks(pixels.size(), kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) pixels[i] = vec3(planes[0][i], planes[1][i], planes[2][i]);
+    });
     return pixels;
 }
 

@@ -28,14 +28,11 @@ void forEachPixel(int width, int height, F&& f) {
     });
 }
 
-// Runs f(i) for i in [0, count), in fixed chunks of 4096, in parallel.
+// Runs f(i) for i in [0, count), in fixed chunks, in parallel.
 template <class F>
 void forEachIndex(std::size_t count, F&& f) {
-    constexpr std::size_t kChunk = 4096;
-    const std::size_t chunks = (count + kChunk - 1) / kChunk;
-    parallelForEach(chunks, [&](std::size_t c) {
-        const std::size_t end = std::min(count, (c + 1) * kChunk);
-        for (std::size_t i = c * kChunk; i < end; ++i) f(i);
+    parallelForChunks(count, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) f(i);
     });
 }
 

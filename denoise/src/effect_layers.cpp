@@ -1,7 +1,10 @@
 #include <rtlab/denoise/effect_layers.hpp>
 #include <rtlab/denoise/modulation.hpp>
 
+#include "detail.hpp"
+
 #include <algorithm>
+#include <array>
 #include <span>
 #include <stdexcept>
 
@@ -234,12 +237,12 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
     const float* nx = require(frame, "normal.R");
     const float* ny = require(frame, "normal.G");
     const float* nz = require(frame, "normal.B");
-    for (std::size_t p = 0; p < n; ++p) {
+    detail::forEachIndex(n, [&](std::size_t p) {
         guides.depth[p] = depth[p];
         guides.meshId[p] = mesh[p] < 0.f ? -1 : static_cast<int>(mesh[p]);
         guides.motion[p] = vec2(mx[p], my[p]);
         guides.normal[p] = vec3(nx[p], ny[p], nz[p]);
-    }
+    });
     ensureDepthGradient(guides);
     const float* pixelWorldChannel = frame.channel("footprint.pixelWorld");
     const std::span<const float> pixelWorld =
@@ -265,10 +268,10 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
             if (s.scalar) {
                 const float* c = frame.channel(s.layer);
                 float* keep = frame.addChannel("noisy." + s.layer);
-                for (std::size_t p = 0; p < n; ++p) {
+                detail::forEachIndex(n, [&](std::size_t p) {
                     noisy[p] = vec3(c[p]);
                     keep[p] = c[p];
-                }
+                });
             } else {
                 noisy = frame.rgbLayer(s.layer);
                 frame.addRgbLayer("noisy." + s.layer, noisy);
@@ -284,16 +287,15 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
             if (!albedo.empty()) remodulate(out, albedo, out);
             if (s.scalar) {
                 float* c = frame.channel(s.layer);
-                for (std::size_t p = 0; p < n; ++p) c[p] = out[p].x;
+                detail::forEachIndex(n, [&](std::size_t p) { c[p] = out[p].x; });
             } else {
-                float* r = frame.channel(s.layer + ".R");
-                float* g = frame.channel(s.layer + ".G");
-                float* b = frame.channel(s.layer + ".B");
-                for (std::size_t p = 0; p < n; ++p) {
-                    r[p] = out[p].x;
-                    g[p] = out[p].y;
-                    b[p] = out[p].z;
-                }
+                const std::array<float*, 3> rgb = {frame.channel(s.layer + ".R"), frame.channel(s.layer + ".G"),
+                                                   frame.channel(s.layer + ".B")};
+                detail::forEachIndex(n, [&](std::size_t p) {
+                    rgb[0][p] = out[p].x;
+                    rgb[1][p] = out[p].y;
+                    rgb[2][p] = out[p].z;
+                });
             }
             filtered.push_back({s.layer, effect, s.stack});
         }

@@ -1,11 +1,14 @@
 // renderFrame: the planned passes in order, then the composed beauty image.
 #include "render_context.hpp"
 
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/core/timer.hpp>
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 
 namespace rtlab::shaders {
@@ -47,44 +50,48 @@ std::string_view rayTypeName(std::uint32_t rayType) {
 
 namespace {
 
-// A frame's layers as the compose reads them; absent layers count as 0 (T as 1).
+// A frame's layers as the compose reads them, as planes (no copies); absent
+// layers count as 0 (T as 1).
 struct ComposeLayers {
-    std::vector<vec3> albedo, emissive, point, gi, reflection, brdf, translucency, inscatter, pathTraced;
+    using Planes = std::array<const float*, 3>;
+    Planes albedo, emissive, point, gi, reflection, brdf, translucency, inscatter, pathTraced;
     const float* metalness = nullptr;
     const float* transmission = nullptr;
     const float* transmittance = nullptr;
     const float* mesh = nullptr;
-    std::vector<std::vector<vec3>> unshadowed;
+    std::vector<Planes> unshadowed;
     std::vector<const float*> visibility;
 
     explicit ComposeLayers(const Image& frame) {
-        const auto rgb = [&](const std::string& layer) -> std::vector<vec3> {
-            return frame.hasChannel(layer.empty() ? "R" : layer + ".R") ? frame.rgbLayer(layer) : std::vector<vec3>();
-        };
-        albedo = rgb("albedo"), emissive = rgb("emissive"), gi = rgb("gi");
+        albedo = frame.rgbPlanes("albedo"), emissive = frame.rgbPlanes("emissive"), gi = frame.rgbPlanes("gi");
         // The point lights: traced one by one (direct.point) or picked per pixel (direct.pointPicked).
-        point = frame.hasChannel("direct.pointPicked.R") ? rgb("direct.pointPicked") : rgb("direct.point");
-        reflection = rgb("reflection"), brdf = rgb("reflection.brdf"), translucency = rgb("translucency");
-        inscatter = rgb("volume.inscatter");
-        pathTraced = rgb("pathtrace");
+        point = frame.hasChannel("direct.pointPicked.R") ? frame.rgbPlanes("direct.pointPicked")
+                                                         : frame.rgbPlanes("direct.point");
+        reflection = frame.rgbPlanes("reflection"), brdf = frame.rgbPlanes("reflection.brdf");
+        translucency = frame.rgbPlanes("translucency");
+        inscatter = frame.rgbPlanes("volume.inscatter");
+        pathTraced = frame.rgbPlanes("pathtrace");
         metalness = frame.channel("metalness.Y");
         transmission = frame.channel("transmission.Y");
         transmittance = frame.channel("volume.transmittance");
         mesh = frame.channel("id.mesh");
         for (int i = 0; frame.hasChannel("direct.light" + std::to_string(i) + ".R"); ++i) {
-            unshadowed.push_back(rgb("direct.light" + std::to_string(i)));
+            unshadowed.push_back(frame.rgbPlanes("direct.light" + std::to_string(i)));
             visibility.push_back(frame.channel("shadow.light" + std::to_string(i) + ".V"));
         }
     }
-    static vec3 at(const std::vector<vec3>& layer, std::size_t p) { return layer.empty() ? vec3(0.f) : layer[p]; }
+    static bool has(const Planes& layer) { return layer[0] != nullptr; }
+    static vec3 at(const Planes& layer, std::size_t p) {
+        return has(layer) ? vec3(layer[0][p], layer[1][p], layer[2][p]) : vec3(0.f);
+    }
     bool geometry(std::size_t p) const { return mesh && mesh[p] >= 0.f; }
     float transmissionAt(std::size_t p) const { return transmission ? transmission[p] : 0.f; }
     // Sum over area lights of unshadowed x visibility, plus the point lights.
     vec3 direct(std::size_t p) const {
         vec3 d(0.f);
         for (std::size_t l = 0; l < unshadowed.size(); ++l)
-            d += unshadowed[l][p] * (visibility[l] ? visibility[l][p] : 1.f);
-        if (!point.empty()) d += point[p];
+            d += at(unshadowed[l], p) * (visibility[l] ? visibility[l][p] : 1.f);
+        if (has(point)) d += at(point, p);
         return d;
     }
     // (1 - metalness)(1 - transmission) albedo / pi x E.
@@ -93,7 +100,7 @@ struct ComposeLayers {
         return (1.f - m) * (1.f - transmissionAt(p)) * at(albedo, p) * at(gi, p) / kPi;
     }
     vec3 specular(std::size_t p) const {
-        return brdf.empty() || reflection.empty() ? vec3(0.f) : brdf[p] * reflection[p];
+        return has(brdf) && has(reflection) ? at(brdf, p) * at(reflection, p) : vec3(0.f);
     }
     vec3 transmitted(std::size_t p) const { return transmissionAt(p) * at(translucency, p); }
 };
@@ -102,48 +109,50 @@ struct ComposeLayers {
 
 void composeBeauty(Image& frame) {
     const std::size_t n = frame.pixelCount();
+    // The beauty planes first (adding channels leaves the layers' planes in place).
+    std::array<float*, 3> beauty = {frame.channel("R"), frame.channel("G"), frame.channel("B")};
+    if (!beauty[0] || !beauty[1] || !beauty[2]) beauty = frame.addRgbPlanes("");
     const ComposeLayers c(frame);
-    std::vector<vec3> beauty(n, vec3(0.f));
-    for (std::size_t p = 0; p < n; ++p) {
-        beauty[p] = ComposeLayers::at(c.inscatter, p);
-        if (!c.geometry(p)) continue;
-        const float T = c.transmittance ? c.transmittance[p] : 1.f;
-        if (!c.pathTraced.empty()) {
-            beauty[p] += T * c.pathTraced[p];  // the path tracer's layer is the whole estimate
-            continue;
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t p = begin; p < end; ++p) {
+            vec3 b = ComposeLayers::at(c.inscatter, p);
+            if (c.geometry(p)) {
+                const float T = c.transmittance ? c.transmittance[p] : 1.f;
+                if (ComposeLayers::has(c.pathTraced))
+                    b += T * ComposeLayers::at(c.pathTraced, p);  // the path tracer's layer is the whole estimate
+                else
+                    b += T * (ComposeLayers::at(c.emissive, p) + c.direct(p) + c.diffuseIndirect(p) + c.specular(p) +
+                              c.transmitted(p));
+            }
+            beauty[0][p] = b.x;
+            beauty[1][p] = b.y;
+            beauty[2][p] = b.z;
         }
-        beauty[p] += T * (ComposeLayers::at(c.emissive, p) + c.direct(p) + c.diffuseIndirect(p) + c.specular(p) +
-                          c.transmitted(p));
-    }
-    if (frame.hasChannel("R")) {
-        float* r = frame.channel("R");
-        float* g = frame.channel("G");
-        float* b = frame.channel("B");
-        for (std::size_t p = 0; p < n; ++p) {
-            r[p] = beauty[p].x;
-            g[p] = beauty[p].y;
-            b[p] = beauty[p].z;
-        }
-    } else {
-        frame.addRgbLayer("", beauty);
-    }
+    });
 }
 
 std::vector<vec3> effectContribution(const Image& frame, const std::string& effect) {
+    static const std::array<std::string, 6> kEffects = {"volumes", "shadows", "reflections", "ao", "gi", "translucency"};
+    const auto which = std::find(kEffects.begin(), kEffects.end(), effect);
+    if (which == kEffects.end()) throw std::invalid_argument("effectContribution: unknown effect '" + effect + "'");
+    const std::size_t e = static_cast<std::size_t>(which - kEffects.begin());
     const std::size_t n = frame.pixelCount();
     const ComposeLayers c(frame);
     const float* ao = frame.channel("ao.V");
     std::vector<vec3> out(n, vec3(0.f));
-    for (std::size_t p = 0; p < n; ++p) {
-        if (effect == "volumes") { out[p] = ComposeLayers::at(c.inscatter, p); continue; }
-        if (!c.geometry(p)) continue;
-        if (effect == "shadows") out[p] = c.direct(p);
-        else if (effect == "reflections") out[p] = c.specular(p);
-        else if (effect == "ao") out[p] = vec3(ao ? ao[p] : 1.f);
-        else if (effect == "gi") out[p] = c.diffuseIndirect(p);
-        else if (effect == "translucency") out[p] = c.transmitted(p);
-        else throw std::invalid_argument("effectContribution: unknown effect '" + effect + "'");
-    }
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t p = begin; p < end; ++p) {
+            if (e == 0) { out[p] = ComposeLayers::at(c.inscatter, p); continue; }
+            if (!c.geometry(p)) continue;
+            switch (e) {
+                case 1: out[p] = c.direct(p); break;
+                case 2: out[p] = c.specular(p); break;
+                case 3: out[p] = vec3(ao ? ao[p] : 1.f); break;
+                case 4: out[p] = c.diffuseIndirect(p); break;
+                default: out[p] = c.transmitted(p); break;
+            }
+        }
+    });
     return out;
 }
 
@@ -174,10 +183,14 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
     run(Pass::GBuffer, [&](tracer::TraceCounters& c) {
         return detail::runGBufferPass(ctx, previous, out.image, settings.recordRayOrder ? &out.primaryRayPixels : nullptr, c);
     });
+    // Each pass's own sums, allocated only for a planned pass (a skipped
+    // effect allocates nothing).
     const std::size_t n = ctx.gbuffer.size();
-    std::vector<vec3> direct(n, vec3(0.f)), irradiance(n, vec3(0.f)), specular(n, vec3(0.f)),
-        transmitted(n, vec3(0.f)), inscatter(n, vec3(0.f));
-    std::vector<float> primaryTransmittance(n, 1.f);
+    const auto buffer = [&](Pass pass) { return std::vector<vec3>(plan.has(pass) ? n : 0, vec3(0.f)); };
+    std::vector<vec3> direct = buffer(Pass::Shadows), irradiance = buffer(Pass::GlobalIllumination),
+                      specular = buffer(Pass::Reflections), transmitted = buffer(Pass::Translucency),
+                      inscatter = buffer(Pass::Volumes);
+    std::vector<float> primaryTransmittance(plan.has(Pass::Volumes) ? n : 0, 1.f);
     if (plan.has(Pass::Shadows))
         run(Pass::Shadows, [&](tracer::TraceCounters& c) { return detail::runShadowPass(ctx, out.image, direct, c); });
     if (plan.has(Pass::Reflections))
@@ -205,14 +218,22 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
 
     // Step: compose (from the layers, as after denoising).
     composeBeauty(out.image);
-    // Step: nothing non-finite leaves a pass.
+    // Step: nothing non-finite leaves a pass (counted per chunk, summed in order).
+    const std::size_t pixels = out.image.pixelCount();
     for (const std::string& name : out.image.channelNames()) {
         float* c = out.image.channel(name);
-        for (std::size_t i = 0; i < out.image.pixelCount(); ++i)
-            if (!std::isfinite(c[i])) {
-                c[i] = 0.f;
-                ++out.nonFiniteValuesRepaired;
+        std::vector<std::uint64_t> repaired((pixels + kPixelChunk - 1) / kPixelChunk, 0);
+        parallelForChunks(pixels, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            std::uint64_t count = 0;
+            for (std::size_t i = begin; i < end; ++i) {
+                // Exponent bits all ones: Inf or NaN (a branch-free test that vectorises).
+                const bool nonFinite = (std::bit_cast<std::uint32_t>(c[i]) & 0x7f800000u) == 0x7f800000u;
+                count += nonFinite;
+                c[i] = nonFinite ? 0.f : c[i];
             }
+            repaired[begin / kPixelChunk] = count;
+        });
+        for (const std::uint64_t r : repaired) out.nonFiniteValuesRepaired += r;
     }
     history.record(scene);
     return out;

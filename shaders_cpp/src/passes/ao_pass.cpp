@@ -12,6 +12,36 @@
 
 namespace rtlab::shaders::detail {
 
+namespace {
+
+// For every pixel, the sum of `in` over the other pixels of its
+// (2 kAoContactWindow + 1)^2 window (clipped at the image's border): a row
+// pass, then a column pass, in exact integers.
+std::vector<std::uint16_t> windowSumsOfOthers(int width, int height, const std::vector<std::uint8_t>& in) {
+    const std::size_t w = static_cast<std::size_t>(width);
+    std::vector<std::uint16_t> rows(in.size()), out(in.size());
+    parallelForEach(static_cast<std::size_t>(height), [&](std::size_t y) {
+        const std::uint8_t* row = in.data() + y * w;
+        for (int x = 0; x < width; ++x) {
+            std::uint16_t sum = 0;
+            for (int q = std::max(0, x - kAoContactWindow); q <= std::min(width - 1, x + kAoContactWindow); ++q) sum += row[q];
+            rows[y * w + static_cast<std::size_t>(x)] = sum;
+        }
+    });
+    parallelForEach(static_cast<std::size_t>(height), [&](std::size_t y) {
+        const int yi = static_cast<int>(y);
+        for (std::size_t x = 0; x < w; ++x) {
+            std::uint16_t sum = 0;
+            for (int q = std::max(0, yi - kAoContactWindow); q <= std::min(height - 1, yi + kAoContactWindow); ++q)
+                sum += rows[static_cast<std::size_t>(q) * w + x];
+            out[y * w + x] = static_cast<std::uint16_t>(sum - in[y * w + x]);
+        }
+    });
+    return out;
+}
+
+}  // namespace
+
 std::vector<std::uint32_t> aoContactSampleCounts(int width, int height, std::span<const float> occluderDistance,
                                                  std::span<const std::uint8_t> geometry, float nearDistance,
                                                  std::uint32_t perSample, std::size_t budgetPerPixel) {
@@ -20,38 +50,30 @@ std::vector<std::uint32_t> aoContactSampleCounts(int width, int height, std::spa
         throw std::invalid_argument("aoContactSampleCounts: buffers do not match the image size");
     std::vector<std::uint32_t> counts(n, 0);
     if (perSample == 0) return counts;
-    const auto index = [&](int x, int y) { return static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + x; };
-    // Calls visit(qx, qy) for every other pixel of (x, y)'s window.
-    const auto forWindow = [&](int x, int y, auto&& visit) {
-        for (int qy = std::max(0, y - kAoContactWindow); qy <= std::min(height - 1, y + kAoContactWindow); ++qy)
-            for (int qx = std::max(0, x - kAoContactWindow); qx <= std::min(width - 1, x + kAoContactWindow); ++qx)
-                if (qx != x || qy != y) visit(qx, qy);
-    };
-    // Step: the sources (pixels that saw a near occluder) in each geometry pixel's window, itself left out.
-    std::vector<std::uint8_t> source(n), sources(n, 0);
+    // Step: the sources (pixels that saw a near occluder) in each geometry
+    // pixel's window, itself left out.
+    std::vector<std::uint8_t> source(n);
     for (std::size_t i = 0; i < n; ++i) source[i] = occluderDistance[i] < nearDistance;
-    parallelForEach(static_cast<std::size_t>(height), [&](std::size_t row) {
-        const int y = static_cast<int>(row);
-        for (int x = 0; x < width; ++x)
-            if (geometry[index(x, y)])
-                forWindow(x, y, [&](int qx, int qy) { sources[index(x, y)] += source[index(qx, qy)]; });
-    });
+    std::vector<std::uint16_t> sources = windowSumsOfOthers(width, height, source);
     std::size_t geometryPixels = 0, flagged = 0;
-    for (std::size_t i = 0; i < n; ++i) geometryPixels += geometry[i] != 0, flagged += sources[i] != 0;
+    std::vector<std::uint8_t> flaggedOnce(n);  // flagged by exactly one source
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!geometry[i]) sources[i] = 0;
+        geometryPixels += geometry[i] != 0, flagged += sources[i] != 0;
+        flaggedOnce[i] = sources[i] == 1;
+    }
     // Step: per flagged pixel, the count the budget affords, from the number
     // of flagged pixels had its own samples seen no near occluder (those
     // whose only source it is are taken off), plus the most it can flag
     // (24): its own samples do not move its count, and the counts still sum
     // to at most budgetPerPixel x the geometry pixels.
     constexpr std::size_t kMostFlaggedByOne = (2 * kAoContactWindow + 1) * (2 * kAoContactWindow + 1) - 1;
-    parallelForEach(static_cast<std::size_t>(height), [&](std::size_t row) {
-        const int y = static_cast<int>(row);
-        for (int x = 0; x < width; ++x) {
-            const std::size_t i = index(x, y);
+    const std::vector<std::uint16_t> flaggedOnceAround = windowSumsOfOthers(width, height, flaggedOnce);
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
             if (!sources[i]) continue;
-            std::size_t onlyThroughMe = 0;
-            if (source[i])
-                forWindow(x, y, [&](int qx, int qy) { onlyThroughMe += sources[index(qx, qy)] == 1; });
+            // A source pixel is the only source of the flagged-once pixels in its window.
+            const std::size_t onlyThroughMe = source[i] ? flaggedOnceAround[i] : 0;
             const std::size_t others = flagged - onlyThroughMe + kMostFlaggedByOne;
             counts[i] = static_cast<std::uint32_t>(std::min<std::size_t>(perSample, budgetPerPixel * geometryPixels / others));
         }

@@ -3,6 +3,7 @@
 // motion vectors, emissive).
 #include "../render_context.hpp"
 
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/tracer/instance_transform.hpp>
 
 #include <optional>
@@ -89,9 +90,8 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             }
         }));
 
-    // Step: the guide layers.
+    // Step: the guide layers, written straight into the image's planes.
     const std::size_t n = ctx.gbuffer.size();
-    std::vector<vec3> albedo(n), normal(n), geoNormal(n), emissive(n);
     float* depth = out.addChannel("depth.Z");
     float* roughness = out.addChannel("roughness.Y");
     float* metalness = out.addChannel("metalness.Y");
@@ -101,26 +101,31 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
     float* motionX = out.addChannel("motion.X");
     float* motionY = out.addChannel("motion.Y");
     float* pixelWorld = out.addChannel("footprint.pixelWorld");
-    for (std::size_t i = 0; i < n; ++i) {
-        const GPixel& g = ctx.gbuffer[i];
-        albedo[i] = g.albedo;
-        normal[i] = g.normal;
-        geoNormal[i] = g.geometricNormal;
-        emissive[i] = g.emissive;
-        depth[i] = g.depth;
-        roughness[i] = g.roughness;
-        metalness[i] = g.metalness;
-        transmission[i] = g.transmission;
-        meshId[i] = g.hit ? float(g.mesh) : -1.f;
-        instanceId[i] = g.hit ? float(g.instance) : -1.f;
-        motionX[i] = g.motion.x;
-        motionY[i] = g.motion.y;
-        pixelWorld[i] = g.pixelWorld;
-    }
-    out.addRgbLayer("albedo", albedo);
-    out.addRgbLayer("normal", normal);
-    out.addRgbLayer("geonormal", geoNormal);
-    out.addRgbLayer("emissive", emissive);
+    const std::array<float*, 3> albedo = out.addRgbPlanes("albedo"), normal = out.addRgbPlanes("normal"),
+                                geoNormal = out.addRgbPlanes("geonormal"), emissive = out.addRgbPlanes("emissive");
+    const auto store = [](const std::array<float*, 3>& planes, std::size_t i, const vec3& v) {
+        planes[0][i] = v.x;
+        planes[1][i] = v.y;
+        planes[2][i] = v.z;
+    };
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            const GPixel& g = ctx.gbuffer[i];
+            store(albedo, i, g.albedo);
+            store(normal, i, g.normal);
+            store(geoNormal, i, g.geometricNormal);
+            store(emissive, i, g.emissive);
+            depth[i] = g.depth;
+            roughness[i] = g.roughness;
+            metalness[i] = g.metalness;
+            transmission[i] = g.transmission;
+            meshId[i] = g.hit ? float(g.mesh) : -1.f;
+            instanceId[i] = g.hit ? float(g.instance) : -1.f;
+            motionX[i] = g.motion.x;
+            motionY[i] = g.motion.y;
+            pixelWorld[i] = g.pixelWorld;
+        }
+    });
     // G-buffer in memory + its 19 output floats per pixel.
     return n * (sizeof(GPixel) + 19 * sizeof(float));
 }

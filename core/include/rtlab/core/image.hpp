@@ -7,6 +7,7 @@
 // "layer.X" single channel, e.g. "depth.Z").
 #include <rtlab/core/math.hpp>
 
+#include <array>
 #include <cstddef>
 #include <filesystem>
 #include <functional>
@@ -38,6 +39,12 @@ public:
     void addRgbLayer(const std::string& layer, const std::vector<vec3>& pixels);
     // Reads "layer.R/G/B" (or "R/G/B") back; throws std::out_of_range if absent.
     std::vector<vec3> rgbLayer(const std::string& layer) const;
+    // The three channels of an RGB layer as planes, without a copy: adds
+    // them filled with `fill` (throws std::logic_error if any exists), or
+    // finds them (all three nullptr unless all three exist). The pointers
+    // stay valid while the image lives, whatever channels are added later.
+    std::array<float*, 3> addRgbPlanes(const std::string& layer, float fill = 0.f);
+    std::array<const float*, 3> rgbPlanes(const std::string& layer) const;
 
 private:
     struct Channel {

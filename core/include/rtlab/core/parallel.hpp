@@ -36,6 +36,22 @@ void parallelForEach(std::size_t count, Body&& body) {
                       tbb::simple_partitioner{});
 }
 
+// Runs body(begin, end) over [0, count) in fixed chunks of `chunk` indices,
+// in parallel. The chunks do not depend on the thread count, so per-chunk
+// partial results reduced in chunk order are deterministic.
+template <class Body>
+void parallelForChunks(std::size_t count, std::size_t chunk, Body&& body) {
+    if (count == 0) return;
+    chunk = std::max<std::size_t>(chunk, 1);
+    const std::size_t chunks = (count + chunk - 1) / chunk;
+    parallelForEach(chunks, [&](std::size_t c) { body(c * chunk, std::min(count, (c + 1) * chunk)); });
+}
+
+// The chunk size of per-pixel loops over image planes (parallelForChunks):
+// large enough that a task's overhead is noise, small enough to spread a
+// 320x180 image over a few cores.
+inline constexpr std::size_t kPixelChunk = 4096;
+
 // Limits TBB to `threads` worker threads for the lifetime of this object
 // (0 = TBB's default: all cores).
 class ThreadLimit {
