@@ -4,7 +4,9 @@
 #include "simd.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 namespace rtlab::denoise {
@@ -127,6 +129,10 @@ struct GuidePlanes {
 struct SignalPlanes {
     Layout layout;
     std::vector<float> r, g, b, variance, luminance;
+    // Every pixel has r == g == b (AO, shadow visibility): the taps
+    // accumulate r alone and store it to all three, the same bits as three
+    // equal sums. An iteration keeps it so (one weight for all channels).
+    bool grey = false;
     void fit(const Layout& l) {
         const bool relayout = !(l == layout);
         layout = l;
@@ -179,11 +185,12 @@ RTLAB_SIMD_INLINE simd::vfloat<N> sqrtNonNegative(const simd::vfloat<N>& x) {
     return x * r;
 }
 
+// Grey: the signal's channels are equal (SignalPlanes::grey); one colour sum.
 // GateSky: the normal term does not zero a sky tap by itself (sigmaN log2(e)
 // < 127), so the weight is multiplied by the tap's geometry flag. Checked: a
 // step beyond the layout's fastReach: rows outside the image and taps with
 // |dx| >= width are skipped.
-template <int N, bool GateSky, bool Checked>
+template <int N, bool GateSky, bool Checked, bool Grey>
 RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     using V = simd::vfloat<N>;
     using VI = simd::vint<N>;
@@ -243,7 +250,8 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
     // Pass 2, per vector: the centre and its 24 taps.
     for (int x = t.x0, v = 0; x < t.x1; x += N, ++v) {
         const std::size_t i = t.row + static_cast<std::size_t>(x);
-        const V cR = simd::loadu<N>(t.red + i), cG = simd::loadu<N>(t.green + i), cB = simd::loadu<N>(t.blue + i);
+        const V cR = simd::loadu<N>(t.red + i);
+        const V cG = Grey ? cR : simd::loadu<N>(t.green + i), cB = Grey ? cR : simd::loadu<N>(t.blue + i);
         const V cVar = simd::loadu<N>(t.var + i), cLum = simd::loadu<N>(t.lum + i);
         const VI active = actives[v];
         if (rtlab::simd::signMask<N>(active) == 0u) {
@@ -273,8 +281,10 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
             sW = sW + hw;
             sVar = sVar + hw * hw * simd::loadu<N>(t.var + j);
             sR = sR + hw * simd::loadu<N>(t.red + j);
-            sG = sG + hw * simd::loadu<N>(t.green + j);
-            sB = sB + hw * simd::loadu<N>(t.blue + j);
+            if constexpr (!Grey) {
+                sG = sG + hw * simd::loadu<N>(t.green + j);
+                sB = sB + hw * simd::loadu<N>(t.blue + j);
+            }
         };
         constexpr int kOffsets[12][2] = {{1, 0},  {2, 0},  {-2, 1}, {-1, 1}, {0, 1}, {1, 1},
                                          {2, 1},  {-2, 2}, {-1, 2}, {0, 2},  {1, 2}, {2, 2}};
@@ -295,7 +305,7 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
             }
         }
         const V inv = 1.f / sW;
-        const V oR = sR * inv, oG = sG * inv, oB = sB * inv;
+        const V oR = sR * inv, oG = Grey ? oR : sG * inv, oB = Grey ? oR : sB * inv;
         V oVar = sVar * inv * inv;  // > 0 and finite, or +inf: clamped to kMaxVariance
         oVar = simd::select<N>(oVar > 0.f, simd::min<N>(oVar, simd::splat<N>(kMaxVariance)), simd::splat<N>(0.f));
         const V oLum = oR * 0.2126f + oG * 0.7152f + oB * 0.0722f;  // luminance(), lane-wise
@@ -308,18 +318,24 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
 }
 
 // The same, compiled for AVX2 (picked at run time by simd::preferredWidth).
-__attribute__((target("avx2"))) void filterRowAvx2(const TapRow& t) { filterRow<8, false, false>(t); }
-__attribute__((target("avx2"))) void filterRowAvx2Gate(const TapRow& t) { filterRow<8, true, false>(t); }
-__attribute__((target("avx2"))) void filterRowAvx2Checked(const TapRow& t) { filterRow<8, false, true>(t); }
-__attribute__((target("avx2"))) void filterRowAvx2GateChecked(const TapRow& t) { filterRow<8, true, true>(t); }
+template <bool GateSky, bool Checked, bool Grey>
+__attribute__((target("avx2"))) void filterRowAvx2(const TapRow& t) {
+    filterRow<8, GateSky, Checked, Grey>(t);
+}
 
-void filterRowAny(const TapRow& t, bool avx2, bool gateSky, bool checked) {
-    if (avx2) {
-        if (gateSky) checked ? filterRowAvx2GateChecked(t) : filterRowAvx2Gate(t);
-        else checked ? filterRowAvx2Checked(t) : filterRowAvx2(t);
+template <bool GateSky, bool Checked, bool Grey>
+void filterRowOfWidth(const TapRow& t, bool avx2) {
+    if (avx2) filterRowAvx2<GateSky, Checked, Grey>(t);
+    else filterRow<4, GateSky, Checked, Grey>(t);
+}
+
+void filterRowAny(const TapRow& t, bool avx2, bool gateSky, bool checked, bool grey) {
+    if (grey) {
+        if (gateSky) checked ? filterRowOfWidth<true, true, true>(t, avx2) : filterRowOfWidth<true, false, true>(t, avx2);
+        else checked ? filterRowOfWidth<false, true, true>(t, avx2) : filterRowOfWidth<false, false, true>(t, avx2);
     } else {
-        if (gateSky) checked ? filterRow<4, true, true>(t) : filterRow<4, true, false>(t);
-        else checked ? filterRow<4, false, true>(t) : filterRow<4, false, false>(t);
+        if (gateSky) checked ? filterRowOfWidth<true, true, false>(t, avx2) : filterRowOfWidth<true, false, false>(t, avx2);
+        else checked ? filterRowOfWidth<false, true, false>(t, avx2) : filterRowOfWidth<false, false, false>(t, avx2);
     }
 }
 
@@ -327,6 +343,7 @@ void filterRowAny(const TapRow& t, bool avx2, bool gateSky, bool checked) {
 void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const AtrousParams& p, SignalPlanes& out) {
     const Layout& l = g.layout;
     out.fit(l);
+    out.grey = in.grey;
     const float sigmaN = p.sigmaN > 0.f ? std::min(p.sigmaN, 1e6f) : 0.f;
     const float normalScale = sigmaN * kLog2e * kExpUnit;
     const float bias = kMaxBits - normalScale;
@@ -356,19 +373,25 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
             for (int y = y0; y < std::min(y0 + kRowGroup * step, l.height); y += step) {
                 TapRow t = common;
                 t.y = y, t.x0 = x0, t.x1 = std::min(x0 + kRun, l.width), t.row = l.at(0, y);
-                filterRowAny(t, avx2, gateSky, checked);
+                filterRowAny(t, avx2, gateSky, checked, in.grey);
             }
     });
 }
 
 void loadSignal(std::span<const vec3> color, std::span<const float> variance, const Layout& l, SignalPlanes& s) {
     s.fit(l);
-    forEachRow(l, [&](int, int, std::size_t k, std::size_t i) {
+    std::vector<std::uint8_t> colouredRow(static_cast<std::size_t>(l.height), 0);
+    forEachRow(l, [&](int, int y, std::size_t k, std::size_t i) {
         const vec3 c = sanitize(color[i]);
         s.r[k] = c.r, s.g[k] = c.g, s.b[k] = c.b;
         s.variance[k] = clampVariance(variance[i]);
         s.luminance[k] = luminance(c);
+        // Bit-equal channels (-0 and +0 differ: the grey path would store r's sign to all three).
+        if (std::bit_cast<std::uint32_t>(c.r) != std::bit_cast<std::uint32_t>(c.g) ||
+            std::bit_cast<std::uint32_t>(c.r) != std::bit_cast<std::uint32_t>(c.b))
+            colouredRow[static_cast<std::size_t>(y)] = 1;
     });
+    s.grey = std::none_of(colouredRow.begin(), colouredRow.end(), [](std::uint8_t c) { return c != 0; });
 }
 
 void storeColor(const SignalPlanes& s, std::span<vec3> out) {

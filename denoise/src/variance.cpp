@@ -19,34 +19,56 @@ struct MomentRow {
     const simd::NormalPower* normalPower;
 };
 
+// Per vector of N pixels, every tap in (dy, dx) order with the sums held in
+// registers (the same additions per pixel, in the same order, as tap by tap
+// over the row). A tap whose neighbour lies outside the row (x + dx outside
+// [0, w)) or a lane past the row's end reads finite padding or the next
+// row and adds exactly 0: its weight is masked. The planes are padded by
+// kMaxWidth + radius floats before the first and after the last pixel.
 template <int N>
 RTLAB_SIMD_INLINE void accumulateMoments(const MomentRow& t) {
     using V = simd::vfloat<N>;
+    using VI = simd::vint<N>;
     const int w = t.w;
-    for (int dy = -t.radius; dy <= t.radius; ++dy) {
-        const int py = t.y + dy;
-        if (py < 0 || py >= t.h) continue;
-        const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
-        for (int dx = -t.radius; dx <= t.radius; ++dx) {
-            if (dx == 0 && dy == 0) continue;
-            const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
-            const V offX = simd::splat<N>(static_cast<float>(dx)), offY = simd::splat<N>(static_cast<float>(dy));
-            for (int x = x0; x < x1; x += N) {
-                if (t.activeBefore[std::min(x + N, w)] == t.activeBefore[x]) continue;
-                const V laneMask = x + N <= x1 ? simd::splat<N>(1.f) : simd::tailMask<N>(x1 - x);
-                const std::size_t i = t.row + x, j = rowQ + x + dx;
-                const V termZ = simd::depthTerm<N>(simd::loadu<N>(t.depth + i), simd::loadu<N>(t.depth + j),
-                                                   simd::loadu<N>(t.gradX + i), simd::loadu<N>(t.gradY + i), offX,
-                                                   offY, t.sigmaZ, t.depthEps);
-                const V wgt = simd::expNeg<N>(termZ) * t.normalPower->apply<N>(simd::normalDot<N>(t.nx, t.ny, t.nz, i, j)) *
+    VI laneIndex;
+    for (int lane = 0; lane < N; ++lane) laneIndex[lane] = lane;
+    const V one = simd::splat<N>(1.f), zero = simd::splat<N>(0.f);
+    for (int x = 0; x < w; x += N) {
+        if (t.activeBefore[std::min(x + N, w)] == t.activeBefore[x]) continue;
+        const std::size_t i = t.row + static_cast<std::size_t>(x);
+        const V z = simd::loadu<N>(t.depth + i), gx = simd::loadu<N>(t.gradX + i), gy = simd::loadu<N>(t.gradY + i);
+        const V mean = simd::loadu<N>(t.mean + i);
+        const VI px = laneIndex + x;
+        const VI inRow = px < w;
+        // Step: the centre (weight 1, deviation 0, its own variance).
+        V s0 = one, s1 = zero, s2 = simd::loadu<N>(t.pixelVariance + i);
+        for (int dy = -t.radius; dy <= t.radius; ++dy) {
+            const int py = t.y + dy;
+            if (py < 0 || py >= t.h) continue;
+            const std::size_t rowQ = static_cast<std::size_t>(py) * static_cast<std::size_t>(w);
+            const V offY = simd::splat<N>(static_cast<float>(dy));
+            for (int dx = -t.radius; dx <= t.radius; ++dx) {
+                if (dx == 0 && dy == 0) continue;
+                const VI qx = px + dx;
+                const V laneMask = simd::select<N>(inRow & (qx >= 0) & (qx < w), one, zero);
+                // j may lie up to radius before the row's first pixel: the planes' front padding.
+                const std::ptrdiff_t j = static_cast<std::ptrdiff_t>(rowQ) + x + dx;
+                const V termZ = simd::depthTerm<N>(z, simd::loadu<N>(t.depth + j), gx, gy,
+                                                   simd::splat<N>(static_cast<float>(dx)), offY, t.sigmaZ, t.depthEps);
+                const V wgt = simd::expNeg<N>(termZ) *
+                              t.normalPower->apply<N>(simd::loadu<N>(t.nx + i) * simd::loadu<N>(t.nx + j) +
+                                                      simd::loadu<N>(t.ny + i) * simd::loadu<N>(t.ny + j) +
+                                                      simd::loadu<N>(t.nz + i) * simd::loadu<N>(t.nz + j)) *
                               simd::loadu<N>(t.geometry + j) * laneMask;
-                const V dev = simd::loadu<N>(t.mean + j) - simd::loadu<N>(t.mean + i);
-                simd::storeu<N>(t.s0 + x, simd::loadu<N>(t.s0 + x) + wgt);
-                simd::storeu<N>(t.s1 + x, simd::loadu<N>(t.s1 + x) + wgt * dev);
-                simd::storeu<N>(t.s2 + x,
-                                simd::loadu<N>(t.s2 + x) + wgt * (simd::loadu<N>(t.pixelVariance + j) + dev * dev));
+                const V dev = simd::loadu<N>(t.mean + j) - mean;
+                s0 = s0 + wgt;
+                s1 = s1 + wgt * dev;
+                s2 = s2 + wgt * (simd::loadu<N>(t.pixelVariance + j) + dev * dev);
             }
         }
+        simd::storeu<N>(t.s0 + x, s0);
+        simd::storeu<N>(t.s1 + x, s1);
+        simd::storeu<N>(t.s2 + x, s2);
     }
 }
 
@@ -68,17 +90,20 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
     const int w = g.width, h = g.height;
     const int radius = params.radius > 0 ? params.radius : 0;
     // SoA copies of the depth gradient.
-    std::vector<float> gx(n + simd::kMaxWidth, 0.f), gy(n + simd::kMaxWidth, 0.f);
+    std::vector<float> gx(n + simd::kMaxWidth, 0.f), gy(n + simd::kMaxWidth, 0.f);  // read at the centre only
     detail::forEachIndex(n, [&](std::size_t i) { gx[i] = sanitize(grad[i].x), gy[i] = sanitize(grad[i].y); });
 
     // Step: the temporal estimate, and which pixels need the spatial one.
     const auto needsSpatial = [&](std::size_t i) {
         return !g.isSky(i) && acc.length[i] < params.historyThreshold && radius > 0;
     };
-    constexpr int kLanes = simd::kMaxWidth;  // padding
-    std::vector<float> pixelVariance(n + kLanes, 0.f), mean(n + kLanes, 0.f);
-    std::vector<float> depth(n + kLanes, 0.f), nx(n + kLanes, 0.f), ny(n + kLanes, 0.f), nz(n + kLanes, 0.f);
-    std::vector<float> geometry(n + kLanes, 0.f);
+    // Planes padded before the first and after the last pixel (zeros: finite,
+    // weight 0), so that a tap's vector load never leaves them.
+    const std::size_t pad = static_cast<std::size_t>(simd::kMaxWidth + radius);
+    std::vector<float> planes(7 * (n + 2 * pad), 0.f);
+    const auto plane = [&](int k) { return planes.data() + static_cast<std::size_t>(k) * (n + 2 * pad) + pad; };
+    float *pixelVariance = plane(0), *mean = plane(1), *depth = plane(2), *nx = plane(3), *ny = plane(4),
+          *nz = plane(5), *geometry = plane(6);
     detail::forEachIndex(n, [&](std::size_t i) {
         // In float, as the moments were formed: one sample (m2 = fl(m1 * m1)) gives exactly 0.
         const vec2 m = acc.moments[i];
@@ -105,12 +130,11 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
         std::vector<int> activeBefore(static_cast<std::size_t>(w) + 1, 0);
         for (int x = 0; x < w; ++x) activeBefore[x + 1] = activeBefore[x] + (needsSpatial(row + x) ? 1 : 0);
         if (activeBefore[w] == 0) return;
-        const std::size_t padded = static_cast<std::size_t>(w) + kLanes;
-        std::vector<float> s0(padded, 1.f), s1(padded, 0.f), s2(padded, 0.f);  // centre: weight 1, deviation 0
-        for (int x = 0; x < w; ++x) s2[x] = pixelVariance[row + x];
-        const MomentRow t{pixelVariance.data(), mean.data(), depth.data(), geometry.data(), nx.data(), ny.data(),
-                          nz.data(), gx.data(), gy.data(), s0.data(), s1.data(), s2.data(), activeBefore.data(),
-                          w, h, y, radius, row, params.sigmaZ, params.depthEpsilon, &normalPower};
+        const std::size_t padded = static_cast<std::size_t>(w) + simd::kMaxWidth;
+        std::vector<float> s0(padded), s1(padded), s2(padded);
+        const MomentRow t{pixelVariance, mean, depth, geometry, nx, ny, nz, gx.data(), gy.data(), s0.data(), s1.data(),
+                          s2.data(), activeBefore.data(), w, h, y, radius, row, params.sigmaZ, params.depthEpsilon,
+                          &normalPower};
         if (simd::preferredWidth() == 8) accumulateMomentsAvx2(t);
         else accumulateMoments<4>(t);
         for (int x = 0; x < w; ++x) {
