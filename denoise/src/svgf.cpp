@@ -171,6 +171,10 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     // 1.2 sigma from F in the 3x3 mean and pulled its pixel a third of the way
     // up (bright speckle; both in make demo's frame_0001 and frame_0002).
     const auto counted = [&](std::size_t j) { return static_[j] && staticLength_[j] >= kStaticMinSamples; };
+    // No pixel with a long enough mean (a first frame, a moving view): nothing moves.
+    bool anyCounted = false;
+    for (std::size_t i = 0; i < n && !anyCounted; ++i) anyCounted = counted(i);
+    if (!anyCounted) return;
     const float c = params_.staticShrinkSigma2, cOwn = params_.staticShrinkOwnSigma2;
     // Per counted pixel once: M - F and the variance of its mean.
     shrinkTerms_.resize(n);
@@ -226,19 +230,22 @@ void SvgfFilter::convergeStatic(int w, int h) {
     }
     // The samples' luminance variance averaged over the 3x3 neighbourhood: a
     // pixel's own moments can show no variance (a run of equal 1-spp samples).
+    // Only static pixels read it (none in a first frame or a moving view).
     blurredVariance_.resize(n);
-    detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
-        float sum = 0.f;
-        int count = 0;
-        for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-                const int px = x + dx, py = y + dy;
-                if (px < 0 || py < 0 || px >= w || py >= h) continue;
-                sum += variance_[static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px];
-                ++count;
-            }
-        blurredVariance_[i] = sum / static_cast<float>(count);
-    });
+    if (std::any_of(static_.begin(), static_.end(), [](std::uint8_t s) { return s != 0; })) {
+        detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
+            float sum = 0.f;
+            int count = 0;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int px = x + dx, py = y + dy;
+                    if (px < 0 || py < 0 || px >= w || py >= h) continue;
+                    sum += variance_[static_cast<std::size_t>(py) * static_cast<std::size_t>(w) + px];
+                    ++count;
+                }
+            blurredVariance_[i] = sum / static_cast<float>(count);
+        });
+    }
     const float alpha = std::clamp(params_.temporal.alpha, 1e-3f, 1.f);
     const float momentsAlpha = std::clamp(params_.temporal.momentsAlpha, 1e-3f, 1.f);
     const float steady = (2.f - alpha) / alpha, steadyMoments = (2.f - momentsAlpha) / momentsAlpha;

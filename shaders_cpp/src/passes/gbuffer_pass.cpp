@@ -40,25 +40,33 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
     const PinholeCamera camera(ctx.scene.camera, w, h);
     const std::optional<PinholeCamera> previousCamera =
         previous.valid ? std::optional<PinholeCamera>(PinholeCamera(previous.camera, w, h)) : std::nullopt;
+    // Step: the camera rays through the pixel centres, once each (and one
+    // column more: a pixel's footprint needs its right neighbour's ray).
+    const std::size_t columns = static_cast<std::size_t>(w) + 1;
+    std::vector<vec3> directions(columns * static_cast<std::size_t>(h));
+    parallelForEach(static_cast<std::size_t>(h), [&](std::size_t y) {
+        for (std::size_t x = 0; x < columns; ++x)
+            directions[y * columns + x] = camera.ray(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f).direction;
+    });
+    const vec3 origin = camera.ray(0.5f, 0.5f).origin;
+    const auto direction = [&](int x, int y) { return directions[static_cast<std::size_t>(y) * columns + static_cast<std::size_t>(x)]; };
     // Step: primary rays through pixel centres.
     counters.add(ctx.pipeline().dispatchCoherent(
         w, h, ctx.args(kRayPrimary),
         [&](int x, int y, HitPayload&) {
             if (rayOrder) rayOrder->push_back(static_cast<std::uint32_t>(ctx.pixelIndex(x, y)));
-            const CameraRay r = camera.ray(x + 0.5f, y + 0.5f);
-            return tracer::RayDesc{r.origin, 0.f, r.direction, kInfinity};
+            return tracer::RayDesc{origin, 0.f, direction(x, y), kInfinity};
         },
         [&](int x, int y, const HitPayload& p) {
             GPixel& g = ctx.gbuffer[ctx.pixelIndex(x, y)];
             if (!p.hit) return;
             const ecs::Material& m = ctx.material(p.material);
-            const CameraRay r = camera.ray(x + 0.5f, y + 0.5f);
+            const CameraRay r{origin, direction(x, y)};
             g.hit = true;
             g.t = p.t;
             g.depth = p.t * glm::dot(r.direction, forward);
             // The pixel's footprint: the primary ray's distance x the angle to the next pixel's ray.
-            const CameraRay next = camera.ray(x + 1.5f, y + 0.5f);
-            g.pixelWorld = p.t * glm::length(next.direction - r.direction);
+            g.pixelWorld = p.t * glm::length(direction(x + 1, y) - r.direction);
             g.position = p.position;
             g.viewDir = -r.direction;
             g.normal = p.shadingNormal;
@@ -126,8 +134,8 @@ std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, I
             pixelWorld[i] = g.pixelWorld;
         }
     });
-    // G-buffer in memory + its 19 output floats per pixel.
-    return n * (sizeof(GPixel) + 19 * sizeof(float));
+    // G-buffer in memory + its 19 output floats per pixel + the camera rays.
+    return n * (sizeof(GPixel) + 19 * sizeof(float)) + directions.size() * sizeof(vec3);
 }
 
 }  // namespace rtlab::shaders::detail

@@ -7,6 +7,8 @@
 // denoiser filters radiance only and compose multiplies the term back.
 #include "indirect_shading.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
 namespace rtlab::shaders::detail {
 
 std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
@@ -17,16 +19,18 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
     std::vector<std::uint32_t> validSamples(n, 0);  // samples that left above the surface
     std::vector<SecondaryRay> rays(n);
     std::vector<vec3> brdf(n, vec3(0.f));
-    std::vector<bool> glossy(n, false);
-    for (std::size_t i = 0; i < n; ++i) {
-        const GPixel& g = ctx.gbuffer[i];
-        glossy[i] = g.hit && g.roughness <= ctx.plan.reflectionMaxRoughness &&
-                    ctx.material(g.material).transmission <= 0.f;
-        if (!glossy[i]) continue;
-        const ShadingPoint sp = shadingPointOf(g);
-        const vec2 ab = specularBrdfIntegral(std::max(glm::dot(g.normal, g.viewDir), 0.f), g.roughness);
-        brdf[i] = specularF0(sp) * ab.x + vec3(ab.y);
-    }
+    std::vector<std::uint8_t> glossy(n, 0);
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            const GPixel& g = ctx.gbuffer[i];
+            glossy[i] = g.hit && g.roughness <= ctx.plan.reflectionMaxRoughness &&
+                        ctx.material(g.material).transmission <= 0.f;
+            if (!glossy[i]) continue;
+            const ShadingPoint sp = shadingPointOf(g);
+            const vec2 ab = specularBrdfIntegral(std::max(glm::dot(g.normal, g.viewDir), 0.f), g.roughness);
+            brdf[i] = specularF0(sp) * ab.x + vec3(ab.y);
+        }
+    });
     for (int s = 0; s < spp; ++s) {
         for (std::size_t i = 0; i < n; ++i) {
             rays[i].active = false;
@@ -54,13 +58,15 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
     }
     std::vector<vec3> radiance(n);
     float* hitT = out.addChannel("reflection.hitT", 0.f);
-    for (std::size_t i = 0; i < n; ++i) {
-        // Incoming radiance over the valid samples: the pre-integrated term already
-        // accounts for the directions GGX sends below the horizon.
-        radiance[i] = validSamples[i] ? result.radiance[i] / float(validSamples[i]) : vec3(0.f);
-        hitT[i] = result.meanHitT(i);
-        specular[i] = brdf[i] * radiance[i];
-    }
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            // Incoming radiance over the valid samples: the pre-integrated term already
+            // accounts for the directions GGX sends below the horizon.
+            radiance[i] = validSamples[i] ? result.radiance[i] / float(validSamples[i]) : vec3(0.f);
+            hitT[i] = result.meanHitT(i);
+            specular[i] = brdf[i] * radiance[i];
+        }
+    });
     out.addRgbLayer("reflection", radiance);
     out.addRgbLayer("reflection.brdf", brdf);
     return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + sizeof(BrdfSample) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
