@@ -79,15 +79,6 @@ void forEachRow(const Layout& l, F&& f) {
     });
 }
 
-// The guide's normal scaled to unit length (0 stays 0).
-vec3 unitNormal(const vec3& normal) {
-    const vec3 n = sanitize(normal);
-    const float m = std::max(std::fabs(n.x), std::max(std::fabs(n.y), std::fabs(n.z)));
-    if (!(m > 0.f)) return vec3(0.f);
-    const vec3 s = n / m;  // no overflow in the squares
-    return s / std::sqrt(s.x * s.x + s.y * s.y + s.z * s.z);
-}
-
 // The guides as structure-of-arrays floats (padded rows), built once per filter call.
 struct GuidePlanes {
     Layout layout;
@@ -105,11 +96,7 @@ struct GuidePlanes {
             const bool sky = g.isSky(i);
             geometry[k] = sky ? 0.f : 1.f;
             depth[k] = sky ? 0.f : detail::clampNaNLow(g.depth[i], -kMaxRadiance, kMaxRadiance);
-            // G-buffer normals are unit vectors up to round-off: normalised only when they are not.
-            vec3 n = g.normal[i];
-            const float l2 = n.x * n.x + n.y * n.y + n.z * n.z;
-            if (!(l2 > 1.f - 1e-6f && l2 < 1.f + 1e-6f)) n = unitNormal(n);
-            if (sky) n = vec3(0.f);
+            const vec3 n = sky ? vec3(0.f) : detail::guideUnitNormal(g.normal[i]);
             nx[k] = n.x, ny[k] = n.y, nz[k] = n.z;
             gradX[k] = sky ? 0.f : sanitize(grad[i].x);
             gradY[k] = sky ? 0.f : sanitize(grad[i].y);

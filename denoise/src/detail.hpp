@@ -60,6 +60,18 @@ inline float expNeg(float e) {
     return std::exp(-(e > 0.f ? e : 0.f));
 }
 
+// A guide's normal of unit length: G-buffer normals are unit vectors up to
+// round-off and pass unchanged; others are scaled (sanitised; 0 stays 0).
+inline vec3 guideUnitNormal(const vec3& normal) {
+    const float l2 = normal.x * normal.x + normal.y * normal.y + normal.z * normal.z;
+    if (l2 > 1.f - 1e-6f && l2 < 1.f + 1e-6f) return normal;
+    const vec3 n = sanitize(normal);
+    const float m = std::max(std::fabs(n.x), std::max(std::fabs(n.y), std::fabs(n.z)));
+    if (!(m > 0.f)) return vec3(0.f);
+    const vec3 s = n / m;  // no overflow in the squares
+    return s / std::sqrt(s.x * s.x + s.y * s.y + s.z * s.z);
+}
+
 // Normal edge-stopping weight max(0, n.n')^sigmaN (NaN -> 0). Integer
 // exponents up to 4096 (the paper's 128 among them) use exact repeated
 // squaring instead of std::pow, which is several times slower.

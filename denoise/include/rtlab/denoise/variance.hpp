@@ -13,7 +13,7 @@ struct VarianceParams {
     // Below this history length (frames) the variance is estimated spatially.
     // Source: paper and Falcor (4).
     float historyThreshold = 4.f;
-    // Half-width of the spatial window: 3 = 7x7. Source: paper and Falcor.
+    // Half-width of the spatial window: 3 = 7x7 (at most 3). Source: paper and Falcor.
     int radius = 3;
     // Bilateral weights of the spatial estimate, driven by depth and normal
     // only (paper): exp(-|z - z'| / (sigmaZ |grad z . offset| + depthEpsilon * z))
