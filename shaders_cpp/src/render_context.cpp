@@ -1,8 +1,11 @@
 #include "render_context.hpp"
 
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/shaders_cpp/sampling.hpp>
 
 #include <algorithm>
+#include <memory>
+#include <type_traits>
 
 namespace rtlab::shaders::detail {
 namespace {
@@ -33,6 +36,14 @@ void surfaceClosestHit(const RenderContext& ctx, const tracer::HitContext& hc, H
 }
 
 }  // namespace
+
+GPixelBuffer::GPixelBuffer(std::size_t count)
+    : count_(count), pixels_(std::allocator<GPixel>().allocate(count), Release{count}) {
+    static_assert(std::is_trivially_destructible_v<GPixel>, "GPixelBuffer never runs destructors");
+    parallelForChunks(count, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        std::uninitialized_value_construct(pixels_.get() + begin, pixels_.get() + end);
+    });
+}
 
 RenderContext::RenderContext(const tracer::AccelManager& accel_, const ecs::SceneSnapshot& scene_,
                              const FramePlan& plan_, const RenderSettings& settings_)
