@@ -49,8 +49,14 @@ float* Image::addChannel(const std::string& name, float fill) {
     if (channel(name) != nullptr) throw std::logic_error("Image: channel '" + name + "' already exists");
     // At least one element, so that channel() is never null for an existing
     // channel of an empty image; only the first pixelCount() values are pixels.
-    channels_.push_back(Channel{name, std::vector<float>(std::max<std::size_t>(pixelCount(), 1), fill)});
-    return channels_.back().data.data();
+    const std::size_t count = std::max<std::size_t>(pixelCount(), 1);
+    channels_.push_back(Channel{name, {}});
+    auto& data = channels_.back().data;
+    data.resize(count);  // uninitialised
+    parallelForChunks(count, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        std::fill(data.begin() + static_cast<std::ptrdiff_t>(begin), data.begin() + static_cast<std::ptrdiff_t>(end), fill);
+    });
+    return data.data();
 }
 
 float* Image::channel(const std::string& name) {

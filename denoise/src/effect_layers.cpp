@@ -282,8 +282,9 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
                 params.svgf.staticShrinkOwnSigma2 = shadow.staticShrinkOwnSigma2;
             }
             const std::vector<float> footprint = footprintOf(frame, s, guides, pixelWorld, params.footprint);
-            std::vector<vec3> noisy(n), out(n);
+            std::vector<vec3> noisy;
             if (s.scalar) {
+                noisy.resize(n);
                 const float* c = frame.channel(s.layer);
                 float* keep = frame.addChannel("noisy." + s.layer);
                 detail::forEachIndex(n, [&](std::size_t p) {
@@ -294,6 +295,7 @@ std::vector<DenoisedLayer> EffectLayerDenoiser::apply(Image& frame) {
                 noisy = frame.rgbLayer(s.layer);
                 frame.addRgbLayer("noisy." + s.layer, noisy);
             }
+            std::vector<vec3> out(n);
             std::vector<vec3> albedo;
             if (s.demodulateAlbedo && frame.hasChannel("albedo.R")) {
                 albedo = frame.rgbLayer("albedo");

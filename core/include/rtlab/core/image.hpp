@@ -11,7 +11,9 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace rtlab {
@@ -47,9 +49,30 @@ public:
     std::array<const float*, 3> rgbPlanes(const std::string& layer) const;
 
 private:
+    // A plane's floats are left uninitialised by the vector (addChannel
+    // fills them in parallel: an image-sized fill on one thread was a
+    // millisecond per few channels of every frame).
+    template <class T>
+    struct UninitialisedAllocator : std::allocator<T> {
+        template <class U>
+        struct rebind {
+            using other = UninitialisedAllocator<U>;
+        };
+        UninitialisedAllocator() = default;
+        template <class U>
+        UninitialisedAllocator(const UninitialisedAllocator<U>&) noexcept {}
+        template <class U>
+        void construct(U* p) noexcept {
+            ::new (static_cast<void*>(p)) U;
+        }
+        template <class U, class... Args>
+        void construct(U* p, Args&&... args) {
+            ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+        }
+    };
     struct Channel {
         std::string name;
-        std::vector<float> data;
+        std::vector<float, UninitialisedAllocator<float>> data;
     };
     int width_ = 0;
     int height_ = 0;
