@@ -69,7 +69,8 @@ void finishShadingPoint(ShadingPoint& sp) {
     sp.woLocal = toLocal(sp.frame, sp.wo);
 }
 
-vec3 specularF0(const ShadingPoint& sp) { return glm::mix(vec3(0.04f), sp.albedo, sp.metalness); }
+vec3 specularF0(const vec3& albedo, float metalness) { return glm::mix(vec3(0.04f), albedo, metalness); }
+vec3 specularF0(const ShadingPoint& sp) { return specularF0(sp.albedo, sp.metalness); }
 
 namespace {
 

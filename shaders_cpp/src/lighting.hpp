@@ -39,8 +39,9 @@ vec3 evalBrdfCos(const ShadingPoint& sp, const vec3& wi);
 vec3 evalDiffuseCos(const ShadingPoint& sp, const vec3& wi);
 // The specular (GGX) part only; evalBrdfCos = evalDiffuseCos + evalSpecularCos.
 vec3 evalSpecularCos(const ShadingPoint& sp, const vec3& wi);
-// F0 of the specular lobe.
+// F0 of the specular lobe (from the base colour and metalness alone).
 vec3 specularF0(const ShadingPoint& sp);
+vec3 specularF0(const vec3& albedo, float metalness);
 
 // Sampling the BRDF: the diffuse (cosine) or the GGX (visible normals)
 // lobe, picked with probabilities from the lobes' estimated albedos; pdf is

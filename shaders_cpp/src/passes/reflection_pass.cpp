@@ -26,9 +26,8 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
             glossy[i] = g.hit && g.roughness <= ctx.plan.reflectionMaxRoughness &&
                         ctx.material(g.material).transmission <= 0.f;
             if (!glossy[i]) continue;
-            const ShadingPoint sp = shadingPointOf(g);
             const vec2 ab = specularBrdfIntegral(std::max(glm::dot(g.normal, g.viewDir), 0.f), g.roughness);
-            brdf[i] = specularF0(sp) * ab.x + vec3(ab.y);
+            brdf[i] = specularF0(g.albedo, g.metalness) * ab.x + vec3(ab.y);
         }
     });
     for (int s = 0; s < spp; ++s) {
