@@ -8,6 +8,8 @@ out = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "out/bench")
 times, rates, model, cpu_over_wall = {}, {}, {}, {}
 terrain_scaling = []  # perf/scalable_scenes.cpp: one entry per terrain size
 denoise_times = {}  # (benchmark, args...) -> ms, from perf/denoise_speed.cpp
+frame_cost = {}  # perf/frame_cost.cpp: effect -> size -> {"render": ms, "denoise": ms}
+FRAME_EFFECTS, FRAME_SIZES = ("shadows", "reflections", "ao", "gi"), ("320x180", "480x270")
 for f in sorted(out.glob("*.json")):
     if f.name == "summary.json":
         continue
@@ -27,6 +29,12 @@ for f in sorted(out.glob("*.json")):
             m = re.match(r"(BM_Denoise\w+)((?:/\d+)*)", b["name"])
             scale = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b.get("time_unit", "ns")]
             denoise_times[(m.group(1),) + tuple(int(a) for a in m.group(2).split("/")[1:])] = b["real_time"] * scale
+        m = re.match(r"BM_(Render|Denoise)Frame/(\d+)/(\d+)/", b["name"])
+        if m:
+            scale = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b.get("time_unit", "ns")]
+            part = frame_cost.setdefault(FRAME_EFFECTS[int(m.group(2))], {}).setdefault(FRAME_SIZES[int(m.group(3))], {})
+            key = m.group(1).lower()
+            part[key] = min(b["real_time"] * scale, part.get(key, float("inf")))
         if b["name"].startswith("BM_TerrainAccelScaling/"):
             terrain_scaling.append({k: b[k] for k in ("uniqueTriangles", "buildMs", "embreeBytes", "clusterBytes",
                                                        "bytesPerTriangle") if k in b})
@@ -173,7 +181,8 @@ if terrain_scaling:
     }
 
 (out / "summary.json").write_text(json.dumps({**summary, "rtcore_model_showcase": model, "denoise": denoise,
-                                              "terrain_accel_scaling": scaling}, indent=2) + "\n")
+                                              "terrain_accel_scaling": scaling, "frame_cost_ms": frame_cost},
+                                             indent=2) + "\n")
 for k, v in summary.items():
     print(f"{k}: {v:.4f}" if v is not None else f"{k}: (missing)")
 for label, figures in model.items():
@@ -197,3 +206,8 @@ if scaling:
         print(f"  {int(e['uniqueTriangles'])} triangles: build {e['buildMs']:.1f} ms, "
               f"{e['bytesPerTriangle']:.1f} bytes/triangle (Embree {int(e['embreeBytes'])}, clusters {int(e['clusterBytes'])})")
     print(f"  log-log slope: build time {scaling['build_ms_loglog_slope']:.3f}, memory {scaling['memory_bytes_loglog_slope']:.3f}")
+if frame_cost:
+    print("one showcase frame at 1 spp, render + a fresh denoiser, ms (perf/frame_cost.cpp; what rtlab converge times):")
+    for effect, sizes in frame_cost.items():
+        for size, parts in sizes.items():
+            print(f"  {effect} {size}: render {fmt(parts.get('render'), '.1f')}, denoise {fmt(parts.get('denoise'), '.1f')}")
