@@ -99,6 +99,7 @@ constexpr float kCallbackCost = 8.f;  // an Embree callback, in triangle tests
 
 void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std::vector<std::uint32_t>& order) {
     data.clusters.clear();
+    data.clusters.reserve((order.size() + kClusterTriangles - 1) / kClusterTriangles);
     // Step: the finite triangles in Morton order, with their boxes.
     std::vector<std::uint32_t> pending;
     std::vector<Aabb> boxes;
@@ -117,10 +118,12 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
         boxes.push_back(box);
     }
     std::vector<std::uint8_t> assigned(pending.size(), 0);
-    std::uint32_t members[kClusterTriangles];  // the cluster being grown: indices into pending
-    std::uint32_t count = 0;
-    auto add = [&](std::size_t k) {
-        members[count++] = static_cast<std::uint32_t>(k);
+    auto add = [&](TriangleCluster& c, std::size_t k) {
+        const std::uint32_t t = pending[k];
+        c.primitive[c.count] = t;
+        c.set(static_cast<int>(c.count), g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]],
+              g.positions[g.indices[3 * t + 2]]);
+        ++c.count;
         assigned[k] = 1;
     };
     std::size_t head = 0;
@@ -128,17 +131,17 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
         while (head < pending.size() && assigned[head]) ++head;
         if (head == pending.size()) break;
         // Step: a new cluster from the first unassigned triangle.
-        count = 0;
+        TriangleCluster& c = data.clusters.emplace_back();
         Aabb clusterBox = boxes[head];
         float clusterArea = clusterBox.surfaceArea();
-        add(head);
+        add(c, head);
         // Step: the next unassigned triangles within the look-ahead.
         std::size_t candidates[kClusterLookAhead];
         std::size_t candidateCount = 0;
         for (std::size_t k = head + 1; k < pending.size() && candidateCount < kClusterLookAhead; ++k)
             if (!assigned[k]) candidates[candidateCount++] = k;
         // Step: grow by the candidate that enlarges the box least, while the rule holds.
-        while (count < static_cast<std::uint32_t>(kClusterTriangles)) {
+        while (c.count < static_cast<std::uint32_t>(kClusterTriangles)) {
             std::size_t best = pending.size();
             float bestArea = 0.f;
             for (std::size_t n = 0; n < candidateCount; ++n) {
@@ -150,39 +153,28 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
                 // The SAH-style rule: rays entering the merged box pay one
                 // callback and one more triangle; kept apart, the rays entering
                 // each box pay a callback and their own triangles.
-                const float size = static_cast<float>(count);
-                const float mergedCost = area * (kCallbackCost + size + 1.f);
-                const float apartCost = clusterArea * (kCallbackCost + size) + boxes[k].surfaceArea() * (kCallbackCost + 1.f);
+                const float members = static_cast<float>(c.count);
+                const float mergedCost = area * (kCallbackCost + members + 1.f);
+                const float apartCost = clusterArea * (kCallbackCost + members) + boxes[k].surfaceArea() * (kCallbackCost + 1.f);
                 if (mergedCost > apartCost) continue;
                 if (best == pending.size() || area < bestArea) best = k, bestArea = area;
             }
             if (best == pending.size()) break;
             clusterBox.extend(boxes[best]);
             clusterArea = clusterBox.surfaceArea();
-            add(best);
-        }
-        // Step: the cluster into the packed array.
-        std::uint32_t primitives[kClusterTriangles];
-        for (std::uint32_t s = 0; s < count; ++s) primitives[s] = pending[members[s]];
-        const std::uint32_t unit = data.clusters.append(primitives, count);
-        for (std::uint32_t s = 0; s < count; ++s) {
-            const std::uint32_t t = primitives[s];
-            data.clusters.setTriangle(unit, s, g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]],
-                                      g.positions[g.indices[3 * t + 2]]);
+            add(c, best);
         }
     }
 }
 
 // After a refit: the same triangles per cluster, their new vertices.
 void refreshClusterVertices(WatertightTriangles& data, const ecs::Geometry& g) {
-    for (std::uint32_t unit = 0; unit < data.clusters.units(); unit = data.clusters.next(unit)) {
-        const TriangleCluster c = data.clusters.at(unit);
+    for (TriangleCluster& c : data.clusters)
         for (std::uint32_t s = 0; s < c.count; ++s) {
-            const std::uint32_t t = c.primitive(s);
-            data.clusters.setTriangle(unit, s, g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]],
-                                      g.positions[g.indices[3 * t + 2]]);
+            const std::uint32_t t = c.primitive[s];
+            c.set(static_cast<int>(s), g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]],
+                  g.positions[g.indices[3 * t + 2]]);
         }
-    }
 }
 
 // The power of two at or above x (0 for x <= 0): paddings change in steps,
@@ -209,12 +201,7 @@ float objectMagnitudeOf(const ecs::MeshAsset& mesh) {
 
 void watertightBoundsCallback(const RTCBoundsFunctionArguments* args) {
     const auto& data = *static_cast<const WatertightTriangles*>(args->geometryUserPtr);
-    // Units inside a cluster: an empty box, so Embree leaves them out.
-    if (!data.clusters.startsCluster(args->primID)) {
-        storeEmbreeBounds(args->bounds_o, Aabb{});
-        return;
-    }
-    const TriangleCluster c = data.clusters.at(args->primID);
+    const TriangleCluster& c = data.clusters[args->primID];
     Aabb box;
     for (std::uint32_t s = 0; s < c.count; ++s)
         for (int k = 0; k < 3; ++k) {
@@ -306,7 +293,7 @@ std::uint64_t AccelManager::clusterBytes() const {
     for (const auto& blas : blases_)
         if (blas)
             for (const auto& w : blas->watertight)
-                if (w) bytes += w->clusters.bytes();
+                if (w) bytes += w->clusters.size() * sizeof(TriangleCluster);
     return bytes;
 }
 
@@ -377,7 +364,7 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
             data.padding = requiredPadding(id);
             if (refitTracked) blas->clusterOrder.push_back(std::move(order));
             else blas->clusterOrder.emplace_back();
-            attachUserGeometry(*blas, data.clusters.units(), &data,
+            attachUserGeometry(*blas, data.clusters.size(), &data,
                                g.deformable() ? RTC_BUILD_QUALITY_REFIT : RTC_BUILD_QUALITY_HIGH,
                                watertightBoundsCallback, watertightIntersectCallback, watertightOccludedCallback);
             continue;

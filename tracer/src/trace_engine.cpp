@@ -398,7 +398,7 @@ bool considerCandidate(const Args* a, unsigned i, PipelineContext* pipeline, boo
     float& tfar = RTCRayN_tfar(rayOf(a), a->N, i);
     if (t > tfar) return false;
     RTCHitN* h = hitOf(a);
-    const std::uint32_t primitive = cluster.primitive(slot);
+    const std::uint32_t primitive = cluster.primitive[slot];
     if (!occlusion && t == tfar && RTCHitN_geomID(h, a->N, i) != RTC_INVALID_GEOMETRY_ID &&
         !hitReplaces(t, {instanceIndex, a->geomID, primitive}, tfar,
                      {RTCHitN_instID(h, a->N, i, 0), RTCHitN_geomID(h, a->N, i), RTCHitN_primID(h, a->N, i)}))
@@ -492,7 +492,7 @@ std::uint32_t packetLanes(const int* valid, const unsigned* ids, bool& lanesInPl
 template <class Args>
 void intersectWatertightCluster(const Args* a, bool occlusion) {
     const auto& mesh = *static_cast<const WatertightTriangles*>(a->geometryUserPtr);
-    const TriangleCluster cluster = mesh.clusters.at(a->primID);
+    const TriangleCluster& cluster = mesh.clusters[a->primID];
     RTCRayN* rayN = rayOf(a);
     TraversalContext* traversal = traversalContextOf(a->context);
     PipelineContext* pipeline = traversal ? traversal->pipeline : nullptr;

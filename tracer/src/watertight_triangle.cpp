@@ -62,28 +62,11 @@ std::optional<TriangleHit> intersectTriangleWatertight(const WatertightRay& r, c
     return TriangleHit{t, v / det, w / det};
 }
 
-std::uint32_t PackedClusters::append(const std::uint32_t* primitives, std::uint32_t count) {
-    // Step: the new cluster's units replace the 4-float tail, then a new tail.
-    const std::uint32_t unit = units();
-    const std::uint32_t n = unitsFor(count);
-    floats_.resize(4 * (std::size_t(unit) + n) + 4, 0.f);
-    float* d = floats_.data() + 4 * std::size_t(unit);
-    d[0] = std::bit_cast<float>(count);
-    for (std::uint32_t s = 0; s < count; ++s) d[1 + s] = std::bit_cast<float>(primitives[s]);
-    isStart_.resize(std::size_t(unit) + n, 0);
-    isStart_[unit] = 1;
-    return unit;
-}
-
-void PackedClusters::setTriangle(std::uint32_t unit, std::uint32_t slot, const vec3& p0, const vec3& p1,
-                                 const vec3& p2) {
-    float* d = floats_.data() + 4 * std::size_t(unit);
-    const std::uint32_t count = std::bit_cast<std::uint32_t>(d[0]);
-    float* v = d + 1 + count;
+void TriangleCluster::set(int slot, const vec3& p0, const vec3& p1, const vec3& p2) {
     for (int a = 0; a < 3; ++a) {
-        v[(0 * 3 + a) * count + slot] = p0[a];
-        v[(1 * 3 + a) * count + slot] = p1[a];
-        v[(2 * 3 + a) * count + slot] = p2[a];
+        v[0][a][slot] = p0[a];
+        v[1][a][slot] = p1[a];
+        v[2][a][slot] = p2[a];
     }
 }
 
@@ -140,19 +123,18 @@ RTLAB_SIMD_INLINE std::uint32_t intersectPacketLanes(const WatertightRayPacket& 
     const V sx = lanes(p.sx), sy = lanes(p.sy), sz = lanes(p.sz);
     V akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz;
     if (p.uniform) {
-        akx = simd::splat<N>(c.coordinate(0, p.kx, slot)) - ox, aky = simd::splat<N>(c.coordinate(0, p.ky, slot)) - oy;
-        akz = simd::splat<N>(c.coordinate(0, p.kz, slot)) - oz;
-        bkx = simd::splat<N>(c.coordinate(1, p.kx, slot)) - ox, bky = simd::splat<N>(c.coordinate(1, p.ky, slot)) - oy;
-        bkz = simd::splat<N>(c.coordinate(1, p.kz, slot)) - oz;
-        ckx = simd::splat<N>(c.coordinate(2, p.kx, slot)) - ox, cky = simd::splat<N>(c.coordinate(2, p.ky, slot)) - oy;
-        ckz = simd::splat<N>(c.coordinate(2, p.kz, slot)) - oz;
+        akx = simd::splat<N>(c.v[0][p.kx][slot]) - ox, aky = simd::splat<N>(c.v[0][p.ky][slot]) - oy;
+        akz = simd::splat<N>(c.v[0][p.kz][slot]) - oz;
+        bkx = simd::splat<N>(c.v[1][p.kx][slot]) - ox, bky = simd::splat<N>(c.v[1][p.ky][slot]) - oy;
+        bkz = simd::splat<N>(c.v[1][p.kz][slot]) - oz;
+        ckx = simd::splat<N>(c.v[2][p.kx][slot]) - ox, cky = simd::splat<N>(c.v[2][p.ky][slot]) - oy;
+        ckz = simd::splat<N>(c.v[2][p.kz][slot]) - oz;
     } else {
         const VI xIs0 = mask(p.xIs0), xIs1 = mask(p.xIs1), yIs0 = mask(p.yIs0), yIs1 = mask(p.yIs1);
         const VI zIs0 = mask(p.zIs0), zIs1 = mask(p.zIs1);
-        auto permuted = [&](int k, const VI& is0, const VI& is1) {
-            return simd::select<N>(is0, simd::splat<N>(c.coordinate(k, 0, slot)),
-                                   simd::select<N>(is1, simd::splat<N>(c.coordinate(k, 1, slot)),
-                                                   simd::splat<N>(c.coordinate(k, 2, slot))));
+        auto permuted = [&](int k, const VI& is0, const VI& is1) __attribute__((always_inline)) {
+            return simd::select<N>(is0, simd::splat<N>(c.v[k][0][slot]),
+                                   simd::select<N>(is1, simd::splat<N>(c.v[k][1][slot]), simd::splat<N>(c.v[k][2][slot])));
         };
         akx = permuted(0, xIs0, xIs1) - ox, aky = permuted(0, yIs0, yIs1) - oy, akz = permuted(0, zIs0, zIs1) - oz;
         bkx = permuted(1, xIs0, xIs1) - ox, bky = permuted(1, yIs0, yIs1) - oy, bkz = permuted(1, zIs0, zIs1) - oz;
@@ -278,22 +260,16 @@ void intersectClusterWatertight(const WatertightRay& r, const TriangleCluster& c
     out.mask = 0;
     if (!r.valid) return;
     // Every slot in one SIMD step: intersectTriangleWatertight lane by lane.
-    // Lanes at and past `count` load the next floats of the packed array;
-    // their tMax of -inf keeps them out of the hit mask.
     constexpr int N = kClusterTriangles;
     using V = simd::vfloat<N>;
-    using VI = simd::vint<N>;
     const V okx = simd::splat<N>(r.ox), oky = simd::splat<N>(r.oy), okz = simd::splat<N>(r.oz);
     const V sx = simd::splat<N>(r.sx), sy = simd::splat<N>(r.sy), sz = simd::splat<N>(r.sz);
-    auto coordinate = [&](int k, int axis) { return simd::loadu<N>(c.row(k, axis)); };
+    auto coordinate = [&](int k, int axis) { return simd::loadu<N>(c.v[k][axis]); };
     const V akx = coordinate(0, r.kx) - okx, aky = coordinate(0, r.ky) - oky, akz = coordinate(0, r.kz) - okz;
     const V bkx = coordinate(1, r.kx) - okx, bky = coordinate(1, r.ky) - oky, bkz = coordinate(1, r.kz) - okz;
     const V ckx = coordinate(2, r.kx) - okx, cky = coordinate(2, r.ky) - oky, ckz = coordinate(2, r.kz) - okz;
-    const VI slot{0, 1, 2, 3};
-    const VI inCluster = slot < static_cast<std::int32_t>(c.count);
-    const V upper = simd::select<N>(inCluster, simd::splat<N>(tMax), simd::splat<N>(-kInfinity));
     out.mask = shearedEdgeTest<N>(akx, aky, akz, bkx, bky, bkz, ckx, cky, ckz, sx, sy, sz, simd::splat<N>(tMin),
-                                  upper, out.t, out.b1, out.b2);
+                                  simd::splat<N>(tMax), out.t, out.b1, out.b2);
 }
 
 }  // namespace rtlab::tracer

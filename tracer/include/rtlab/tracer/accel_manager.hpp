@@ -29,7 +29,7 @@ struct AccelOptions {
     std::uint32_t refitQualityCheckInterval = 8;
     // Watertight triangles: Embree 3.13.5's robust triangle test leaks rays
     // through shared vertices (docs/acceleration-structures.md). With this on,
-    // triangles are grouped into clusters of up to 4 (Morton order of their
+    // triangles are grouped into clusters of up to 8 (Morton order of their
     // centroids), each cluster one Embree user primitive intersected by the
     // single-precision Woop-Benthin-Wald test (watertight_triangle.hpp), and
     // every cluster box is padded conservatively for the magnitude of its
@@ -43,10 +43,9 @@ struct AccelOptions {
 };
 
 // The user data of a watertight triangle geometry (read by its callbacks):
-// clusters of up to kClusterTriangles triangles, one Embree user primitive each
-// (the primitive id is the cluster's unit in the packed array).
+// clusters of up to kClusterTriangles triangles, one Embree user primitive each.
 struct WatertightTriangles {
-    PackedClusters clusters;
+    std::vector<TriangleCluster> clusters;
     float padding = 0.f;  // absolute enlargement of every cluster box (object space)
 };
 

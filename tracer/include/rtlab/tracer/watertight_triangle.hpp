@@ -22,8 +22,6 @@
 #include <rtlab/core/math.hpp>
 
 #include <array>
-#include <bit>
-#include <vector>
 #include <cstdint>
 #include <optional>
 
@@ -54,56 +52,21 @@ inline std::optional<TriangleHit> intersectTriangleWatertight(const vec3& origin
     return intersectTriangleWatertight(makeWatertightRay(origin, direction), p0, p1, p2, tMin, tMax);
 }
 
-// Up to kClusterTriangles triangles of one geometry, packed (PackedClusters)
-// as floats: [count, primitive id per slot, v[vertex][axis][slot]] with count
-// and the ids bit-cast, the coordinates in structure-of-arrays form with a
-// row of `count` floats per (vertex, axis). A cluster of n triangles takes
-// 1 + 10 n floats rounded up to 16 bytes (48 / 96 / 128 / 176 bytes): the
-// terrain's clusters (1.7 triangles on average) took 176 bytes each when
-// every cluster had four slots, twice Embree's whole BVH per triangle, and
-// the first touch of a cluster was most of a callback's time.
+// Up to kClusterTriangles triangles of one geometry, vertex coordinates in
+// structure-of-arrays form: v[vertex][axis][slot]. Unused slots hold a
+// degenerate triangle (all vertices equal), which never hits. Four slots:
+// clusters end where merging stops paying (buildClusters in
+// accel_manager.cpp; 1 to 4 triangles), and a 176-byte cluster keeps the
+// working set near Embree's own triangle leaves (an 8-slot one took 352
+// bytes for the same triangles).
 inline constexpr int kClusterTriangles = 4;
-struct TriangleCluster {
-    const float* data = nullptr;
-    std::uint32_t count = 0;
+struct alignas(16) TriangleCluster {
+    std::uint32_t count = 0;  // first: shares a cache line with the vertices
+    float v[3][3][kClusterTriangles] = {};
+    std::array<std::uint32_t, kClusterTriangles> primitive{};  // triangle index in the geometry per slot
 
-    std::uint32_t primitive(std::uint32_t slot) const { return std::bit_cast<std::uint32_t>(data[1 + slot]); }
-    // The `count` coordinates `axis` of vertex k; a 4-wide load from here
-    // stays inside the packed array (PackedClusters keeps 4 floats of tail).
-    const float* row(int k, int axis) const { return data + 1 + count + (k * 3 + axis) * count; }
-    float coordinate(int k, int axis, int slot) const { return row(k, axis)[slot]; }
-    vec3 vertex(int slot, int k) const { return vec3(coordinate(k, 0, slot), coordinate(k, 1, slot), coordinate(k, 2, slot)); }
-};
-
-// The clusters of one geometry in one array of 16-byte units. A cluster is
-// addressed by the unit it starts at, which is also its Embree primitive id:
-// the callbacks reach it without an index table, and the units inside a
-// cluster are primitives with an empty box, which Embree's builders skip.
-class PackedClusters {
-public:
-    static constexpr std::uint32_t unitsFor(std::uint32_t triangles) { return (1 + 10 * triangles + 3) / 4; }
-    // Appends a cluster of `count` (1..kClusterTriangles) triangles with ids
-    // `primitives`, vertices unset; returns its unit.
-    std::uint32_t append(const std::uint32_t* primitives, std::uint32_t count);
-    void setTriangle(std::uint32_t unit, std::uint32_t slot, const vec3& p0, const vec3& p1, const vec3& p2);
-    void clear() {
-        floats_.assign(4, 0.f);
-        isStart_.clear();
-    }
-
-    TriangleCluster at(std::uint32_t unit) const {
-        const float* d = floats_.data() + 4 * std::size_t(unit);
-        return {d, std::bit_cast<std::uint32_t>(d[0])};
-    }
-    bool startsCluster(std::uint32_t unit) const { return unit < isStart_.size() && isStart_[unit]; }
-    // The unit after the cluster starting at `unit` (clusters lie back to back).
-    std::uint32_t next(std::uint32_t unit) const { return unit + unitsFor(at(unit).count); }
-    std::uint32_t units() const { return static_cast<std::uint32_t>(isStart_.size()); }
-    std::uint64_t bytes() const { return floats_.size() * sizeof(float) + isStart_.size(); }
-
-private:
-    std::vector<float> floats_ = std::vector<float>(4, 0.f);  // the units, then 4 floats of tail
-    std::vector<std::uint8_t> isStart_;
+    vec3 vertex(int slot, int k) const { return vec3(v[k][0][slot], v[k][1][slot], v[k][2][slot]); }
+    void set(int slot, const vec3& p0, const vec3& p1, const vec3& p2);
 };
 
 // The hits of one cluster test: bit s of `mask` says slot s was hit with
