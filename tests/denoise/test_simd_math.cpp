@@ -38,6 +38,25 @@ TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {
     EXPECT_EQ(v[3], 1.f);
 }
 
+// The edge-stopping exp (degree-4 polynomial): within its stated 6e-5 of
+// std::exp, and defined for any input (a huge term, e.g. a depth difference
+// over a zero denominator, gives 0 without an out-of-range conversion:
+// UBSan caught one in the spatial variance).
+TEST(DenoiseSimdMath, ExpNegWeightMatchesStdExpAndHandlesAnyInput) {
+    for (float e = 0.f; e < 87.f; e += 0.01f) {
+        const float want = std::exp(-e);
+        if (want < 1e-37f) continue;
+        EXPECT_NEAR(dsimd::expNegWeight<4>(dsimd::splat<4>(e))[0] / want, 1.f, 6e-5f + 2e-7f * e) << e;
+    }
+    const float inf = std::numeric_limits<float>::infinity();
+    const dsimd::vfloat<4> v = dsimd::expNegWeight<4>(dsimd::vfloat<4>{-3.f, std::nanf(""), inf, 3e38f});
+    EXPECT_EQ(v[0], 1.f);  // negative counts as 0
+    EXPECT_EQ(v[1], 0.f);
+    EXPECT_EQ(v[2], 0.f);
+    EXPECT_EQ(v[3], 0.f);
+    EXPECT_EQ(dsimd::expNegWeight<4>(dsimd::splat<4>(87.f))[0], 0.f);
+}
+
 TEST(DenoiseSimdMath, Log2MatchesStdLog2) {
     for (float x = 1e-30f; x < 1e30f; x *= 1.37f) {
         const dsimd::vfloat<4> v = dsimd::log2Positive<4>(dsimd::splat<4>(x));
