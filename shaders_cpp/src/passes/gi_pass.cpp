@@ -4,6 +4,8 @@
 // distance.
 #include "indirect_shading.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
 namespace rtlab::shaders::detail {
 
 std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vector<vec3>& irradiance,
@@ -13,22 +15,27 @@ std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vec
     SecondaryResult result(n);
     std::vector<SecondaryRay> rays(n);
     for (int s = 0; s < spp; ++s) {
-        for (std::size_t i = 0; i < n; ++i) {
-            const GPixel& g = ctx.gbuffer[i];
-            rays[i].active = g.hit;
-            if (!g.hit) continue;
-            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kGiBounce);
-            const vec3 dir =
-                cosineDirectionAbove(g.normal, g.geometricNormal, vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
-            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
-        }
+        parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i) {
+                const GPixel& g = ctx.gbuffer[i];
+                rays[i].active = g.hit;
+                if (!g.hit) continue;
+                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kGiBounce);
+                const vec3 dir = cosineDirectionAbove(g.normal, g.geometricNormal,
+                                                      vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
+                rays[i].ray =
+                    tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
+            }
+        });
         traceAndShadeSecondary(ctx, rays, kRayGi, static_cast<std::uint32_t>(s), stream::kGiHit, result, counters);
     }
     float* hitT = out.addChannel("gi.hitT", 0.f);
-    for (std::size_t i = 0; i < n; ++i) {
-        irradiance[i] = kPi * result.radiance[i] / float(spp);
-        hitT[i] = result.meanHitT(i);
-    }
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            irradiance[i] = kPi * result.radiance[i] / float(spp);
+            hitT[i] = result.meanHitT(i);
+        }
+    });
     out.addRgbLayer("gi", irradiance);
     return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + 4 * 3 * sizeof(float) + 2 * sizeof(float));
 }

@@ -1,5 +1,7 @@
 #include "indirect_shading.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
 #include <algorithm>
 
 namespace rtlab::shaders::detail {
@@ -89,13 +91,15 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
         // glossy hit's highlight of a light larger than its lobe then comes
         // from the lobe's samples, not from rare light points of huge f / pdf
         // (nor from the rare pick of the specular lobe of the whole BRDF).
-        for (std::size_t i = 0; i < n; ++i) {
-            if (!hits[i].hit) continue;
-            radiance[i] += weight[i] * ctx.material(hits[i].material).emissive;
-            const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
-            const SampleKey key = ctx.key(i, sample, hitStream);
-            lobeSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
-        }
+        parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i) {
+                if (!hits[i].hit) continue;
+                radiance[i] += weight[i] * ctx.material(hits[i].material).emissive;
+                const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
+                const SampleKey key = ctx.key(i, sample, hitStream);
+                lobeSample[i] = sampleSpecularLobe(sp, vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
+            }
+        });
         for (std::size_t l = 0; l < ctx.scene.lights.size(); ++l) {
             const ecs::LightSnapshot& light = ctx.scene.lights[l];
             if (!emits(light)) continue;
@@ -171,15 +175,17 @@ void traceAndShadeSecondary(RenderContext& ctx, const std::vector<SecondaryRay>&
     const RayGrid grid = imageGrid(ctx);
     traceSecondary(ctx, grid, rays, rayType, hits, counters);
     std::vector<vec3> incoming(hits.size()), weight(hits.size(), vec3(1.f));
-    for (std::size_t i = 0; i < hits.size(); ++i) {
-        incoming[i] = rays[i].ray.direction;
-        if (!hits[i].hit) continue;
-        result.hitT[i] += hits[i].t;
-        ++result.hits[i];
-        // Fog between the surface and the secondary hit.
-        weight[i] = vec3(ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
-                                           stream::transmittance(hitStream, 1)));
-    }
+    parallelForChunks(hits.size(), kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            incoming[i] = rays[i].ray.direction;
+            if (!hits[i].hit) continue;
+            result.hitT[i] += hits[i].t;
+            ++result.hits[i];
+            // Fog between the surface and the secondary hit.
+            weight[i] = vec3(ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
+                                               stream::transmittance(hitStream, 1)));
+        }
+    });
     shadeHits(ctx, grid, hits, incoming, weight, sample, hitStream, result.radiance, counters, everyLight);
 }
 

@@ -14,6 +14,8 @@
 // counts per vertex do not depend on random termination beyond misses).
 #include "indirect_shading.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
 #include <algorithm>
 
 namespace rtlab::shaders::detail {
@@ -64,11 +66,13 @@ std::uint64_t runPathTracePass(RenderContext& ctx, Image& out, std::vector<PathV
     std::vector<SecondaryRay> rays(n);
     for (int s = 0; s < spp; ++s) {
         const auto sample = static_cast<std::uint32_t>(s);
-        for (std::size_t i = 0; i < n; ++i) {
-            hits[i] = payloadOf(ctx.gbuffer[i]);
-            incoming[i] = -ctx.gbuffer[i].viewDir;
-            throughput[i] = vec3(1.f);
-        }
+        parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i) {
+                hits[i] = payloadOf(ctx.gbuffer[i]);
+                incoming[i] = -ctx.gbuffer[i].viewDir;
+                throughput[i] = vec3(1.f);
+            }
+        });
         for (int depth = 0;; ++depth) {
             const auto vertex = static_cast<std::uint32_t>(depth);
             // Step: emission and next-event estimation at this vertex.
@@ -78,34 +82,36 @@ std::uint64_t runPathTracePass(RenderContext& ctx, Image& out, std::vector<PathV
             counters.add(shade);
             if (depth == maxDepth) break;
             // Step: the bounce rays leaving every live vertex.
-            bool any = false;
-            for (std::size_t i = 0; i < n; ++i) {
-                rays[i].active = false;
-                if (!hits[i].hit) continue;
-                const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
-                const SampleKey key = ctx.key(i, sample, stream::kPathBounce + vertex);
-                const std::optional<BounceSample> b =
-                    sampleBounce(sp, sampleUniform(key, 0), vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
-                if (!b) continue;
-                throughput[i] *= b->weight;
-                incoming[i] = b->direction;
-                rays[i].active = true;
-                rays[i].ray = tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, b->direction,
-                                                               sp.errorScale),
-                                              0.f, b->direction, kInfinity};
-                any = true;
-            }
-            if (!any) break;
+            parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+                for (std::size_t i = begin; i < end; ++i) {
+                    rays[i].active = false;
+                    if (!hits[i].hit) continue;
+                    const ShadingPoint sp = shadingPointOf(hits[i], ctx.material(hits[i].material), -incoming[i]);
+                    const SampleKey key = ctx.key(i, sample, stream::kPathBounce + vertex);
+                    const std::optional<BounceSample> b =
+                        sampleBounce(sp, sampleUniform(key, 0), vec2(sampleUniform(key, 1), sampleUniform(key, 2)));
+                    if (!b) continue;
+                    throughput[i] *= b->weight;
+                    incoming[i] = b->direction;
+                    rays[i].active = true;
+                    rays[i].ray = tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, b->direction,
+                                                                   sp.errorScale),
+                                                  0.f, b->direction, kInfinity};
+                }
+            });
+            if (std::none_of(rays.begin(), rays.end(), [](const SecondaryRay& r) { return r.active; })) break;
             tracer::TraceCounters bounce;
             traceSecondary(ctx, grid, rays, kRayPathBounce, hits, bounce);
             vertices[depth + 1].bounceRays += bounce.rays[kRayPathBounce];
             vertices[depth + 1].bounceHits += bounce.hits[kRayPathBounce];
             counters.add(bounce);
             // Step: fog between the vertices.
-            for (std::size_t i = 0; i < n; ++i)
-                if (hits[i].hit)
-                    throughput[i] *= ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i, sample,
-                                                       stream::transmittance(stream::kPathBounce + vertex));
+            parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+                for (std::size_t i = begin; i < end; ++i)
+                    if (hits[i].hit)
+                        throughput[i] *= ctx.transmittance(rays[i].ray.origin, rays[i].ray.direction, hits[i].t, i,
+                                                           sample, stream::transmittance(stream::kPathBounce + vertex));
+            });
         }
     }
     for (vec3& r : radiance) r /= float(spp);

@@ -31,22 +31,25 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
         }
     });
     for (int s = 0; s < spp; ++s) {
-        for (std::size_t i = 0; i < n; ++i) {
-            rays[i].active = false;
-            if (!glossy[i]) continue;
-            const GPixel& g = ctx.gbuffer[i];
-            const Frame frame = makeFrame(g.normal);
-            const vec3 wo = toLocal(frame, g.viewDir);
-            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kReflection);
-            const GgxReflectionSample rs =
-                sampleGgxReflection(wo, ggxAlpha(g.roughness), vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
-            if (!(rs.pdf > 0.f)) continue;
-            const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
-            if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface
-            rays[i].active = true;
-            ++validSamples[i];
-            rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
-        }
+        parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i) {
+                rays[i].active = false;
+                if (!glossy[i]) continue;
+                const GPixel& g = ctx.gbuffer[i];
+                const Frame frame = makeFrame(g.normal);
+                const vec3 wo = toLocal(frame, g.viewDir);
+                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kReflection);
+                const GgxReflectionSample rs = sampleGgxReflection(wo, ggxAlpha(g.roughness),
+                                                                   vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
+                if (!(rs.pdf > 0.f)) continue;
+                const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
+                if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface
+                rays[i].active = true;
+                ++validSamples[i];
+                rays[i].ray =
+                    tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
+            }
+        });
         // The reflected hit's direct light: every light with its own shadow
         // ray, not one picked (whose 1/pdf weight made the fireflies a sharp
         // mirror cannot filter away spatially); area lights by MIS of a light

@@ -142,10 +142,12 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                         return towardLight(i, g, sp, *chosen, pdf, s, stream::transmittance(stream::kPointLightPick));
                     },
                     addIfVisible);
-        for (std::size_t i = 0; i < n; ++i) {
-            pointDirect[i] /= float(samples);
-            direct[i] += pointDirect[i];
-        }
+        parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i) {
+                pointDirect[i] /= float(samples);
+                direct[i] += pointDirect[i];
+            }
+        });
         // Traced one by one the layer has no noise but the fog's; picked, it is noisy
         // (the denoiser filters direct.pointPicked only).
         out.addRgbLayer(pointLights.size() <= kTraceEveryPointLight ? "direct.point" : "direct.pointPicked", pointDirect);

@@ -8,6 +8,8 @@
 // below throughputCutoff.
 #include "indirect_shading.hpp"
 
+#include <rtlab/core/parallel.hpp>
+
 #include <cmath>
 
 namespace rtlab::shaders::detail {
@@ -75,66 +77,72 @@ std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<ve
     std::vector<std::uint32_t> firstHits(n, 0);
     for (int s = 0; s < spp; ++s) {
         // Step: the first interface, at the G-buffer surface.
-        for (std::size_t i = 0; i < n; ++i) {
-            const GPixel& g = ctx.gbuffer[i];
-            state[i] = PathState{};
-            rays[i].active = false;
-            finals[i] = HitPayload{};
-            if (!g.hit || !(g.transmission > 0.f)) continue;
-            const ecs::Material& m = ctx.material(g.material);
-            const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency);
-            bool crossed = false;
-            rays[i].ray = interfaceEvent(g.position, g.geometricNormal, -g.viewDir, m.ior, g.frontFace,
-                                         sampleUniform(key, 0), g.errorScale, crossed);
-            rays[i].active = true;
-            state[i].active = true;
-            state[i].inside = crossed == g.frontFace;
-            state[i].sigmaA = absorptionCoefficient(m);
-            state[i].throughput = vec3(1.f);
-        }
+        parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i) {
+                const GPixel& g = ctx.gbuffer[i];
+                state[i] = PathState{};
+                rays[i].active = false;
+                finals[i] = HitPayload{};
+                if (!g.hit || !(g.transmission > 0.f)) continue;
+                const ecs::Material& m = ctx.material(g.material);
+                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency);
+                bool crossed = false;
+                rays[i].ray = interfaceEvent(g.position, g.geometricNormal, -g.viewDir, m.ior, g.frontFace,
+                                             sampleUniform(key, 0), g.errorScale, crossed);
+                rays[i].active = true;
+                state[i].active = true;
+                state[i].inside = crossed == g.frontFace;
+                state[i].sigmaA = absorptionCoefficient(m);
+                state[i].throughput = vec3(1.f);
+            }
+        });
         // Step: follow the paths, one event per dispatch.
         for (int depth = 1; depth <= maxDepth; ++depth) {
             traceSecondary(ctx, imageGrid(ctx), rays, kRayTranslucency, hits, counters);
-            for (std::size_t i = 0; i < n; ++i) {
-                if (!rays[i].active) continue;
-                PathState& st = state[i];
-                const HitPayload& h = hits[i];
-                if (depth == 1 && h.hit) {
-                    firstT[i] += h.t;
-                    ++firstHits[i];
-                }
-                rays[i].active = false;
-                if (!h.hit) continue;  // left the scene: no environment light
-                if (st.inside) st.throughput *= glm::exp(-st.sigmaA * h.t);
-                const ecs::Material& m = ctx.material(h.material);
-                if (m.transmission > 0.f && depth < maxDepth &&
-                    std::max({st.throughput.x, st.throughput.y, st.throughput.z}) >= ctx.settings.throughputCutoff) {
-                    const SampleKey key =
-                        ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency + static_cast<std::uint32_t>(depth));
-                    bool crossed = false;
-                    rays[i].ray = interfaceEvent(h.position, h.geometricNormal, rays[i].ray.direction, m.ior, h.frontFace,
-                                                 sampleUniform(key, 0), h.errorScale, crossed);
-                    rays[i].active = true;
-                    if (crossed) {
-                        st.inside = h.frontFace;
-                        st.sigmaA = absorptionCoefficient(m);
+            parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+                for (std::size_t i = begin; i < end; ++i) {
+                    if (!rays[i].active) continue;
+                    PathState& st = state[i];
+                    const HitPayload& h = hits[i];
+                    if (depth == 1 && h.hit) {
+                        firstT[i] += h.t;
+                        ++firstHits[i];
                     }
-                } else if (!(m.transmission > 0.f)) {
-                    // An opaque surface ends the path: shaded below.
-                    finals[i] = h;
-                    incoming[i] = rays[i].ray.direction;
-                    weight[i] = st.throughput;
+                    rays[i].active = false;
+                    if (!h.hit) continue;  // left the scene: no environment light
+                    if (st.inside) st.throughput *= glm::exp(-st.sigmaA * h.t);
+                    const ecs::Material& m = ctx.material(h.material);
+                    if (m.transmission > 0.f && depth < maxDepth &&
+                        std::max({st.throughput.x, st.throughput.y, st.throughput.z}) >= ctx.settings.throughputCutoff) {
+                        const SampleKey key =
+                            ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency + static_cast<std::uint32_t>(depth));
+                        bool crossed = false;
+                        rays[i].ray = interfaceEvent(h.position, h.geometricNormal, rays[i].ray.direction, m.ior, h.frontFace,
+                                                     sampleUniform(key, 0), h.errorScale, crossed);
+                        rays[i].active = true;
+                        if (crossed) {
+                            st.inside = h.frontFace;
+                            st.sigmaA = absorptionCoefficient(m);
+                        }
+                    } else if (!(m.transmission > 0.f)) {
+                        // An opaque surface ends the path: shaded below.
+                        finals[i] = h;
+                        incoming[i] = rays[i].ray.direction;
+                        weight[i] = st.throughput;
+                    }
                 }
-            }
+            });
         }
         shadeHits(ctx, imageGrid(ctx), finals, incoming, weight, static_cast<std::uint32_t>(s), stream::kTranslucencyHit,
                   radiance, counters);
     }
     float* hitT = out.addChannel("translucency.hitT", 0.f);
-    for (std::size_t i = 0; i < n; ++i) {
-        transmitted[i] = radiance[i] / float(spp);
-        hitT[i] = firstHits[i] ? firstT[i] / float(firstHits[i]) : 0.f;
-    }
+    parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            transmitted[i] = radiance[i] / float(spp);
+            hitT[i] = firstHits[i] ? firstT[i] / float(firstHits[i]) : 0.f;
+        }
+    });
     out.addRgbLayer("translucency", transmitted);
     return n * (sizeof(PathState) + sizeof(SecondaryRay) + 2 * sizeof(HitPayload) + 4 * 3 * sizeof(float) +
                 sizeof(float));
