@@ -1,9 +1,13 @@
 // OpenEXR files: every Image channel as one EXR channel (ZIP compression).
+// Blocks are compressed and decompressed by OpenEXR's own thread pool, as
+// many threads as parallel work may use (threadCount()); a file's bytes do
+// not depend on it.
 //
 // An EXR channel list is sorted by name, so the Image's channel order is kept
 // in an extra string-vector header attribute and restored when reading.
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/parallel.hpp>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfCompression.h>
@@ -13,6 +17,7 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringVectorAttribute.h>
+#include <OpenEXR/ImfThreading.h>
 #include <Imath/half.h>
 
 #include <algorithm>
@@ -20,6 +25,7 @@
 #include <cstdint>
 #include <exception>
 #include <fstream>
+#include <mutex>
 #include <set>
 #include <string>
 #include <vector>
@@ -52,6 +58,16 @@ std::vector<std::string> channelOrder(const Imf::Header& header) {
         order.size() == fileOrder.size() && unique.size() == order.size() &&
         std::all_of(order.begin(), order.end(), [&](const std::string& n) { return header.channels().findChannel(n); });
     return samePermutation ? order : fileOrder;
+}
+
+// OpenEXR's thread count for the next file: threadCount(), the global pool
+// resized (under a lock) when that changed.
+int exrThreads() {
+    static std::mutex resizing;
+    const int threads = std::max(threadCount(), 1);
+    const std::lock_guard<std::mutex> lock(resizing);
+    if (Imf::globalThreadCount() != threads) Imf::setGlobalThreadCount(threads);
+    return threads;
 }
 
 }  // namespace
@@ -100,7 +116,7 @@ void writeExr(const std::filesystem::path& path, const Image& image, ExrPixelTyp
         try {
             // Scope the OutputFile so its line offset table is written before we check the stream.
             Imf::StdOFStream exrStream(stream, tmp.c_str());
-            Imf::OutputFile file(exrStream, header);
+            Imf::OutputFile file(exrStream, header, exrThreads());
             file.setFrameBuffer(frameBuffer);
             file.writePixels(image.height());
         } catch (const InputError&) {
@@ -129,7 +145,7 @@ Image readExr(const std::filesystem::path& path) {
 
     try {
         Imf::StdIFStream exrStream(stream, path.c_str());
-        Imf::InputFile file(exrStream);
+        Imf::InputFile file(exrStream, exrThreads());
         const Imf::Header& header = file.header();
 
         // Size of the data window, bounded before allocating anything.

@@ -1,6 +1,7 @@
 // Image storage, EXR/PNG files, atomic writes and comparison metrics.
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/core/rng.hpp>
 
 #define STB_IMAGE_IMPLEMENTATION
@@ -150,6 +151,23 @@ TEST_F(ImageFiles, ExrFloatRoundTripIsExact) {
         EXPECT_TRUE(bitIdentical(image, back, name)) << name;
     }
     EXPECT_TRUE(compareImages(back, image).identical);
+}
+
+TEST_F(ImageFiles, ExrBytesAndPixelsDoNotDependOnTheThreadCount) {
+    // Many ZIP blocks of 16 scanlines, so that two threads compress (and
+    // decompress) different blocks of one file.
+    const Image image = makeTestImage(97, 301, {"R", "G", "B", "depth.Z", "albedo.R"});
+    for (int threads : {1, 2, 3}) {
+        const ThreadLimit limit(threads);
+        ASSERT_EQ(threadCount(), threads);
+        writeExr(dir / ("t" + std::to_string(threads) + ".exr"), image, ExrPixelType::Float);
+        const Image back = readExr(dir / "t1.exr");
+        for (const std::string& name : image.channelNames()) EXPECT_TRUE(bitIdentical(image, back, name)) << name;
+    }
+    const std::vector<unsigned char> one = readBytes(dir / "t1.exr");
+    EXPECT_GT(one.size(), 1000u);
+    EXPECT_EQ(readBytes(dir / "t2.exr"), one);
+    EXPECT_EQ(readBytes(dir / "t3.exr"), one);
 }
 
 TEST_F(ImageFiles, ExrHalfRoundTripWithinHalfPrecision) {

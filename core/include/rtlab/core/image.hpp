@@ -83,6 +83,8 @@ enum class ExrPixelType { Half, Float };
 
 // Writes every channel of `image` to an OpenEXR file (ZIP compression),
 // through writeFileAtomically. Throws InputError naming the file on failure.
+// Blocks are compressed on OpenEXR's global thread pool, sized to
+// threadCount() (the same bytes for any count).
 void writeExr(const std::filesystem::path& path, const Image& image, ExrPixelType type = ExrPixelType::Float);
 
 // Reads every channel of an OpenEXR file. Throws InputError naming the file

@@ -52,6 +52,12 @@ void parallelForChunks(std::size_t count, std::size_t chunk, Body&& body) {
 // 320x180 image over a few cores.
 inline constexpr std::size_t kPixelChunk = 4096;
 
+// How many threads parallel work may use now: the ThreadLimit in force, or
+// all cores.
+inline int threadCount() {
+    return static_cast<int>(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+}
+
 // Limits TBB to `threads` worker threads for the lifetime of this object
 // (0 = TBB's default: all cores).
 class ThreadLimit {
