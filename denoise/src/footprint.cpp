@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace rtlab::denoise {
 namespace {
@@ -100,6 +101,27 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
         px[i] = std::isinf(lobeWorld) ? params.maxPx : toPixels(lobeWorld, pixelWorld[i], params.maxPx);
     });
     std::vector<float> out = smoothAndClamp(width, height, px, meshId, params);
+    // Edges of the reflected image: the window's hit distances far apart.
+    if (params.edgeHitRatio > 0.f) {
+        constexpr float kMissDistance = 1e4f;
+        const int r = std::max(params.smoothRadius, 0);
+        const float cap = std::max(params.edgeCapPx, 0.f);
+        std::vector<float> capped = out;
+        detail::forEachPixel(width, height, [&](int x, int y, std::size_t i) {
+            if (meshId[i] < 0) return;
+            float nearest = kMissDistance, farthest = 0.f;
+            for (int qy = std::max(0, y - r); qy <= std::min(height - 1, y + r); ++qy)
+                for (int qx = std::max(0, x - r); qx <= std::min(width - 1, x + r); ++qx) {
+                    const std::size_t q = static_cast<std::size_t>(qy) * static_cast<std::size_t>(width) +
+                                          static_cast<std::size_t>(qx);
+                    if (meshId[q] != meshId[i]) continue;
+                    const float t = hitT[q] > 0.f ? std::min(hitT[q], kMissDistance) : kMissDistance;  // NaN: a miss
+                    nearest = std::min(nearest, t), farthest = std::max(farthest, t);
+                }
+            if (farthest > params.edgeHitRatio * nearest) capped[i] = std::min(out[i], cap);
+        });
+        out = std::move(capped);
+    }
     // Near-mirrors: their own lobe, nothing from the neighbours or the floor.
     if (params.sharpBelowRoughness > 0.f)
         detail::forEachIndex(out.size(), [&](std::size_t i) {

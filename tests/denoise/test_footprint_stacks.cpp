@@ -80,6 +80,51 @@ TEST(DenoiseFootprint, ReflectionFromRoughnessAndHitDistance) {
     EXPECT_EQ(fp[3], p.minPx);  // 2 * 0.01 * 1 / 0.1 = 0.2 -> raised to 2
 }
 
+TEST(DenoiseFootprint, ReflectionEdgesOfTheReflectedImageGetOneIteration) {
+    // A glossy floor (roughness 0.5, 0.1 units per pixel) whose reflection
+    // shows a near box (hit distance 1) left of column 10 and a far wall (8)
+    // right of it: lobe footprints 5 and 40 px. Within smoothRadius (2) of
+    // the reflected edge the window spans 8x > 4x: capped at 2 px (one
+    // iteration); farther away the footprint is the window mean, untouched.
+    const int w = 20, h = 6;
+    const std::size_t n = std::size_t(w) * h;
+    std::vector<float> hitT(n);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) hitT[std::size_t(y) * w + x] = x < 10 ? 1.f : 8.f;
+    const std::vector<float> roughness(n, 0.5f), pixelWorld(n, 0.1f);
+    FootprintParams p;
+    const std::vector<float> plain = reflectionFootprint(w, h, roughness, hitT, pixelWorld, allGeometry(n), p);
+    p.edgeHitRatio = 4.f;
+    const std::vector<float> edged = reflectionFootprint(w, h, roughness, hitT, pixelWorld, allGeometry(n), p);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = std::size_t(y) * w + x;
+            const bool nearEdge = x >= 8 && x <= 11;
+            EXPECT_EQ(edged[i], nearEdge ? 2.f : plain[i]) << x << "," << y;
+            if (nearEdge) {
+                EXPECT_GT(plain[i], 2.f) << x;  // the cap does bind there
+            }
+        }
+    EXPECT_NEAR(plain[0], 5.f, 1e-4f);
+    EXPECT_NEAR(plain[w - 1], 40.f, 1e-4f);
+
+    // Within the ratio (8x at ratio 10) nothing changes; a miss counts as far
+    // (an edge against the sky); another mesh in the window is no edge.
+    p.edgeHitRatio = 10.f;
+    EXPECT_EQ(reflectionFootprint(w, h, roughness, hitT, pixelWorld, allGeometry(n), p), plain);
+    p.edgeHitRatio = 4.f;
+    std::vector<float> sky = hitT;
+    for (float& t : sky) t = t > 1.f ? 0.f : t;  // the far side: misses
+    const std::vector<float> againstSky = reflectionFootprint(w, h, roughness, sky, pixelWorld, allGeometry(n), p);
+    EXPECT_EQ(againstSky[9], 2.f);
+    std::vector<int> mesh(n, 0);
+    for (int y = 0; y < h; ++y)
+        for (int x = 10; x < w; ++x) mesh[std::size_t(y) * w + x] = 1;
+    const std::vector<float> twoMeshes = reflectionFootprint(w, h, roughness, hitT, pixelWorld, mesh, p);
+    p.edgeHitRatio = 0.f;
+    EXPECT_EQ(twoMeshes, reflectionFootprint(w, h, roughness, hitT, pixelWorld, mesh, p));
+}
+
 TEST(DenoiseFootprint, AoFromOccluderDistance) {
     FootprintParams p;
     p.smoothRadius = 0;

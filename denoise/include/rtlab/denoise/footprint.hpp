@@ -32,6 +32,15 @@ struct FootprintParams {
     // and hit distance allow (the footprint goes to 0 as roughness -> 0);
     // its noise is left to the temporal history. 0 = off. Source: rtlab.
     float sharpBelowRoughness = 0.f;
+    // Reflections only: where the reflected hit distances of the pixel's
+    // (2 smoothRadius + 1)^2 window (same mesh; a miss counts as 1e4) span
+    // more than this ratio, the window sees an edge of the reflected image
+    // (the floor's reflection of a box's side against the far wall), which
+    // the surface's own depth and normal do not show: the footprint is
+    // capped at edgeCapPx there, so the a-trous taps do not carry one side
+    // of the reflected edge onto the other. 0 = off. Source: rtlab.
+    float edgeHitRatio = 0.f;
+    float edgeCapPx = 2.f;
 };
 
 // Shadows: the PCSS penumbra width (world units, the shadow pass's
