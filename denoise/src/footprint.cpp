@@ -101,24 +101,50 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
         px[i] = std::isinf(lobeWorld) ? params.maxPx : toPixels(lobeWorld, pixelWorld[i], params.maxPx);
     });
     std::vector<float> out = smoothAndClamp(width, height, px, meshId, params);
-    // Edges of the reflected image: the window's hit distances far apart.
+    // Edges of the reflected image: the window's hit distances (same mesh)
+    // far apart. First the span over every geometry pixel of the window, by
+    // separable min / max (a superset of the pixels to cap), then the
+    // same-mesh span for those pixels only.
     if (params.edgeHitRatio > 0.f) {
         constexpr float kMissDistance = 1e4f;
         const int r = std::max(params.smoothRadius, 0);
         const float cap = std::max(params.edgeCapPx, 0.f);
+        const auto distance = [&](std::size_t q) {
+            return hitT[q] > 0.f ? std::min(hitT[q], kMissDistance) : kMissDistance;  // NaN: a miss
+        };
+        std::vector<vec2> rowSpan(out.size());  // (nearest, farthest) over the row's window
+        detail::forEachPixel(width, height, [&](int x, int y, std::size_t i) {
+            const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
+            vec2 span(kMissDistance, 0.f);
+            for (int qx = std::max(0, x - r); qx <= std::min(width - 1, x + r); ++qx) {
+                const std::size_t q = row + static_cast<std::size_t>(qx);
+                if (meshId[q] < 0) continue;
+                const float t = distance(q);
+                span = vec2(std::min(span.x, t), std::max(span.y, t));
+            }
+            rowSpan[i] = span;
+        });
         std::vector<float> capped = out;
         detail::forEachPixel(width, height, [&](int x, int y, std::size_t i) {
-            if (meshId[i] < 0) return;
+            if (meshId[i] < 0 || !(out[i] > cap)) return;  // sky, or nothing to cap
+            vec2 span(kMissDistance, 0.f);
+            for (int qy = std::max(0, y - r); qy <= std::min(height - 1, y + r); ++qy) {
+                const vec2 s = rowSpan[static_cast<std::size_t>(qy) * static_cast<std::size_t>(width) +
+                                       static_cast<std::size_t>(x)];
+                span = vec2(std::min(span.x, s.x), std::max(span.y, s.y));
+            }
+            if (!(span.y > params.edgeHitRatio * span.x)) return;
             float nearest = kMissDistance, farthest = 0.f;
-            for (int qy = std::max(0, y - r); qy <= std::min(height - 1, y + r); ++qy)
+            for (int qy = std::max(0, y - r); qy <= std::min(height - 1, y + r); ++qy) {
+                const std::size_t row = static_cast<std::size_t>(qy) * static_cast<std::size_t>(width);
                 for (int qx = std::max(0, x - r); qx <= std::min(width - 1, x + r); ++qx) {
-                    const std::size_t q = static_cast<std::size_t>(qy) * static_cast<std::size_t>(width) +
-                                          static_cast<std::size_t>(qx);
+                    const std::size_t q = row + static_cast<std::size_t>(qx);
                     if (meshId[q] != meshId[i]) continue;
-                    const float t = hitT[q] > 0.f ? std::min(hitT[q], kMissDistance) : kMissDistance;  // NaN: a miss
+                    const float t = distance(q);
                     nearest = std::min(nearest, t), farthest = std::max(farthest, t);
                 }
-            if (farthest > params.edgeHitRatio * nearest) capped[i] = std::min(out[i], cap);
+            }
+            if (farthest > params.edgeHitRatio * nearest) capped[i] = cap;
         });
         out = std::move(capped);
     }
