@@ -56,6 +56,22 @@ std::vector<float> smoothAndClamp(int w, int h, const std::vector<float>& px, st
 
 }  // namespace
 
+std::vector<float> surfacePixelWorld(std::span<const float> pixelWorld, std::span<const vec2> depthGrad) {
+    detail::checkSize(depthGrad.size(), pixelWorld.size(), "footprint: depth gradient");
+    // sqrt(1 / cos theta) = (1 + tan^2 theta)^(1/4), tan^2 theta capped at 1e8 (a factor of 100).
+    constexpr float kMaxTan2 = 1e8f;
+    std::vector<float> out(pixelWorld.size());
+    detail::forEachIndex(out.size(), [&](std::size_t i) {
+        const float pw = pixelWorld[i];
+        if (!(pw > 0.f) || !std::isfinite(pw)) { out[i] = pw; return; }
+        const vec2 g = depthGrad[i];
+        const float slope2 = (g.x * g.x + g.y * g.y) / (pw * pw);
+        const float tan2 = slope2 < kMaxTan2 ? slope2 : (std::isnan(slope2) ? 0.f : kMaxTan2);
+        out[i] = pw * std::sqrt(std::sqrt(1.f + tan2));
+    });
+    return out;
+}
+
 std::vector<float> shadowFootprint(int width, int height, std::span<const float> penumbraWorld,
                                    std::span<const float> pixelWorld, std::span<const int> meshId,
                                    const FootprintParams& params, int searchRadius) {

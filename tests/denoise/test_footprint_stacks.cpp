@@ -125,6 +125,39 @@ TEST(DenoiseFootprint, ReflectionEdgesOfTheReflectedImageGetOneIteration) {
     EXPECT_EQ(twoMeshes, reflectionFootprint(w, h, roughness, hitT, pixelWorld, mesh, p));
 }
 
+TEST(DenoiseFootprint, SurfacePixelWidthIsTheAreaEquivalentWidthOnTheSlope) {
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    // Facing the camera; 45 degrees (depth changes by a pixel's width per
+    // pixel: 1 / cos = sqrt(2)); 80 degrees along y; grazing (capped at
+    // 100x); a NaN gradient (as facing); pixel widths 0, -1, +inf, NaN pass through.
+    const std::vector<float> pixelWorld = {0.1f, 0.1f, 0.2f, 0.1f, 0.1f, 0.f, -1.f, inf, nan};
+    const std::vector<vec2> grad = {vec2(0.f), vec2(0.06f, 0.08f), vec2(0.f, 0.2f * std::tan(1.3962634f)),
+                                    vec2(1e9f, 0.f), vec2(nan, 0.f), vec2(1.f), vec2(1.f), vec2(1.f), vec2(1.f)};
+    const std::vector<float> s = surfacePixelWorld(pixelWorld, grad);
+    ASSERT_EQ(s.size(), pixelWorld.size());
+    EXPECT_EQ(s[0], 0.1f);
+    EXPECT_NEAR(s[1], 0.1f * std::sqrt(std::sqrt(2.f)), 1e-6f);
+    EXPECT_NEAR(s[2], 0.2f / std::sqrt(std::cos(1.3962634f)), 1e-4f);
+    EXPECT_NEAR(s[3], 0.1f * 100.f, 1e-3f);
+    EXPECT_EQ(s[4], 0.1f);
+    EXPECT_EQ(s[5], 0.f);
+    EXPECT_EQ(s[6], -1.f);
+    EXPECT_EQ(s[7], inf);
+    EXPECT_TRUE(std::isnan(s[8]));
+    EXPECT_THROW(surfacePixelWorld(pixelWorld, std::vector<vec2>(2)), std::invalid_argument);
+
+    // In pixels, an AO footprint on a 60-degree slope is sqrt(cos 60) = 0.71 of the same
+    // surface's facing the camera: its pixels are wider on the surface.
+    const int w = 8, h = 8;
+    const std::size_t n = std::size_t(w) * h;
+    const std::vector<float> across(n, 0.05f), occluder(n, 1.f), visibility(n, 0.5f);
+    const std::vector<float> slope = surfacePixelWorld(across, std::vector<vec2>(n, vec2(0.f, 0.05f * std::sqrt(3.f))));
+    const std::vector<float> facing = aoFootprint(w, h, occluder, visibility, across, allGeometry(n));
+    const std::vector<float> tilted = aoFootprint(w, h, occluder, visibility, slope, allGeometry(n));
+    EXPECT_NEAR(facing[27], 20.f, 1e-3f);
+    EXPECT_NEAR(tilted[27], 20.f * std::sqrt(0.5f), 1e-3f);
+}
+
 TEST(DenoiseFootprint, AoFromOccluderDistance) {
     FootprintParams p;
     p.smoothRadius = 0;

@@ -43,6 +43,18 @@ struct FootprintParams {
     float edgeCapPx = 2.f;
 };
 
+// The pixel's width on the surface, from its width across the ray
+// (footprint.pixelWorld) and the screen-space depth gradient (depth units
+// per pixel, GuideBuffers::depthGrad): a surface at angle theta to the view
+// stretches the pixel to pixelWorld / cos theta along its slope, with
+// tan theta ~ |grad depth| / pixelWorld; the isotropic filter takes the
+// ellipse's area-equivalent width, pixelWorld / sqrt(cos theta). Without
+// it a grazing wall's footprints (penumbra, lobe or occluder distance over
+// pixelWorld) were up to 1 / cos theta too wide in pixels. Capped at 100x
+// pixelWorld (theta within 0.6 degrees of grazing); non-positive or
+// non-finite pixelWorld passes through, a non-finite gradient counts as 0.
+std::vector<float> surfacePixelWorld(std::span<const float> pixelWorld, std::span<const vec2> depthGrad);
+
 // Shadows: the PCSS penumbra width (world units, the shadow pass's
 // shadow.light<i>.penumbra; 0 where no occluder was seen) over the pixel's
 // world width. Pixels with no estimate take the largest estimate within
