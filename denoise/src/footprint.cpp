@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <utility>
 
 namespace rtlab::denoise {
 namespace {
@@ -140,7 +139,7 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
             }
             rowSpan[i] = span;
         });
-        std::vector<float> capped = out;
+        // Each pixel reads only its own footprint: capped in place.
         detail::forEachPixel(width, height, [&](int x, int y, std::size_t i) {
             if (meshId[i] < 0 || !(out[i] > cap)) return;  // sky, or nothing to cap
             vec2 span(kMissDistance, 0.f);
@@ -160,9 +159,8 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
                     nearest = std::min(nearest, t), farthest = std::max(farthest, t);
                 }
             }
-            if (farthest > params.edgeHitRatio * nearest) capped[i] = cap;
+            if (farthest > params.edgeHitRatio * nearest) out[i] = cap;
         });
-        out = std::move(capped);
     }
     // Near-mirrors: their own lobe, nothing from the neighbours or the floor.
     if (params.sharpBelowRoughness > 0.f)
