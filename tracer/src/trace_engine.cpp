@@ -375,7 +375,7 @@ void proceduralBoundsCallback(const RTCBoundsFunctionArguments* args) {
 namespace {
 
 // Watertight triangles (AccelOptions::watertight): one user primitive is a
-// cluster of up to 8 triangles, tested at once by the Woop-Benthin-Wald test
+// cluster of up to kClusterTriangles (4) triangles, tested at once by the Woop-Benthin-Wald test
 // (watertight_triangle.hpp). Inside a pipeline trace the object-space ray is
 // recomputed from the world ray with the shared instance transform
 // (instance_transform.hpp; the same inputs as the RT-core model, so t and

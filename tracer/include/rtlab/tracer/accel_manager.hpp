@@ -29,7 +29,7 @@ struct AccelOptions {
     std::uint32_t refitQualityCheckInterval = 8;
     // Watertight triangles: Embree 3.13.5's robust triangle test leaks rays
     // through shared vertices (docs/acceleration-structures.md). With this on,
-    // triangles are grouped into clusters of up to 8 (Morton order of their
+    // triangles are grouped into clusters of up to 4 (Morton order of their
     // centroids), each cluster one Embree user primitive intersected by the
     // single-precision Woop-Benthin-Wald test (watertight_triangle.hpp), and
     // every cluster box is padded conservatively for the magnitude of its
