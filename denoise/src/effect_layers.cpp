@@ -168,7 +168,26 @@ StackParams StackParams::svgfAuto() {
     p.svgf.staticReachExponent = 0.5f;
     return p;
 }
-StackParams StackParams::shadow() { return sparseSignalStack(); }
+StackParams StackParams::shadow() {
+    StackParams p = sparseSignalStack();
+    // Three a-trous iterations (reach 14 px) with a luminance weight of
+    // sigmaL 8: a 1-spp visibility is 0 or 1, and with sigmaL 4 the taps of
+    // a wide penumbra stopped at the other samples' noise and left blotches
+    // (streaks on showcase's floor under the hovering panel). Showcase, one
+    // 1-spp frame denoised (rtlab converge --effect shadows --max-spp 1
+    // --frames 1 --denoise-max-spp 1), relMSE / FLIP, sigmaL 4 with 4
+    // iterations -> sigmaL 8 with 3: 480x270 2.24e-4 / 0.0120 -> 1.44e-4 /
+    // 0.0118; 320x180 3.10e-4 / 0.0143 -> 2.28e-4 / 0.0145; 640x360
+    // (1024-spp reference) 1.86e-4 / 0.0114 -> 1.05e-4 / 0.0105. With
+    // history (--frames 16), 480x270 after 2 / 8 / 16 frames: 1.07e-4 /
+    // 6.76e-5 / 4.52e-5 -> 9.28e-5 / 5.69e-5 / 3.75e-5. Tried at 480x270 /
+    // 320x180: sigmaL 6 with 4 iterations 1.63e-4 / 2.56e-4; with 3,
+    // sigmaL 5 1.81e-4 / 2.55e-4, 6 1.59e-4 / 2.36e-4, 10 1.42e-4 / 2.32e-4,
+    // 12 1.44e-4 / 2.40e-4; sigmaL 8 with 2 iterations 2.11e-4 / 2.65e-4.
+    p.svgf.atrous.sigmaL = 8.f;
+    p.svgf.atrous.iterations = 3;
+    return p;
+}
 StackParams StackParams::reflection() {
     StackParams p = sparseSignalStack();
     // Two iterations at least: the light at the reflected hit is noisy even
