@@ -231,7 +231,14 @@ StackParams StackParams::ambientOcclusion() {
     // 0.00127, c = 3 0.00539 / 0.00138).
     p.svgf.staticShrinkSigma2 = 1.f;
     p.svgf.varianceOfMean = true;
-    p.svgf.atrous.sigmaL = 10.f;
+    // sigmaL 16 (Falcor's 10 before): one 1-spp frame denoised on showcase
+    // (rtlab converge --effect ao --max-spp 1 --frames 1 --denoise-max-spp
+    // 1), relMSE / FLIP 10 -> 16: 480x270 1.28e-3 / 0.0135 -> 1.15e-3 /
+    // 0.0132, 320x180 2.00e-3 / 0.0153 -> 1.84e-3 / 0.0153, 640x360
+    // (1024-spp reference) 1.065e-3 / 0.0121 -> 0.928e-3 / 0.0114; with
+    // history (--frames 16) within 1 % after 8 and 16 frames. sigmaL 24:
+    // 1.12e-3 / 1.81e-3 but FLIP 0.0134 / 0.0156; 40: 1.14e-3 / 1.82e-3.
+    p.svgf.atrous.sigmaL = 16.f;
     // A softer normal weight than SVGF's 128: on a curved surface at low
     // resolution (showcase's sphere at 320x180 turns about 3 degrees a pixel)
     // 128 let only the first two a-trous steps through, and the sphere's
