@@ -154,6 +154,7 @@ struct TapRow {
     float normalScale;   // sigmaN log2(e) 2^23 (the centre's normal is scaled by it)
     float bias;          // 127 2^23 - normalScale: the weight's bits are bias + n.n' normalScale - depth and luminance terms
     float gradScale;     // sigmaZ * step
+    float planeScale;    // step with AtrousParams::depthFromPlane, else 0: the centre's depth moves along its gradient
     float depthEps;
     float sigmaL, luminanceEps;
 };
@@ -247,6 +248,8 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
             continue;
         }
         const V cIL = cILs[v], cDepth = simd::loadu<N>(t.depth + i);
+        // The depth gradient per step (0 without depthFromPlane: the centre's depth as it is).
+        const V pA = simd::loadu<N>(t.gradX + i) * t.planeScale, pB = simd::loadu<N>(t.gradY + i) * t.planeScale;
         const V* rZ = rZs[v];
         const V cx = simd::loadu<N>(t.nx + i) * t.normalScale, cy = simd::loadu<N>(t.ny + i) * t.normalScale,
                 cz = simd::loadu<N>(t.nz + i) * t.normalScale;
@@ -254,10 +257,11 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
           sB = cB * hCentre;
         // A tap's kernel weight h = m 2^-k (m 1 or 3/2) is folded into the bits: 2^-k as k 2^23 less,
         // exact except that weights below 2^-(127-k) become 0.
-        const auto tap = [&](std::ptrdiff_t offset, const V& rz, const V& bias, bool threeHalves) __attribute__((always_inline)) {
+        const auto tap = [&](std::ptrdiff_t offset, const V& rz, const V& bias, bool threeHalves, const V& expectedDepth)
+                             __attribute__((always_inline)) {
             const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + offset);
             const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
-            const V eZ = simd::abs<N>(cDepth - simd::loadu<N>(t.depth + j)) * rz;
+            const V eZ = simd::abs<N>(expectedDepth - simd::loadu<N>(t.depth + j)) * rz;
             const V eL = simd::abs<N>(cLum - simd::loadu<N>(t.lum + j)) * cIL;
             // The terms are >= 0 and finite or +inf: never NaN. Unit normals keep n.n' <= 1 up to
             // round-off, so the bits stay below those of 2^-k * (1 + 1e-5): no upper clamp.
@@ -282,13 +286,17 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
             const bool threeHalves = ax == 0 || ky == 0;  // exactly one factor 3/8
             const int dx = kx * t.step, dy = ky * t.step;
             const std::ptrdiff_t offset = static_cast<std::ptrdiff_t>(dy) * t.stride + dx;
+            // The centre's depth moved to the tap along its gradient (+0 or -0 without
+            // depthFromPlane: the same bits as cDepth after the subtraction's abs).
+            const V along = pA * static_cast<float>(kx) + pB * static_cast<float>(ky);
+            const V ahead = cDepth + along, behind = cDepth - along;
             if constexpr (Checked) {
                 if (dx >= w || -dx >= w) continue;  // no pixel of the row: all in the margin
-                if (t.y + dy < t.h) tap(offset, rZ[k], bias, threeHalves);
-                if (t.y - dy >= 0) tap(-offset, rZ[k], bias, threeHalves);
+                if (t.y + dy < t.h) tap(offset, rZ[k], bias, threeHalves, ahead);
+                if (t.y - dy >= 0) tap(-offset, rZ[k], bias, threeHalves, behind);
             } else {
-                tap(offset, rZ[k], bias, threeHalves);
-                tap(-offset, rZ[k], bias, threeHalves);
+                tap(offset, rZ[k], bias, threeHalves, ahead);
+                tap(-offset, rZ[k], bias, threeHalves, behind);
             }
         }
         const V inv = 1.f / sW;
@@ -345,8 +353,8 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
                         g.geometry.data(), g.footprint.empty() ? nullptr : g.footprint.data(), in.luminance.data(),
                         in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(), out.g.data(),
                         out.b.data(), out.variance.data(), out.luminance.data(), l.width, l.height, 0, step,
-                        l.stride, 0, 0, 0, normalScale, bias, sigmaZ * static_cast<float>(step), depthEps, sigmaL,
-                        lumEps};
+                        l.stride, 0, 0, 0, normalScale, bias, sigmaZ * static_cast<float>(step),
+                        p.depthFromPlane ? static_cast<float>(step) : 0.f, depthEps, sigmaL, lumEps};
     // One task per kRowGroup rows y0 + k step: consecutive ones share 4 of their 5 tap rows, so
     // the runs of kRun pixels of the group's rows, filtered one after the other, find the shared
     // taps in L1/L2 (one row after the other, the tap rows of steps >= 4 fell out of L2 between

@@ -91,6 +91,70 @@ TEST(DenoiseAtrous, DepthEdgeSurvives) {
     EXPECT_LT(er, 1e-4f);
 }
 
+// One iteration (step 1) of an impulse on a plane receding along y (depth
+// 1 + 0.2 y): the output one pixel across (x + 1) and one pixel along (y + 1)
+// the slope. Luminance weights off (sigmaL huge, variance large).
+std::pair<float, float> impulseAcrossAndAlongASlope(bool depthFromPlane, float edgeAtRow = -1.f) {
+    const int w = 15, h = 15, cx = 7, cy = 7;
+    GuideBuffers g(w, h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            g.depth[static_cast<std::size_t>(y) * w + x] = 1.f + 0.2f * y + (edgeAtRow >= 0.f && y >= edgeAtRow ? 5.f : 0.f);
+    std::vector<vec3> color(g.pixelCount(), vec3(0.f));
+    color[static_cast<std::size_t>(cy) * w + cx] = vec3(1.f);
+    AtrousParams p;
+    p.iterations = 1;
+    p.sigmaL = 1e6f;
+    p.depthFromPlane = depthFromPlane;
+    const Filtered f = runAtrous(g, color, std::vector<float>(g.pixelCount(), 1.f), p);
+    return {f.color[static_cast<std::size_t>(cy) * w + cx + 1].r, f.color[static_cast<std::size_t>(cy + 1) * w + cx].r};
+}
+
+TEST(DenoiseAtrous, DepthFromThePlaneFiltersASlopeAlikeInEveryDirection) {
+    // The paper's term: a tap along the depth gradient is weighted about
+    // exp(-1), one across it 1, so the impulse spreads across the slope more.
+    const auto [paperAcross, paperAlong] = impulseAcrossAndAlongASlope(false);
+    EXPECT_LT(paperAlong, 0.7f * paperAcross);
+    // Against the plane every tap on the plane is weighted 1: the impulse's
+    // neighbours at (1, 0) and (0, 1) get h(1) h(0) = 1/4 * 3/8 = 3/32 of it
+    // (their kernels sum to 1 in the interior).
+    const auto [planeAcross, planeAlong] = impulseAcrossAndAlongASlope(true);
+    EXPECT_NEAR(planeAcross, 3.f / 32.f, 1e-3f);
+    EXPECT_NEAR(planeAlong, 3.f / 32.f, 1e-3f);
+    // A depth step (another plane 5 units behind from the row below) still
+    // stops the taps: nothing reaches (0, 1), and (1, 0) keeps only its rows
+    // dy = -2..0, whose kernel sums to 1/16 + 1/4 + 3/8 = 11/16: 3/32 / (11/16) = 3/22.
+    const auto [edgeAcross, edgeAlong] = impulseAcrossAndAlongASlope(true, 8.f);
+    EXPECT_NEAR(edgeAcross, 3.f / 22.f, 1e-3f);
+    EXPECT_LT(edgeAlong, 1e-6f);
+}
+
+TEST(DenoiseAtrous, DepthFromThePlaneHardlyDependsOnSigmaZOnAPlane) {
+    // On a plane every tap's distance from the centre's tangent plane is
+    // about 0, so sigmaZ (the tolerance) hardly matters; the paper's term is
+    // about 1 / sigmaZ for every tap along the slope, so it does. Noisy image,
+    // 3 iterations, depth sloped in x and y.
+    const int w = 40, h = 23;
+    GuideBuffers g(w, h);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) g.depth[static_cast<std::size_t>(y) * w + x] = 1.f + 0.05f * x + 0.3f * y;
+    const std::vector<vec3> color = noisyGrey(g.pixelCount(), 1.f, 0.8f, 3);
+    const std::vector<float> var(g.pixelCount(), 0.05f);
+    float moves[2] = {0.f, 0.f};
+    for (const bool plane : {false, true}) {
+        AtrousParams p;
+        p.iterations = 3;
+        p.depthFromPlane = plane;
+        AtrousParams wide = p;
+        wide.sigmaZ = 4.f * p.sigmaZ;
+        const Filtered a = runAtrous(g, color, var, p), b = runAtrous(g, color, var, wide);
+        for (std::size_t i = 0; i < a.color.size(); ++i)
+            moves[plane] = std::fmax(moves[plane], std::fabs(a.color[i].r - b.color[i].r));
+    }
+    EXPECT_GT(moves[0], 0.02f) << "control: the paper's term follows sigmaZ";
+    EXPECT_LT(moves[1], 0.05f * moves[0]);
+}
+
 TEST(DenoiseAtrous, NormalEdgeSurvives) {
     const int w = 32, h = 16;
     const std::vector<vec3> color = halves(w, h, 0.2f, 0.8f);

@@ -16,6 +16,16 @@ struct AtrousParams {
     // sigmaZ source: paper (1). Falcor uses |dz/dx|+|dz/dy| * step * |offset| instead
     // of the projected gradient, i.e. also 1.
     float sigmaZ = 1.f;
+    // Depth edge-stopping against the centre's tangent plane: the numerator
+    // is |z' - (z + grad z . (q - p))|, the tap's distance in depth from the
+    // plane through the centre, instead of |z - z'|. On a plane seen at a
+    // slope the paper's term is about 1 / sigmaZ for every tap along the
+    // depth gradient and about 0 across it, so the kernel filters across
+    // more than along (streaks across a receding floor); this one is about 0
+    // in every direction and still large across a depth edge. Source: rtlab
+    // (the plane distance of NRD's ReLAX / ReBLUR geometry weight, in
+    // screen-space depth).
+    bool depthFromPlane = false;
     // Normal edge-stopping: exp(-sigmaN (1 - n.n')) (normals scaled to unit
     // length), the first-order form of the paper's max(0, n.n')^sigmaN =
     // exp(sigmaN ln(n.n')): never below it; for sigmaN 128 within 0.4 % where
