@@ -62,6 +62,9 @@ namespace {
 constexpr std::uint32_t kReferenceSeedSalt = 0x9e3779b9u;
 // The reference is accumulated in frames of at most this many spp.
 constexpr int kReferenceChunkSpp = 64;
+// Part of the reference cache's key: 2 since the shadow, AO and reflection
+// passes draw their first 2D sample stratified over the screen.
+constexpr int kEstimatorVersion = 2;
 
 std::vector<int> powersOfTwoUpTo(int n) {
     std::vector<int> out;
@@ -207,7 +210,10 @@ int runConverge(const ConvergeOptions& o) {
     // out --ao-contact-samples: it spreads the reference's samples
     // differently, not what they converge to (the estimate is unbiased).
     std::ostringstream key;
-    key << sceneIdentity(o.scene) << "|" << o.effect << "|" << w << "x" << h << "|" << o.referenceSpp << "|" << o.seed
+    // kEstimatorVersion: raised when a pass's sampling changes how fast the
+    // reference converges (the old cached reference stays unbiased, but a
+    // noisier one than a fresh render would be).
+    key << "v" << kEstimatorVersion << "|" << sceneIdentity(o.scene) << "|" << o.effect << "|" << w << "x" << h << "|" << o.referenceSpp << "|" << o.seed
         << "|" << formatDouble(o.reflectionRoughness, "%.9g") << "|" << formatDouble(o.aoRadius, "%.9g");
     char hash[17];
     std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fingerprint(key.str())));

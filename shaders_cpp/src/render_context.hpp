@@ -132,6 +132,17 @@ public:
     SampleKey key(std::size_t pixel, std::uint32_t sample, std::uint32_t streamId) const {
         return SampleKey{static_cast<std::uint32_t>(pixel), settings.frame, sample, streamId, settings.seed};
     }
+    // The first 2D decision of sample `sample` (< settings.spp) of `pixel`
+    // in `streamId`, stratified over the screen and within the pixel
+    // (sampleScreenStratified2D): for a pass's one 2D choice per pixel and
+    // sample at the primary hit, whose errors a spatial filter then averages.
+    vec2 screenStratified2D(std::size_t pixel, std::uint32_t sample, std::uint32_t streamId) const {
+        const std::size_t w = static_cast<std::size_t>(width > 0 ? width : 1);
+        const Uniform2 u = sampleScreenStratified2D(static_cast<std::uint32_t>(pixel % w), static_cast<std::uint32_t>(pixel / w),
+                                                    sample, static_cast<std::uint32_t>(settings.spp > 0 ? settings.spp : 1),
+                                                    key(pixel, sample, streamId), 0);
+        return vec2(u.u, u.v);
+    }
 
 private:
     std::unique_ptr<RtPipeline> pipeline_;

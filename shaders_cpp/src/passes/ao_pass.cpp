@@ -106,9 +106,11 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
     const auto aoRay = [&](std::size_t i, std::uint32_t s) -> std::optional<tracer::RayDesc> {
         const GPixel& g = ctx.gbuffer[i];
         if (!g.hit || !(radius > 0.f)) return std::nullopt;
+        // The spp uniform samples stratified over the screen; contact samples (s >= spp) independent.
         const SampleKey key = ctx.key(i, s, stream::kAmbientOcclusion);
-        const vec3 dir =
-            cosineDirectionAbove(g.normal, g.geometricNormal, vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
+        const vec2 u = s < static_cast<std::uint32_t>(spp) ? ctx.screenStratified2D(i, s, stream::kAmbientOcclusion)
+                                                           : vec2(sampleUniform(key, 0), sampleUniform(key, 1));
+        const vec3 dir = cosineDirectionAbove(g.normal, g.geometricNormal, u);
         return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, radius};
     };
     // Step: spp samples in every pixel.

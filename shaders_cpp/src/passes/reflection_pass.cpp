@@ -38,9 +38,8 @@ std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3
                 const GPixel& g = ctx.gbuffer[i];
                 const Frame frame = makeFrame(g.normal);
                 const vec3 wo = toLocal(frame, g.viewDir);
-                const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kReflection);
-                const GgxReflectionSample rs = sampleGgxReflection(wo, ggxAlpha(g.roughness),
-                                                                   vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
+                const GgxReflectionSample rs = sampleGgxReflection(
+                    wo, ggxAlpha(g.roughness), ctx.screenStratified2D(i, static_cast<std::uint32_t>(s), stream::kReflection));
                 if (!(rs.pdf > 0.f)) continue;
                 const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
                 if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface

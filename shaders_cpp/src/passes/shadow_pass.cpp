@@ -47,9 +47,8 @@ std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& d
                     const std::size_t i = ctx.pixelIndex(x, y);
                     const GPixel& g = ctx.gbuffer[i];
                     if (!g.hit) return std::nullopt;
-                    const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), areaStream);
                     const LightSample ls =
-                        sampleAreaLight(light, g.position, vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
+                        sampleAreaLight(light, g.position, ctx.screenStratified2D(i, static_cast<std::uint32_t>(s), areaStream));
                     if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
                     sampleWeight[i] = luminance(evalBrdfCos(shadingPointOf(g), ls.direction) * ls.radianceOverPdf);
                     if (!(sampleWeight[i] > 0.f) || !std::isfinite(sampleWeight[i])) return std::nullopt;
