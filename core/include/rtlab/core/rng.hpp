@@ -91,11 +91,29 @@ constexpr std::uint32_t mortonIndex(std::uint32_t x, std::uint32_t y) {
 // Sobol' dimensions 1 and 2 of point `index` as 32-bit fractions: the
 // first is the van der Corput radical inverse, the second the Pascal
 // matrix mod 2 (direction numbers v_k: v_0 = 2^31, v_(k+1) = v_k ^ v_k >> 1).
+// The second is a table lookup per byte of the index (each byte's 256
+// combinations of its 8 direction numbers, XOR-ed), not a loop per bit.
+struct SobolSecondDimensionTable {
+    std::uint32_t bytes[4][256] = {};
+    constexpr SobolSecondDimensionTable() {
+        std::uint32_t direction[32] = {};
+        std::uint32_t v = 0x80000000u;
+        for (int k = 0; k < 32; ++k, v ^= v >> 1) direction[k] = v;
+        for (int b = 0; b < 4; ++b)
+            for (std::uint32_t byte = 0; byte < 256; ++byte) {
+                std::uint32_t x = 0;
+                for (int k = 0; k < 8; ++k)
+                    if (byte & (1u << k)) x ^= direction[8 * b + k];
+                bytes[b][byte] = x;
+            }
+    }
+};
+inline constexpr SobolSecondDimensionTable kSobolSecondDimension{};
+
 constexpr void sobol2(std::uint32_t index, std::uint32_t& first, std::uint32_t& second) {
     first = reverseBits(index);
-    second = 0;
-    for (std::uint32_t v = 0x80000000u; index != 0; index >>= 1, v ^= v >> 1)
-        if (index & 1u) second ^= v;
+    const auto& t = kSobolSecondDimension.bytes;
+    second = t[0][index & 0xFFu] ^ t[1][(index >> 8) & 0xFFu] ^ t[2][(index >> 16) & 0xFFu] ^ t[3][index >> 24];
 }
 
 struct Uniform2 {
