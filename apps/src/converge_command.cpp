@@ -63,8 +63,9 @@ constexpr std::uint32_t kReferenceSeedSalt = 0x9e3779b9u;
 // The reference is accumulated in frames of at most this many spp.
 constexpr int kReferenceChunkSpp = 64;
 // Part of the reference cache's key: 2 since the shadow, AO and reflection
-// passes draw their first 2D sample stratified over the screen.
-constexpr int kEstimatorVersion = 2;
+// passes draw their first 2D sample stratified over the screen; 3 since AO
+// does so only without contact sampling.
+constexpr int kEstimatorVersion = 3;
 
 std::vector<int> powersOfTwoUpTo(int n) {
     std::vector<int> out;

@@ -145,6 +145,18 @@ TEST(ScreenStratified, StatelessAndScrambledPerFrameSeedBounceAndDimension) {
         EXPECT_TRUE(d.u != a.u || d.v != a.v);
 }
 
+TEST(ScreenStratified, IndicesBeyond32BitsTakeAnotherScrambleNotTheSamePoints) {
+    // 65536 spp: pixel (256, 0) (Morton index 2^16) has point indices 2^32 +
+    // s, the same low 32 bits as pixel (0, 0)'s; its samples must differ.
+    EXPECT_EQ(mortonIndex(256, 0), 1u << 16);
+    int same = 0;
+    for (std::uint32_t s = 0; s < 64; ++s) {
+        const Point a = at(0, 0, s, 65536, keyOf(2)), b = at(256, 0, s, 65536, keyOf(2));
+        same += a.u == b.u && a.v == b.v;
+    }
+    EXPECT_EQ(same, 0);
+}
+
 TEST(ScreenStratified, UnbiasedOverFramesAndFilteredErrorFarBelowIndependentSamples) {
     // f(u, v) = u v^2 + sin(3u) (integral 1/6 + (1 - cos 3) / 3). Over 400
     // frames, a pixel's 1-spp estimate averages to the integral (seeded

@@ -102,14 +102,20 @@ std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::Tr
     float* hitT = out.addChannel("ao.hitT", 0.f);
     VisibilityTally tally(n);
     std::uint64_t bytes = n * 2 * sizeof(float) + tally.bytes();
+    // The spp uniform samples are stratified over the screen only without
+    // contact sampling: a pixel's contact count follows its neighbours'
+    // samples, which stratification correlates with its own, and a count
+    // that depends on a pixel's own samples biases its mean
+    // (aoContactSampleCounts). Contact samples (s >= spp) are independent.
+    const bool stratified = ctx.settings.aoContactExtraSamples <= 0;
     // Sample s of pixel i: a cosine direction, or nullopt where nothing is traced.
     const auto aoRay = [&](std::size_t i, std::uint32_t s) -> std::optional<tracer::RayDesc> {
         const GPixel& g = ctx.gbuffer[i];
         if (!g.hit || !(radius > 0.f)) return std::nullopt;
-        // The spp uniform samples stratified over the screen; contact samples (s >= spp) independent.
         const SampleKey key = ctx.key(i, s, stream::kAmbientOcclusion);
-        const vec2 u = s < static_cast<std::uint32_t>(spp) ? ctx.screenStratified2D(i, s, stream::kAmbientOcclusion)
-                                                           : vec2(sampleUniform(key, 0), sampleUniform(key, 1));
+        const vec2 u = stratified && s < static_cast<std::uint32_t>(spp)
+                           ? ctx.screenStratified2D(i, s, stream::kAmbientOcclusion)
+                           : vec2(sampleUniform(key, 0), sampleUniform(key, 1));
         const vec3 dir = cosineDirectionAbove(g.normal, g.geometricNormal, u);
         return tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, radius};
     };

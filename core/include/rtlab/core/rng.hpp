@@ -45,10 +45,10 @@ constexpr float sampleUniform(const SampleKey& k, std::uint32_t dimension) {
 // of the key's (frame, bounce, seed) and the dimension pair (Ahmed & Wonka
 // 2020, "Screen-Space Blue-Noise Diffusion of Monte Carlo Sampling Error
 // via Hierarchical Ordering of Pixels"; the hash-based Owen scramble of
-// Burley 2020, "Practical Hash-based Owen Scrambling"). Every aligned block
-// of 2^(2k) pixels holds a (0, 2k, 2)-net of 2^(2k) * samplesPerPixel
-// points, so a spatial filter averages stratified samples, and each pixel's
-// own samples are a stratified run as well. Each point is uniform in
+// Burley 2020, "Practical Hash-based Owen Scrambling"). With samplesPerPixel
+// a power of two, 2^s, every aligned block of 2^(2k) pixels holds a
+// (0, 2k + s, 2)-net of its 2^(2k + s) points, so a spatial filter averages
+// stratified samples, and each pixel's own samples are a (0, s, 2)-net. Each point is uniform in
 // [0, 1)^2 over the scramble, so estimates stay unbiased; the pixel's
 // samples depend on samplesPerPixel. Stateless: a pure function of (x, y,
 // sample, samplesPerPixel, frame, bounce, seed, dimension); the key's pixel
@@ -123,18 +123,22 @@ struct Uniform2 {
 // Two uniform floats in [0, 1) (24 bits each) for sample `sample` of pixel
 // (x, y) with samplesPerPixel samples a pixel; `dimension` picks the
 // scramble (distinct values for unrelated 2D decisions of one sample).
-// Pixels beyond 65535 in x or y and point indices beyond 2^32 wrap (still
-// uniform, less stratified).
+// Pixels beyond 65535 in x or y wrap in the Morton order (still uniform,
+// less stratified); `sample` should be below samplesPerPixel.
 constexpr Uniform2 sampleScreenStratified2D(std::uint32_t x, std::uint32_t y, std::uint32_t sample,
                                             std::uint32_t samplesPerPixel, const SampleKey& k, std::uint32_t dimension) {
     SampleKey scrambleKey = k;
     scrambleKey.pixel = 0xFFFFFFFFu;  // one scramble for the whole frame
     scrambleKey.sample = 0;
     const std::uint32_t spp = samplesPerPixel > 0 ? samplesPerPixel : 1;
-    // Step: the point's index, its order within aligned blocks shuffled (an
-    // Owen scramble of the index keeps every aligned block of points whole).
-    const std::uint32_t seed = sampleHash(scrambleKey, dimension);
-    const std::uint32_t index = owenScramble(mortonIndex(x, y) * spp + sample, seed);
+    // The index's order within aligned blocks is shuffled (an Owen scramble
+    // of the index keeps every aligned block of points whole).
+    // Step: the point's index in 64 bits; above 2^32 (say 1080p at more than
+    // 1024 spp) the high bits pick another scramble, not the same points again.
+    const std::uint64_t index64 = std::uint64_t{mortonIndex(x, y)} * spp + sample;
+    std::uint32_t seed = sampleHash(scrambleKey, dimension);
+    if (const std::uint32_t high = static_cast<std::uint32_t>(index64 >> 32)) seed = pcgHash(seed ^ pcgHash(high));
+    const std::uint32_t index = owenScramble(static_cast<std::uint32_t>(index64), seed);
     std::uint32_t a = 0, b = 0;
     sobol2(index, a, b);
     // Step: each coordinate scrambled on its own seed.
