@@ -138,10 +138,9 @@ public:
     // sample at the primary hit, whose errors a spatial filter then averages.
     vec2 screenStratified2D(std::size_t pixel, std::uint32_t sample, std::uint32_t streamId) const {
         const std::size_t w = static_cast<std::size_t>(width > 0 ? width : 1);
-        const Uniform2 u = sampleScreenStratified2D(static_cast<std::uint32_t>(pixel % w), static_cast<std::uint32_t>(pixel / w),
-                                                    sample, static_cast<std::uint32_t>(settings.spp > 0 ? settings.spp : 1),
-                                                    key(pixel, sample, streamId), 0);
-        return vec2(u.u, u.v);
+        return sampleScreenStratified2D(static_cast<std::uint32_t>(pixel % w), static_cast<std::uint32_t>(pixel / w), sample,
+                                        static_cast<std::uint32_t>(settings.spp > 0 ? settings.spp : 1),
+                                        key(pixel, sample, streamId), 0);
     }
 
 private:

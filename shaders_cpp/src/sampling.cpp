@@ -1,5 +1,7 @@
 #include <rtlab/shaders_cpp/sampling.hpp>
 
+#include <rtlab/core/rng.hpp>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -47,12 +49,7 @@ float ggxG2OverG1(const vec3& wo, const vec3& wi, float alpha) {
 }
 
 float radicalInverse2(std::uint32_t bits) {
-    bits = (bits << 16u) | (bits >> 16u);
-    bits = ((bits & 0x55555555u) << 1u) | ((bits & 0xAAAAAAAAu) >> 1u);
-    bits = ((bits & 0x33333333u) << 2u) | ((bits & 0xCCCCCCCCu) >> 2u);
-    bits = ((bits & 0x0F0F0F0Fu) << 4u) | ((bits & 0xF0F0F0F0u) >> 4u);
-    bits = ((bits & 0x00FF00FFu) << 8u) | ((bits & 0xFF00FF00u) >> 8u);
-    return std::fmin(static_cast<float>(bits) * 0x1p-32f, kOneMinusEpsilon);
+    return std::fmin(static_cast<float>(reverseBits(bits)) * 0x1p-32f, kOneMinusEpsilon);
 }
 
 // Split-sum table: kTableSize x kTableSize nodes at NdotV = i / (size-1),

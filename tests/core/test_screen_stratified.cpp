@@ -43,8 +43,8 @@ SampleKey keyOf(std::uint32_t frame, std::uint32_t seed = 5, std::uint32_t bounc
 }
 
 Point at(std::uint32_t x, std::uint32_t y, std::uint32_t s, std::uint32_t spp, const SampleKey& k) {
-    const Uniform2 u = sampleScreenStratified2D(x, y, s, spp, k, 0);
-    return {u.u, u.v};
+    const vec2 u = sampleScreenStratified2D(x, y, s, spp, k, 0);
+    return {u.x, u.y};
 }
 
 }  // namespace
@@ -126,23 +126,21 @@ TEST(ScreenStratified, APixelsSamplesAreANetAndItsBlocksTogether) {
 }
 
 TEST(ScreenStratified, StatelessAndScrambledPerFrameSeedBounceAndDimension) {
-    const Uniform2 a = sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 0);
-    const Uniform2 b = sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 0);
-    EXPECT_EQ(a.u, b.u);
-    EXPECT_EQ(a.v, b.v);
+    const vec2 a = sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 0);
+    const vec2 b = sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 0);
+    EXPECT_EQ(a, b);
     // The key's pixel and sample fields do not matter (x, y and sample do).
     SampleKey other = keyOf(3);
     other.pixel = 999;
     other.sample = 77;
-    const Uniform2 c = sampleScreenStratified2D(13, 7, 2, 4, other, 0);
-    EXPECT_EQ(a.u, c.u);
-    EXPECT_EQ(a.v, c.v);
+    const vec2 c = sampleScreenStratified2D(13, 7, 2, 4, other, 0);
+    EXPECT_EQ(a, c);
     // Frame, seed, bounce (stream) and dimension each change the scramble.
-    for (const Uniform2 d : {sampleScreenStratified2D(13, 7, 2, 4, keyOf(4), 0),
+    for (const vec2 d : {sampleScreenStratified2D(13, 7, 2, 4, keyOf(4), 0),
                              sampleScreenStratified2D(13, 7, 2, 4, keyOf(3, 6), 0),
                              sampleScreenStratified2D(13, 7, 2, 4, keyOf(3, 5, 4), 0),
                              sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 3)})
-        EXPECT_TRUE(d.u != a.u || d.v != a.v);
+        EXPECT_NE(d, a);
 }
 
 TEST(ScreenStratified, IndicesBeyond32BitsTakeAnotherScrambleNotTheSamePoints) {

@@ -2,6 +2,8 @@
 // Stateless random numbers: every sample is a pure function of
 // (pixel, frame, sample, bounce, seed, dimension). No shared generator, so
 // results do not depend on thread count or scheduling order.
+#include <rtlab/core/math.hpp>
+
 #include <cstdint>
 
 namespace rtlab {
@@ -47,10 +49,10 @@ constexpr float sampleUniform(const SampleKey& k, std::uint32_t dimension) {
 // via Hierarchical Ordering of Pixels"; the hash-based Owen scramble of
 // Burley 2020, "Practical Hash-based Owen Scrambling"). With samplesPerPixel
 // a power of two, 2^s, every aligned block of 2^(2k) pixels holds a
-// (0, 2k + s, 2)-net of its 2^(2k + s) points, so a spatial filter averages
-// stratified samples, and each pixel's own samples are a (0, s, 2)-net. Each point is uniform in
-// [0, 1)^2 over the scramble, so estimates stay unbiased; the pixel's
-// samples depend on samplesPerPixel. Stateless: a pure function of (x, y,
+// (0, 2k + s, 2)-net of its 2^(2k + s) points, so a spatial filter
+// averages stratified samples, and each pixel's own samples are a (0, s,
+// 2)-net. Each point is uniform in [0, 1)^2 over the scramble, so estimates
+// stay unbiased; the pixel's samples depend on samplesPerPixel. Stateless: a pure function of (x, y,
 // sample, samplesPerPixel, frame, bounce, seed, dimension); the key's pixel
 // and sample fields are not used (x, y and `sample` say them).
 
@@ -116,25 +118,21 @@ constexpr void sobol2(std::uint32_t index, std::uint32_t& first, std::uint32_t& 
     second = t[0][index & 0xFFu] ^ t[1][(index >> 8) & 0xFFu] ^ t[2][(index >> 16) & 0xFFu] ^ t[3][index >> 24];
 }
 
-struct Uniform2 {
-    float u = 0.f, v = 0.f;
-};
-
 // Two uniform floats in [0, 1) (24 bits each) for sample `sample` of pixel
 // (x, y) with samplesPerPixel samples a pixel; `dimension` picks the
 // scramble (distinct values for unrelated 2D decisions of one sample).
 // Pixels beyond 65535 in x or y wrap in the Morton order (still uniform,
 // less stratified); `sample` should be below samplesPerPixel.
-constexpr Uniform2 sampleScreenStratified2D(std::uint32_t x, std::uint32_t y, std::uint32_t sample,
-                                            std::uint32_t samplesPerPixel, const SampleKey& k, std::uint32_t dimension) {
+inline vec2 sampleScreenStratified2D(std::uint32_t x, std::uint32_t y, std::uint32_t sample,
+                                        std::uint32_t samplesPerPixel, const SampleKey& k, std::uint32_t dimension) {
     SampleKey scrambleKey = k;
     scrambleKey.pixel = 0xFFFFFFFFu;  // one scramble for the whole frame
     scrambleKey.sample = 0;
     const std::uint32_t spp = samplesPerPixel > 0 ? samplesPerPixel : 1;
-    // The index's order within aligned blocks is shuffled (an Owen scramble
-    // of the index keeps every aligned block of points whole).
     // Step: the point's index in 64 bits; above 2^32 (say 1080p at more than
-    // 1024 spp) the high bits pick another scramble, not the same points again.
+    // 1024 spp) the high bits pick another scramble, not the same points
+    // again. The index's order within aligned blocks is shuffled (an Owen
+    // scramble of the index keeps every aligned block of points whole).
     const std::uint64_t index64 = std::uint64_t{mortonIndex(x, y)} * spp + sample;
     std::uint32_t seed = sampleHash(scrambleKey, dimension);
     if (const std::uint32_t high = static_cast<std::uint32_t>(index64 >> 32)) seed = pcgHash(seed ^ pcgHash(high));
@@ -144,7 +142,7 @@ constexpr Uniform2 sampleScreenStratified2D(std::uint32_t x, std::uint32_t y, st
     // Step: each coordinate scrambled on its own seed.
     a = owenScramble(a, pcgHash(seed ^ 0x68bc21ebu));
     b = owenScramble(b, pcgHash(seed ^ 0x02e5be93u));
-    return {static_cast<float>(a >> 8) * (1.0f / 16777216.0f), static_cast<float>(b >> 8) * (1.0f / 16777216.0f)};
+    return vec2(static_cast<float>(a >> 8) * (1.0f / 16777216.0f), static_cast<float>(b >> 8) * (1.0f / 16777216.0f));
 }
 
 }  // namespace rtlab
