@@ -1,7 +1,8 @@
 #pragma once
-// Decoders for compressed glTF geometry, kept out of gltf_loader.cpp so that
-// the Draco headers (template-heavy) are compiled in exactly one translation
-// unit (gltf_compression.cpp). Internal to the ecs module.
+// Decoders for compressed glTF geometry, kept out of the loader's other files
+// (gltf_loader.cpp, gltf_*.cpp) so that the Draco headers (template-heavy) are
+// compiled in exactly one translation unit (gltf_compression.cpp). Internal to
+// the ecs module.
 //
 // Both decoders validate their parameters before calling the libraries
 // (Debian's builds keep the libraries' assertions) and report malformed

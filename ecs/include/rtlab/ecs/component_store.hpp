@@ -48,8 +48,6 @@ public:
     std::size_t size() const { return entities_.size(); }
     std::span<const Entity> entities() const { return entities_; }
     std::span<const T> components() const { return components_; }
-    // Mutable access for systems inside the World only (see World::patch).
-    std::span<T> componentsForSystems() { return components_; }
 
 private:
     std::vector<std::uint32_t> sparse_;

@@ -140,7 +140,6 @@ public:
     // as rebuilt and the instance set as changed).
     FrameUpdate update(float dt);
     float time() const { return time_; }
-    std::uint32_t updatesRun() const { return frame_; }
 
     // Entities that have a MeshInstance and whose world transform is used for
     // the TLAS (skinned meshes are already in world space: identity).

@@ -1,0 +1,249 @@
+// Stage 3 of the glTF loader, meshes: glTF meshes and their primitives converted into MeshAssets (modes,
+// skin attributes, index lists, normals, morph targets) and the per-instance variants (rigid or deformable).
+#include "gltf_internal.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace rtlab::ecs::load::gltf {
+
+void GltfConverter::stageInstance(int nodeIndex, StagedNode& out) {
+    const tg::Node& node = m_.nodes[static_cast<std::size_t>(nodeIndex)];
+    BaseMesh& base = baseMesh(node.mesh);
+    if (base.asset.geometries.empty()) return;  // points/lines only: nothing to trace
+    const bool skinned = node.skin >= 0;
+    if (skinned) {
+        if (!base.skinnable)
+            fail_(cat(nodeLabel(nodeIndex), " has a skin but ", meshLabel(node.mesh),
+                      " lacks JOINTS_0/WEIGHTS_0 in some primitive"));
+        const StagedSkin& skin = stageSkin(node.skin);
+        if (base.jointsNeeded > skin.jointNodes.size())
+            fail_(cat(meshLabel(node.mesh), " uses joint index ", base.jointsNeeded - 1, " but skin ", node.skin,
+                      " of ", nodeLabel(nodeIndex), " has ", skin.jointNodes.size(), " joints"));
+        out.skin = node.skin;
+    }
+    if (base.targetCount > 0) {
+        std::vector<float> weights(base.targetCount, 0.f);
+        const std::vector<double>* source = !node.weights.empty() ? &node.weights
+                                            : !m_.meshes[static_cast<std::size_t>(node.mesh)].weights.empty()
+                                                ? &m_.meshes[static_cast<std::size_t>(node.mesh)].weights
+                                                : nullptr;
+        if (source) {
+            if (source->size() != base.targetCount)
+                fail_(cat(nodeLabel(nodeIndex), ": ", source->size(), " morph weights for ", base.targetCount,
+                          " morph targets of ", meshLabel(node.mesh)));
+            for (std::size_t i = 0; i < weights.size(); ++i) {
+                if (!std::isfinite((*source)[i])) fail_(cat(nodeLabel(nodeIndex), ": non-finite morph weight"));
+                weights[i] = static_cast<float>((*source)[i]);
+            }
+        }
+        out.morph = MorphWeights{std::move(weights)};
+    } else if (!node.weights.empty()) {
+        fail_(cat(nodeLabel(nodeIndex), " has morph weights but ", meshLabel(node.mesh), " has no morph targets"));
+    }
+
+    const bool deformable = skinned || base.targetCount > 0;
+    if (!deformable) {
+        if (base.rigidVariant < 0) {
+            MeshAsset rigid = base.asset;
+            for (Geometry& g : rigid.geometries) {
+                g.joints.clear();
+                g.weights.clear();
+            }
+            base.rigidVariant = static_cast<int>(s_.meshes.size());
+            s_.meshes.push_back(std::move(rigid));
+        }
+        out.mesh = base.rigidVariant;
+        return;
+    }
+    // Deformation writes into the asset: every deformable instance owns one.
+    MeshAsset copy = base.asset;
+    for (Geometry& g : copy.geometries) {
+        if (!skinned) {
+            g.joints.clear();
+            g.weights.clear();
+        }
+        g.restPositions = g.positions;
+        g.restNormals = g.normals;
+    }
+    out.mesh = static_cast<int>(s_.meshes.size());
+    s_.meshes.push_back(std::move(copy));
+}
+
+BaseMesh& GltfConverter::baseMesh(int meshIndex) {
+    auto& slot = baseMeshes_[static_cast<std::size_t>(meshIndex)];
+    if (!slot) slot = convertMesh(meshIndex);
+    return *slot;
+}
+
+BaseMesh GltfConverter::convertMesh(int meshIndex) {
+    const tg::Mesh& mesh = m_.meshes[static_cast<std::size_t>(meshIndex)];
+    const std::string label = meshLabel(meshIndex);
+    if (mesh.primitives.empty()) fail_(cat(label, " has no primitives"));
+    BaseMesh out;
+    out.asset.name = mesh.name.empty() ? cat("mesh ", meshIndex) : mesh.name;
+    out.targetCount = mesh.primitives.front().targets.size();
+    out.skinnable = true;
+    for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
+        const tg::Primitive& prim = mesh.primitives[p];
+        const std::string where = cat(label, " primitive ", p);
+        if (prim.targets.size() != out.targetCount)
+            fail_(cat(where, " has ", prim.targets.size(), " morph targets, primitive 0 has ", out.targetCount));
+        const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+        if (mode > TINYGLTF_MODE_TRIANGLE_FAN) fail_(cat(where, ": invalid primitive mode ", mode));
+        if (mode < TINYGLTF_MODE_TRIANGLES) {
+            // Points and lines: validated like triangles, then left out
+            // (a ray tracer renders triangles); counted for the warning.
+            const int pos = attribute(prim, "POSITION");
+            if (pos < 0) fail_(cat(where, " has no POSITION attribute"));
+            const std::size_t n = readPositions(pos, cat("POSITION of ", where)).size();
+            if (prim.indices >= 0) readIndices(prim.indices, cat("indices of ", where), n);
+            ++(mode == TINYGLTF_MODE_POINTS ? s_.skippedPointPrimitives : s_.skippedLinePrimitives);
+            continue;
+        }
+        bool hasSkinAttributes = false;
+        out.asset.geometries.push_back(convertPrimitive(prim, where, hasSkinAttributes, out.jointsNeeded));
+        out.skinnable = out.skinnable && hasSkinAttributes;
+    }
+    if (!mesh.weights.empty() && mesh.weights.size() != out.targetCount)
+        fail_(cat(label, " has ", mesh.weights.size(), " default weights for ", out.targetCount, " morph targets"));
+    return out;
+}
+
+Geometry GltfConverter::convertPrimitive(const tg::Primitive& prim, const std::string& where, bool& hasSkinAttributes,
+                                         std::uint32_t& jointsNeeded) {
+    Geometry g;
+    const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+    std::optional<std::vector<std::uint32_t>> dracoIndices = decodeDraco(prim, where);
+
+    const int posAccessor = attribute(prim, "POSITION");
+    if (posAccessor < 0) fail_(cat(where, " has no POSITION attribute"));
+    g.positions = readPositions(posAccessor, cat("POSITION of ", where));
+    const std::size_t n = g.positions.size();
+
+    const int normalAccessor = attribute(prim, "NORMAL");
+    if (normalAccessor >= 0) g.normals = readNormals(normalAccessor, cat("NORMAL of ", where), n);
+
+    if (const int uvAccessor = attribute(prim, "TEXCOORD_0"); uvAccessor >= 0) {
+        const std::string what = cat("TEXCOORD_0 of ", where);
+        const AccessorView v =
+            quantized_ ? view(uvAccessor, what, {TINYGLTF_TYPE_VEC2},
+                              {{kFloat}, {kByte, false, true}, {kUByte, false, true}, {kShort, false, true},
+                               {kUShort, false, true}},
+                              "VEC2 float or (KHR_mesh_quantization) byte/short")
+                       : view(uvAccessor, what, {TINYGLTF_TYPE_VEC2}, {{kFloat}, {kUByte, true}, {kUShort, true}},
+                              "VEC2 float or normalized unsigned byte/short");
+        requireCount(v, what, n);
+        const std::vector<float> f = readFloats(v, what);
+        g.uv0.resize(n);
+        for (std::size_t i = 0; i < n; ++i) g.uv0[i] = vec2(f[2 * i], f[2 * i + 1]);
+    }
+
+    const int jointsAccessor = attribute(prim, "JOINTS_0");
+    const int weightsAccessor = attribute(prim, "WEIGHTS_0");
+    if ((jointsAccessor >= 0) != (weightsAccessor >= 0))
+        fail_(cat(where, " has only one of JOINTS_0 and WEIGHTS_0"));
+    hasSkinAttributes = jointsAccessor >= 0;
+    if (hasSkinAttributes) {
+        const std::string jWhat = cat("JOINTS_0 of ", where), wWhat = cat("WEIGHTS_0 of ", where);
+        const AccessorView jv = view(jointsAccessor, jWhat, {TINYGLTF_TYPE_VEC4},
+                                     {{kUByte, false, true}, {kUShort, false, true}}, "VEC4 unsigned byte/short");
+        requireCount(jv, jWhat, n);
+        const AccessorView wv = view(weightsAccessor, wWhat, {TINYGLTF_TYPE_VEC4},
+                                     {{kFloat}, {kUByte, true}, {kUShort, true}},
+                                     "VEC4 float or normalized unsigned byte/short");
+        requireCount(wv, wWhat, n);
+        const std::vector<std::uint32_t> j = readUInts(jv);
+        const std::vector<float> w = readFloats(wv, wWhat);
+        g.joints.resize(n);
+        g.weights.resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            vec4 wi(w[4 * i], w[4 * i + 1], w[4 * i + 2], w[4 * i + 3]);
+            const glm::uvec4 ji(j[4 * i], j[4 * i + 1], j[4 * i + 2], j[4 * i + 3]);
+            if (wi.x < 0.f || wi.y < 0.f || wi.z < 0.f || wi.w < 0.f)
+                fail_(cat("accessor ", wv.index, " (", wWhat, ") has a negative weight at vertex ", i));
+            const float sum = wi.x + wi.y + wi.z + wi.w;
+            if (!(sum > 0.f) || !std::isfinite(sum)) wi = vec4(1.f, 0.f, 0.f, 0.f);
+            else wi /= sum;
+            for (int k = 0; k < 4; ++k)
+                if (wi[k] > 0.f) jointsNeeded = std::max(jointsNeeded, ji[k] + 1u);
+            g.joints[i] = ji;
+            g.weights[i] = wi;
+        }
+    }
+
+    // Indices: validated against the vertex count, then converted to a list.
+    std::vector<std::uint32_t> source;
+    if (dracoIndices) {
+        source = std::move(*dracoIndices);  // checked against the decoded point count
+    } else if (prim.indices >= 0) {
+        source = readIndices(prim.indices, cat("indices of ", where), n);
+    } else {
+        source.resize(n);
+        for (std::size_t i = 0; i < n; ++i) source[i] = static_cast<std::uint32_t>(i);
+    }
+    const std::size_t k = source.size();
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+        if (k % 3 != 0 || k == 0)
+            fail_(cat(where, ": ", k, prim.indices >= 0 ? " indices" : " vertices",
+                      " do not form whole triangles (not a multiple of 3)"));
+        g.indices = std::move(source);
+    } else {
+        if (k < 3) fail_(cat(where, ": a triangle strip/fan needs at least 3 vertices, got ", k));
+        g.indices.reserve(3 * (k - 2));
+        for (std::size_t i = 0; i + 2 < k; ++i) {
+            if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+                // glTF 2.0 §3.7.2.1: p_i = {v_i, v_(i+(1+i%2)), v_(i+(2-i%2))}
+                const std::size_t odd = i % 2;
+                g.indices.insert(g.indices.end(), {source[i], source[i + 1 + odd], source[i + 2 - odd]});
+            } else {
+                // Fan: p_i = {v_(i+1), v_(i+2), v_0}
+                g.indices.insert(g.indices.end(), {source[i + 1], source[i + 2], source[0]});
+            }
+        }
+    }
+
+    // Normals: generated when missing; given ones normalised, zero-length
+    // ones replaced by generated normals per vertex.
+    if (g.normals.empty()) {
+        g.normals = generateVertexNormals(g.positions, g.indices);
+    } else {
+        std::vector<vec3> generated;
+        for (std::size_t i = 0; i < n; ++i) {
+            const float len = glm::length(g.normals[i]);
+            if (len > 1e-20f && std::isfinite(len)) {
+                g.normals[i] /= len;
+            } else {
+                if (generated.empty()) generated = generateVertexNormals(g.positions, g.indices);
+                g.normals[i] = generated[i];
+            }
+        }
+    }
+
+    // Morph targets (TANGENT and other attributes are ignored).
+    for (std::size_t t = 0; t < prim.targets.size(); ++t) {
+        const auto& target = prim.targets[t];
+        MorphTarget mt;
+        if (const int a = attribute(target, "POSITION"); a >= 0)
+            mt.positionDeltas = readPositionDeltas(a, cat("POSITION of morph target ", t, " of ", where), n);
+        if (const int a = attribute(target, "NORMAL"); a >= 0)
+            mt.normalDeltas = readNormals(a, cat("NORMAL of morph target ", t, " of ", where), n);
+        g.morphTargets.push_back(std::move(mt));
+    }
+
+    if (prim.material >= 0) {
+        checkIndex(prim.material, m_.materials, "material", where);
+        g.material = static_cast<MaterialId>(localMaterial(prim.material));
+    } else {
+        g.material = static_cast<MaterialId>(defaultMaterial());
+    }
+    decoded_.clear();
+    return g;
+}
+
+}  // namespace rtlab::ecs::load::gltf
