@@ -81,10 +81,6 @@ public:
         ParamInfo info{std::move(name), std::move(description), ParamKind::Choice, {}, 0.0, 0.0, {}, names};
         return add(std::move(info), member);
     }
-    ParamTable& addBoolean(std::string name, bool Params::*member, std::string description) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Boolean, {}, 0.0, 0.0, {}, nullptr};
-        return add(std::move(info), member);
-    }
     template <class Enum>
     ParamTable& addChoice(std::string name, Enum Params::*member, std::string description,
                           std::vector<std::pair<std::string, Enum>> choices) {

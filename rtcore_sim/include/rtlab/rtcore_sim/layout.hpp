@@ -62,9 +62,8 @@ public:
 
     std::uint64_t tlasBase() const { return tlas_.nodeBase; }
     std::uint64_t instanceTableBase() const { return instanceBase_; }
-    // Base of mesh's BLAS region; kNone when it has no (non-empty) BLAS.
+    // The base of a region not laid out (a mesh without a non-empty BLAS).
     static constexpr std::uint64_t kNone = ~std::uint64_t(0);
-    std::uint64_t blasBase(std::uint32_t mesh) const { return mesh < blas_.size() ? blas_[mesh].nodeBase : kNone; }
     std::uint64_t totalBytes() const { return totalBytes_; }
     std::uint32_t nodeSize() const { return nodeBytes_; }
 

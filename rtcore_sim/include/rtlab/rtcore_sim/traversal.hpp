@@ -186,7 +186,6 @@ public:
     std::uint32_t currentMesh() const { return mesh_; }
     const ModelHit& hit() const { return hit_; }
     const TraversalCounters& counters() const { return counters_; }
-    std::uint32_t stackSize() const { return static_cast<std::uint32_t>(size_); }
 
 private:
     void push(const StackEntry& e);

@@ -1,0 +1,169 @@
+#pragma once
+// One RT core of the timing model: its queues, ray slots, scheduler, units, node cache and memory port, and
+// the batch state it shares with the GPU level (docs/rtcore-model.md, "Timing model"). Methods: core_cycle.cpp.
+#include <rtlab/rtcore_sim/cache.hpp>
+#include <rtlab/rtcore_sim/layout.hpp>
+#include <rtlab/rtcore_sim/rtcore.hpp>
+#include <rtlab/rtcore_sim/scheduler.hpp>
+#include <rtlab/rtcore_sim/stats.hpp>
+#include <rtlab/rtcore_sim/traversal.hpp>
+
+#include "event_wheel.hpp"
+#include "stats_tree.hpp"
+#include "unit_pool.hpp"
+
+#include <cstdint>
+#include <deque>
+#include <exception>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rtlab::rtcore_sim {
+
+// The batch being simulated and what the cores share about it.
+struct BatchState {
+    std::span<const SimRay> rays;
+    ProgrammableSide* side = nullptr;
+    std::span<SimRayResult> results;
+    std::vector<std::uint64_t> warpSubmit;
+    std::vector<std::uint32_t> warpLocal;  // per warp: its position in its core's warp list
+    std::vector<RayTypeStats> rayTypes;    // over the whole GPU (a type's activity is a union over cores)
+    // gpu.rayOrder other than submission: rays/results above are the reordered
+    // copies; order[i] = index in the caller's batch (side callbacks get it).
+    std::vector<std::uint32_t> order;
+    std::uint32_t sideIndex(std::uint32_t i) const { return order.empty() ? i : order[i]; }
+};
+
+// ---------------------------------------------------------------------------
+// One RT core: input queue, ray slots, scheduler, units, node cache (L1) and
+// memory port. Its clock is the GPU's: the GPU runs every core's phases for
+// a cycle, cores in index order, before moving on — or, in host-parallel
+// epochs, every core's cycles of an epoch on its own (runEpoch), the L2
+// answered between epochs. During a batch a core writes only its own state
+// (its slots, its warps' results, its statistics): cores may run on
+// different host threads. Aligned so that two cores share no cache line.
+
+struct alignas(64) Core {
+    // The small fields first: with the traversal state's header right after
+    // them, a step touches a few consecutive cache lines of its slot.
+    struct Slot {
+        StepInfo step;
+        std::uint32_t rayIndex = 0;
+        std::uint32_t warp = 0;
+        std::uint64_t age = 0;
+        std::uint64_t readyCycle = 0;  // became ready (waits for the scheduler from here)
+        std::uint64_t admitCycle = 0;  // entered the ray slot
+        std::uint64_t finishCycle = 0;
+        std::uint32_t onChip = 0, spilled = 0;              // short stack model
+        std::uint32_t spillEntries = 0, refillEntries = 0;  // of the step in flight
+        std::uint32_t spills = 0, refills = 0;              // of the ray
+        RayTraversal trav;                                  // ends with the (large) traversal stack
+    };
+    struct Delivery {
+        std::uint32_t rayIndex;
+        std::uint64_t enterCycle;
+    };
+
+    const RtCoreConfig config;  // a copy: read on every step, never aliased by the counters
+    const ModelScene& scene;
+    const MemoryLayout& layout;
+    BatchState& batch;
+    NodeCache cache;
+    MemoryPort port;
+    UnitPool boxUnits, triangleUnits, transformUnits;
+    std::unique_ptr<SchedulerPolicy> policy;
+    bool policyUsesAddress = true;
+    bool policyPrefetches = true;
+    std::size_t readyCount = 0;  // rays held by the policy
+    EventWheel wheel;
+    std::vector<Slot> slots;
+    std::vector<std::uint32_t> freeSlots;  // LIFO
+    std::deque<Delivery> completionQueue;
+    std::deque<std::uint32_t> blockedFinishers;  // finished rays waiting for a completion-queue entry (slots)
+    std::uint64_t nextAge = 0;
+
+    // This core's share of the batch: its warps (indices into the batch) in order.
+    std::vector<std::uint32_t> warps;
+    std::vector<std::uint32_t> warpRemaining;  // per entry of `warps`: rays not yet returned
+    std::uint32_t rayCount = 0, submitted = 0, admitted = 0;  // positions in the core's ray sequence
+    std::uint32_t delivered = 0;                              // rays returned
+
+    CoreStats stats;
+    OccupancyTracker inputQueueOcc, slotOcc, readyOcc, completionOcc;
+    std::vector<RayTypeWork> typeWork;  // per ray type, this batch
+    std::vector<Activity> activity;     // this batch, in the core's order
+
+    // The GPU loop's view of the core.
+    static constexpr std::uint64_t kNever = ~std::uint64_t(0);
+    std::uint64_t visit = 0;      // the next cycle the core may act in
+    std::uint64_t lastVisit = 0;  // the last cycle it was simulated
+    bool accountPending = false;  // accountUntil(lastVisit, next) still to do: next may move earlier
+    bool deferring = false;       // L2 reads are deferred (host-parallel epochs, l2 mode cache)
+    // Host-parallel epochs: the L2 reads of the current epoch and the fetches waiting for them.
+    struct DeferredFetch {
+        std::uint64_t seq;    // the fetch-done event's place among the core's events
+        std::uint64_t cycle;  // issue cycle
+        std::uint32_t slot;
+        std::uint32_t firstTerm, terms;
+    };
+    DeferredReads deferredReads;
+    std::vector<DeferredFetch> deferredFetches;
+    std::uint64_t deferredReady = kNever;  // the earliest answer to deferredReads (once answered)
+    std::exception_ptr error;  // a side callback threw in a host-parallel epoch
+    std::uint64_t errorCycle = 0;
+
+    Core(const RtCoreConfig& cfg, const ModelScene& s, const MemoryLayout& l, BatchState& b, SharedL2* l2);
+
+    // The methods declared inline are called only in core_cycle.cpp and defined there, inline as they were
+    // inside the class: GCC then folds more of a cycle into runEpoch (about 5 % fewer instructions per batch).
+    static inline bool isBuiltinNonPrefetching(const std::string& name);
+    inline void resetSlots();
+    inline std::uint32_t rayAt(std::uint32_t k) const;
+
+    // ---- addresses ----------------------------------------------------------
+    inline MemoryRange stepRange(const StepInfo& st) const;
+    inline std::uint64_t nextAddress(const Slot& s) const;
+
+    // ---- the ray's life -----------------------------------------------------
+    inline void makeReady(std::uint32_t slot, std::uint64_t c);
+    inline void issue(std::uint32_t slot, std::uint64_t c);
+    inline void fetchTimed(const LineFill& fetched, std::uint64_t c);
+    void resolveDeferred();
+    inline void onFetchDone(std::uint32_t slot, std::uint64_t c);
+    inline void onStackTraffic(std::uint32_t slot, std::uint64_t c);
+    inline void finish(std::uint32_t slot, std::uint64_t c);
+    inline void enterCompletion(std::uint32_t slot, std::uint64_t c);
+    inline void deliver(const Delivery& d, std::uint64_t c);
+    inline void logActivity(std::uint64_t c, std::uint32_t rayType, std::int32_t delta);
+    inline void warpDone(std::uint32_t warp);
+
+    // ---- one cycle -----------------------------------------------------------
+    inline void processEvents(std::uint64_t c);
+    inline void completion(std::uint64_t c);
+    inline std::uint32_t pendingWarpSize() const;
+    inline bool pendingWarpFits() const;
+    inline void submission(std::uint64_t c);
+    inline void admission(std::uint64_t c);
+    inline void issueRays(std::uint64_t c);
+    inline void cycle(std::uint64_t c);
+    inline bool busy() const;
+    inline void accountUntil(std::uint64_t c, std::uint64_t next);
+
+    void beginBatch(std::size_t rayTypes);
+    std::uint32_t addWarp(std::uint32_t warp, std::uint32_t size);
+    bool done() const { return delivered == rayCount; }
+
+    // ---- the GPU loop --------------------------------------------------------
+    void runEpoch(std::uint64_t end, bool everyCycle);
+    void runEpochCatching(std::uint64_t end, bool everyCycle);
+    void settle(bool everyCycle);
+
+    void abortBatch(std::uint64_t now);
+    void resetStats(std::uint64_t now);
+    void resetTime();
+    CoreSnapshot snapshot(std::uint64_t now) const;
+};
+
+}  // namespace rtlab::rtcore_sim

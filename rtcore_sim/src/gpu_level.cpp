@@ -1,0 +1,330 @@
+// The GPU level of the timing model (RtCore::Impl): a batch cut into warps and dispatched to the cores, the cores
+// run in lock step or in host-parallel epochs, the epochs' L2 reads answered in the serial order, ray-type merges.
+#include "gpu_level.hpp"
+
+#include "ray_order.hpp"
+
+#include <rtlab/core/parallel.hpp>
+
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <exception>
+#include <stdexcept>
+#include <string>
+
+namespace rtlab::rtcore_sim {
+
+RtCore::Impl::Impl(const RtCoreConfig& cfg, const ModelScene& s) : config(cfg), scene(s) {
+    if (config.l2.mode == L2Mode::Cache) l2 = std::make_unique<SharedL2>(config.l2, config.dram);
+    for (std::uint32_t k = 0; k < config.gpu.cores; ++k)
+        cores.push_back(std::make_unique<Core>(config, scene, layout, batch, l2.get()));
+}
+
+// The dispatch rule: which core each warp of the batch goes to.
+void RtCore::Impl::dispatch(std::uint32_t warpCount) {
+    const std::uint32_t n = static_cast<std::uint32_t>(cores.size());
+    const std::uint32_t w = config.core.warpWidth;
+    const auto size = [&](std::uint32_t warp) {
+        return std::min<std::uint32_t>(w, static_cast<std::uint32_t>(batch.rays.size()) - warp * w);
+    };
+    for (auto& core : cores) core->beginBatch(batch.rayTypes.size());
+    batch.warpLocal.resize(warpCount);
+    for (std::uint32_t warp = 0; warp < warpCount; ++warp) {
+        const std::uint32_t k =
+            config.gpu.dispatch == WarpDispatch::RoundRobin
+                ? warp % n
+                : static_cast<std::uint32_t>((std::uint64_t(warp) * n) / warpCount);  // contiguous runs
+        batch.warpLocal[warp] = cores[k]->addWarp(warp, size(warp));
+    }
+}
+
+// The host threads the process allows (TBB's arena and any global limit).
+unsigned RtCore::Impl::hostThreads() {
+    const std::size_t arena = static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
+    const std::size_t limit = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+    return static_cast<unsigned>(std::max<std::size_t>(1, std::min(arena, limit)));
+}
+
+// Visits, in the serial model's order (cycle, then core index, then the
+// core's own order), the entries of per-core logs that are each sorted by
+// cycle: visitor(core, entry index). `cursor` is scratch, one per core.
+template <class CycleOf, class SizeOf, class Visitor>
+void RtCore::Impl::mergeByCycle(std::vector<std::size_t>& cursor, const CycleOf& cycleOf, const SizeOf& sizeOf,
+                                Visitor&& visitor) const {
+    const std::size_t n = cores.size();
+    cursor.assign(n, 0);
+    for (;;) {
+        std::size_t best = n;
+        std::uint64_t bestCycle = ~std::uint64_t(0);
+        for (std::size_t k = 0; k < n; ++k)
+            if (cursor[k] < sizeOf(k) && (best == n || cycleOf(k, cursor[k]) < bestCycle)) {
+                best = k;
+                bestCycle = cycleOf(k, cursor[k]);
+            }
+        if (best == n) return;
+        // This core's entries of that cycle, then the next core's.
+        const std::size_t size = sizeOf(best);
+        while (cursor[best] < size && cycleOf(best, cursor[best]) == bestCycle) visitor(best, cursor[best]++);
+    }
+}
+
+// The cores in lock step until every ray of the batch is returned.
+//   parallel = false: one cycle at a time, cores in index order, L2
+//     reads answered at once (the serial model itself).
+//   parallel = true: host-parallel epochs. In l2 mode ideal the cores
+//     share nothing and each runs the whole batch on its own; in mode
+//     cache an epoch starting at E (the earliest next active cycle of any
+//     core) lasts minReadLatency cycles, shorter than the time from any L2
+//     read made in it to its answer. The cores run their cycles of the
+//     epoch on up to hostThreads() threads (core k on group k mod groups),
+//     their L2 reads logged; then the reads are answered serially in the
+//     serial model's order and every core takes its answers
+//     (resolveDeferred). Cycles and statistics are the serial model's,
+//     whatever the number of threads.
+void RtCore::Impl::simulate(bool parallel) {
+    constexpr std::uint64_t kNever = Core::kNever;
+    const std::size_t n = cores.size();
+    const bool deferring = parallel && l2;
+    const std::uint64_t length =
+        !parallel ? 1 : deferring ? cores[0]->port.minReadLatency(config.cache.lineBytes) : kNever;
+    for (auto& core : cores) {
+        core->visit = now;
+        core->lastVisit = now;
+        core->accountPending = false;
+        core->deferring = deferring;
+        core->port.defer(deferring ? &core->deferredReads : nullptr);
+    }
+    const std::size_t groups = parallel ? std::min<std::size_t>(hostThreads(), n) : 1;
+    // One core's part of an epoch: first the answers of the previous
+    // epoch's L2 reads, then its cycles of this one.
+    const auto runCore = [&](Core& core, std::uint64_t end) {
+        core.resolveDeferred();
+        core.settle(everyCycle);
+        core.runEpochCatching(end, everyCycle);
+    };
+    std::uint64_t epoch = now;
+    for (;;) {
+        clock = epoch;
+        const std::uint64_t end = length == kNever ? kNever : epoch + length;
+        if (!parallel) {
+            for (auto& core : cores) core->runEpoch(end, everyCycle);  // throws through
+        } else if (groups == 1) {
+            for (auto& core : cores) runCore(*core, end);
+        } else {
+            parallelForEach(groups, [&](std::size_t g) {
+                for (std::size_t k = g; k < n; k += groups) runCore(*cores[k], end);
+            });
+        }
+        if (deferring) answerL2Reads(groups);
+        // The next epoch starts at the earliest cycle any core may act in:
+        // its next active cycle so far, or the earliest answer to its reads
+        // (a fetch waiting for one is done at or after it).
+        epoch = kNever;
+        bool allDone = true, failed = false;
+        for (auto& core : cores) {
+            epoch = std::min({epoch, core->visit, core->deferredReady});
+            allDone = allDone && core->done();
+            failed = failed || core->error;
+        }
+        if (failed || allDone) {
+            for (auto& core : cores) core->resolveDeferred();  // placeholders out of the node caches
+            if (failed) rethrowFirstError();
+            break;
+        }
+        if (epoch == kNever) throw std::logic_error("rtcore_sim: no event pending while rays are in flight");
+    }
+    // The batch ends when its last result is returned.
+    clock = now;
+    for (auto& core : cores)
+        if (core->rayCount > 0) clock = std::max(clock, core->lastVisit);
+    for (auto& core : cores) core->port.defer(nullptr);
+}
+
+// Between epochs: the epoch's L2 reads of all cores, answered in the
+// serial model's order (each core takes its answers in its next task).
+// Reads of different line classes (SharedL2::classOf) touch disjoint
+// banks, sets and DRAM channels, so only the order within a class
+// matters: with several host threads, group g answers the classes c with
+// c mod groups = g, each in the serial order, with its own counters and
+// LRU stamps.
+void RtCore::Impl::answerL2Reads(std::size_t threads) {
+    const std::size_t n = cores.size();
+    const std::size_t classes = l2->classes();
+    for (auto& core : cores) core->deferredReads.fills.resize(core->deferredReads.reads.size());
+    const std::size_t groups = std::max<std::size_t>(1, std::min(threads, classes));
+    if (l2Groups.size() < groups) l2Groups.resize(groups);
+    const auto answer = [&](std::size_t g) {
+        L2Group& group = l2Groups[g];
+        group.counters = L2Counters{};
+        group.stamp = l2->stamp();
+        group.ready.assign(n, Core::kNever);
+        for (std::size_t c = g; c < classes; c += groups)
+            mergeByCycle(
+                group.cursor,
+                [&](std::size_t k, std::size_t i) {
+                    const DeferredReads& d = cores[k]->deferredReads;
+                    return d.reads[d.byClass[c][i]].cycle;
+                },
+                [&](std::size_t k) { return cores[k]->deferredReads.byClass[c].size(); },
+                [&](std::size_t k, std::size_t i) {
+                    DeferredReads& d = cores[k]->deferredReads;
+                    const std::uint32_t index = d.byClass[c][i];
+                    const DeferredReads::Read& r = d.reads[index];
+                    const LineFill f =
+                        cores[k]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
+                    d.fills[index] = f;
+                    group.ready[k] = std::min(group.ready[k], f.ready);
+                });
+    };
+    if (groups == 1) answer(0);
+    else parallelForEach(groups, answer);
+    std::uint64_t stamp = l2->stamp();
+    for (std::size_t g = 0; g < groups; ++g) {
+        const L2Group& group = l2Groups[g];
+        l2->counters.add(group.counters);
+        stamp = std::max(stamp, group.stamp);
+        for (std::size_t k = 0; k < n; ++k) cores[k]->deferredReady = std::min(cores[k]->deferredReady, group.ready[k]);
+    }
+    l2->setStamp(stamp);
+}
+
+// A side callback threw in a host-parallel epoch: every core has run to the
+// epoch's end or to its own exception; the clock is the last cycle any core
+// reached, the exception rethrown the one the serial model would have met
+// first (smallest cycle, then core index).
+void RtCore::Impl::rethrowFirstError() {
+    Core* first = nullptr;
+    clock = now;
+    for (auto& core : cores) {
+        clock = std::max(clock, core->lastVisit);
+        if (core->error && (!first || core->errorCycle < first->errorCycle)) first = core.get();
+    }
+    std::rethrow_exception(first->error);
+}
+
+// The batch's per-core ray-type sums and activity, into the GPU's
+// RayTypeStats in the serial model's order (at the batch's end, or when
+// it is dropped).
+void RtCore::Impl::mergeRayTypes() {
+    for (auto& core : cores) {
+        for (std::size_t t = 0; t < core->typeWork.size() && t < batch.rayTypes.size(); ++t) {
+            RayTypeWork& w = core->typeWork[t];
+            if (w.rays == 0 && w.nodeVisits == 0 && w.triangleTests == 0 && w.instanceTransitions == 0) continue;
+            RayTypeStats& r = batch.rayTypes[t];
+            r.rays += w.rays;
+            r.latency.merge(w.latency);
+            r.nodeVisits += w.nodeVisits;
+            r.triangleTests += w.triangleTests;
+            r.instanceTransitions += w.instanceTransitions;
+            w = RayTypeWork{};
+        }
+    }
+    mergeByCycle(cursor, [&](std::size_t k, std::size_t i) { return cores[k]->activity[i].cycle; },
+                 [&](std::size_t k) { return cores[k]->activity.size(); },
+                 [&](std::size_t k, std::size_t i) {
+                     const Activity& a = cores[k]->activity[i];
+                     RayTypeStats& r = batch.rayTypes[a.type];
+                     if (a.delta > 0) {
+                         if (r.inFlight == 0) r.activeSince = a.cycle;
+                         r.inFlight += static_cast<std::uint64_t>(a.delta);
+                     } else {
+                         r.inFlight -= static_cast<std::uint64_t>(-std::int64_t(a.delta));
+                         if (r.inFlight == 0) r.activeCycles += a.cycle - r.activeSince;
+                     }
+                 });
+    for (auto& core : cores) core->activity.clear();
+}
+
+std::uint64_t RtCore::Impl::portsFree(std::uint64_t c) const {
+    for (const auto& core : cores) c = std::max(c, core->port.channel.nextFree());
+    return c;
+}
+
+void RtCore::Impl::run(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out) {
+    if (rays.size() != out.size()) throw std::invalid_argument("RtCore::run: rays and results differ in size");
+    if (rays.size() > UINT32_MAX / 2) throw std::invalid_argument("RtCore::run: batch too large");
+    for (const SimRay& r : rays)
+        if (r.rayType >= kMaxRayTypes)
+            throw std::invalid_argument("RtCore::run: rayType " + std::to_string(r.rayType) + " >= " +
+                                        std::to_string(kMaxRayTypes));
+    if (scene.generation() != layoutGeneration) {
+        if (layoutGeneration != ~std::uint64_t(0)) {
+            for (auto& core : cores) core->cache.invalidate();
+            if (l2) l2->invalidate();
+        }
+        layout.build(scene);
+        layoutGeneration = scene.generation();
+    }
+    if (rays.empty()) return;
+    // Step: the ray order before warp formation (gpu.rayOrder).
+    batch.order.clear();
+    if (config.gpu.rayOrder == RayOrder::DirectionOrigin) {
+        batch.order = directionOriginOrder(rays);
+        orderedRays.resize(rays.size());
+        for (std::size_t i = 0; i < rays.size(); ++i) orderedRays[i] = rays[batch.order[i]];
+        orderedResults.assign(rays.size(), SimRayResult{});
+        rays = orderedRays;
+    }
+    batch.rays = rays;
+    batch.side = &programmable;
+    batch.results = batch.order.empty() ? out : std::span<SimRayResult>(orderedResults);
+    const std::uint32_t w = config.core.warpWidth;
+    const std::uint32_t warps = static_cast<std::uint32_t>((rays.size() + w - 1) / w);
+    batch.warpSubmit.assign(warps, 0);
+    std::uint32_t maxType = 0;
+    for (const SimRay& r : rays) maxType = std::max(maxType, r.rayType);
+    if (batch.rayTypes.size() <= maxType) batch.rayTypes.resize(maxType + 1);
+    ++batches;
+    dispatch(warps);
+
+    try {
+        // Host-parallel epochs when the side allows concurrent callbacks and
+        // there are several cores; the number of host threads changes the
+        // speed only.
+        simulate(cores.size() > 1 && programmable.concurrent());
+        now = portsFree(clock);  // spill writes drain before the batch ends
+        mergeRayTypes();
+        for (std::size_t i = 0; i < batch.order.size(); ++i) out[batch.order[i]] = orderedResults[i];
+    } catch (...) {
+        abortBatch();
+        throw;
+    }
+    batch.rays = {};
+    batch.results = {};
+    batch.side = nullptr;
+}
+
+// A side callback threw: drop the batch's rays; the clock stays at the cycle reached.
+void RtCore::Impl::abortBatch() {
+    now = portsFree(clock);
+    for (auto& core : cores) core->port.defer(nullptr);
+    mergeRayTypes();
+    for (auto& core : cores) core->abortBatch(now);
+    for (RayTypeStats& t : batch.rayTypes) t.inFlight = 0;
+    batch.rays = {};
+    batch.results = {};
+    batch.side = nullptr;
+}
+
+void RtCore::Impl::resetStats() {
+    const std::size_t types = batch.rayTypes.size();
+    batch.rayTypes.assign(types, RayTypeStats{});
+    frameStart = now;
+    batches = 0;
+    for (auto& core : cores) core->resetStats(now);
+    if (l2) l2->resetStats();
+}
+
+void RtCore::Impl::reset() {
+    now = 0;
+    for (auto& core : cores) core->resetTime();
+    if (l2) {
+        l2->invalidate();
+        l2->resetTime();
+    }
+    resetStats();
+}
+
+}  // namespace rtlab::rtcore_sim

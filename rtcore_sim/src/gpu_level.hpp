@@ -1,0 +1,67 @@
+#pragma once
+// RtCore::Impl, the GPU level of the timing model: cores in lock step on one clock, warp dispatch, host-parallel
+// epochs, the shared L2 and DRAM (docs/rtcore-model.md, "GPU level"). Its methods are in gpu_level.cpp, its
+// statsJson in stats_tree.cpp.
+#include <rtlab/rtcore_sim/cache.hpp>
+#include <rtlab/rtcore_sim/layout.hpp>
+#include <rtlab/rtcore_sim/rtcore.hpp>
+
+#include "core_cycle.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace rtlab::rtcore_sim {
+
+// ---------------------------------------------------------------------------
+// The GPU: cores in lock step on one clock, the shared L2 and DRAM.
+
+struct RtCore::Impl {
+    RtCoreConfig config;
+    const ModelScene& scene;
+    MemoryLayout layout;
+    std::uint64_t layoutGeneration = ~std::uint64_t(0);
+    BatchState batch;
+    std::vector<SimRay> orderedRays;  // the batch in gpu.rayOrder (when not submission)
+    std::vector<SimRayResult> orderedResults;
+    std::unique_ptr<SharedL2> l2;  // l2 mode cache only
+    std::vector<std::unique_ptr<Core>> cores;
+    std::vector<std::size_t> cursor;  // scratch: per core, a position in its log (mergeByCycle)
+    struct alignas(64) L2Group {  // one host thread's share of answering L2 reads (answerL2Reads)
+        L2Counters counters;
+        std::uint64_t stamp = 0;
+        std::vector<std::uint64_t> ready;  // per core: the earliest answer to its reads
+        std::vector<std::size_t> cursor;
+    };
+    std::vector<L2Group> l2Groups;
+    bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
+    std::uint64_t now = 0;    // the clock between batches
+    std::uint64_t clock = 0;  // the cycle being simulated during a batch
+    std::uint64_t frameStart = 0, batches = 0;
+
+    Impl(const RtCoreConfig& cfg, const ModelScene& s);
+
+    void dispatch(std::uint32_t warpCount);
+    static unsigned hostThreads();
+    template <class CycleOf, class SizeOf, class Visitor>
+    void mergeByCycle(std::vector<std::size_t>& cursor, const CycleOf& cycleOf, const SizeOf& sizeOf,
+                      Visitor&& visitor) const;
+    void simulate(bool parallel);
+    void answerL2Reads(std::size_t threads);
+    [[noreturn]] void rethrowFirstError();
+    void mergeRayTypes();
+    std::uint64_t portsFree(std::uint64_t c) const;
+
+    void run(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out);
+    void abortBatch();
+    void resetStats();
+    void reset();
+
+    nlohmann::json statsJson() const;
+};
+
+}  // namespace rtlab::rtcore_sim
