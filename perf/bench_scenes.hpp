@@ -1,30 +1,34 @@
 #pragma once
 // Scene set-up shared by the benchmarks.
-#include <rtlab/ecs/load/scene_loader.hpp>
-#include <rtlab/ecs/snapshot.hpp>
-#include <rtlab/ecs/world.hpp>
+#include <rtlab/session/frame_session.hpp>
 #include <rtlab/shaders_cpp/preview_shading.hpp>
-#include <rtlab/tracer/accel_manager.hpp>
 
 #include <memory>
 #include <string>
 
 namespace rtlab::bench {
 
-// A loaded scene after its first update, with built acceleration structures.
+// A loaded scene after its first update (frame 0 of the frame driver), with
+// built acceleration structures; `options` vary Embree's (e.g. native triangles).
 struct LoadedScene {
-    ecs::World world;
-    ecs::SceneSnapshot snapshot;
-    std::unique_ptr<tracer::AccelManager> accel;
+    std::unique_ptr<session::FrameSession> session;
+    const ecs::SceneSnapshot& snapshot;
+    const tracer::AccelManager* accel;
 
-    explicit LoadedScene(const std::string& source, tracer::AccelOptions options = {}) {
-        ecs::load::loadScene(world, source);
-        snapshot = ecs::makeSnapshot(world, world.update(0.f));
-        accel = std::make_unique<tracer::AccelManager>(options);
-        accel->update(snapshot);
-    }
+    explicit LoadedScene(const std::string& source, tracer::AccelOptions options = {})
+        : session(start(source, options)), snapshot(session->frame().scene), accel(&session->accel()) {}
     // The scene's camera for one image size (build it outside per-pixel loops).
     shaders::PinholeCamera camera(int width, int height) const { return {snapshot.camera, width, height}; }
+
+private:
+    static std::unique_ptr<session::FrameSession> start(const std::string& source, tracer::AccelOptions options) {
+        session::FrameOptions o;
+        o.scene = source;
+        auto s = std::make_unique<session::FrameSession>(o, session::Stages::Render, options);
+        s->load();
+        s->advance();
+        return s;
+    }
 };
 
 // The primary ray through the centre of pixel (x, y).

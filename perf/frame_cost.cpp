@@ -1,5 +1,5 @@
 // What one denoised 1-spp frame of `rtlab converge` costs, in its two parts:
-// the render (shaders::renderFrame of builtin:showcase, static, the G-buffer
+// the render (session::FrameSession::render of builtin:showcase, static, the G-buffer
 // and one effect) and the effect's denoiser (a fresh EffectLayerDenoiser on a
 // copy of that frame), as converge times them, with the rtlab binary's malloc
 // policy. Per effect (shadows, reflections, ao, gi) and size (320x180,
@@ -11,12 +11,7 @@
 #include <rtlab/core/image.hpp>
 #include <rtlab/core/memory.hpp>
 #include <rtlab/denoise/effect_layers.hpp>
-#include <rtlab/ecs/load/scene_loader.hpp>
-#include <rtlab/ecs/snapshot.hpp>
-#include <rtlab/ecs/world.hpp>
-#include <rtlab/shaders_cpp/frame_plan.hpp>
-#include <rtlab/shaders_cpp/frame_renderer.hpp>
-#include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/session/frame_session.hpp>
 
 #include <benchmark/benchmark.h>
 
@@ -32,31 +27,23 @@ using namespace rtlab;
 const std::array<const char*, 4> kEffects = {"shadows", "reflections", "ao", "gi"};
 const std::array<std::array<int, 2>, 2> kSizes = {{{320, 180}, {480, 270}}};
 
-struct Showcase {
-    ecs::World world;
-    ecs::SceneSnapshot scene;
-    std::unique_ptr<tracer::AccelManager> accel;
-    Showcase() {
-        ecs::load::loadScene(world, "builtin:showcase");
-        scene = ecs::makeSnapshot(world, world.update(0.f));
-        accel = std::make_unique<tracer::AccelManager>(tracer::AccelOptions{});
-        accel->update(scene);
+// builtin:showcase, static (frame 0), planned for one effect: one frame driver per effect.
+session::FrameSession& showcase(const char* effect) {
+    static std::map<std::string, std::unique_ptr<session::FrameSession>> sessions;
+    std::unique_ptr<session::FrameSession>& s = sessions[effect];
+    if (!s) {
+        session::FrameOptions options;
+        options.scene = "builtin:showcase";
+        options.effects = effect;
+        s = std::make_unique<session::FrameSession>(options);
+        s->load();
+        s->advance();
     }
-};
-
-const Showcase& showcase() {
-    static const Showcase s;
-    return s;
+    return *s;
 }
 
-shaders::FramePlan planFor(const char* effect) {
-    shaders::PlanOptions options;
-    options.requested = shaders::parseEffectList(effect);
-    return shaders::planFrame(showcase().scene, options);
-}
-
-shaders::RenderSettings settingsFor(const benchmark::State& state) {
-    shaders::RenderSettings s;
+shaders::RenderSettings settingsFor(const benchmark::State& state, const char* effect) {
+    shaders::RenderSettings s = showcase(effect).renderSettings();
     s.width = kSizes[static_cast<std::size_t>(state.range(1))][0];
     s.height = kSizes[static_cast<std::size_t>(state.range(1))][1];
     s.spp = 1;
@@ -65,11 +52,12 @@ shaders::RenderSettings settingsFor(const benchmark::State& state) {
 
 void BM_RenderFrame(benchmark::State& state) {
     const char* effect = kEffects[static_cast<std::size_t>(state.range(0))];
-    const shaders::FramePlan plan = planFor(effect);
-    const shaders::RenderSettings settings = settingsFor(state);
+    const session::FrameSession& s = showcase(effect);
+    const shaders::RenderSettings settings = settingsFor(state, effect);
     shaders::FrameOutput last;
     for (auto _ : state) {
-        shaders::FrameOutput frame = shaders::renderFrame(*showcase().accel, showcase().scene, plan, settings);
+        shaders::FrameHistory none;
+        shaders::FrameOutput frame = s.render(settings, none);
         benchmark::DoNotOptimize(frame.image.pixelCount());
         last = std::move(frame);
     }
@@ -81,8 +69,9 @@ void BM_RenderFrame(benchmark::State& state) {
 
 void BM_DenoiseFrame(benchmark::State& state) {
     const char* effect = kEffects[static_cast<std::size_t>(state.range(0))];
-    const shaders::RenderSettings settings = settingsFor(state);
-    const Image frame = shaders::renderFrame(*showcase().accel, showcase().scene, planFor(effect), settings).image;
+    const shaders::RenderSettings settings = settingsFor(state, effect);
+    shaders::FrameHistory none;
+    const Image frame = showcase(effect).render(settings, none).image;
     for (auto _ : state) {
         state.PauseTiming();
         Image copy = frame;

@@ -12,8 +12,6 @@
 #include "bench_scenes.hpp"
 
 #include <rtlab/core/parallel.hpp>
-#include <rtlab/shaders_cpp/frame_plan.hpp>
-#include <rtlab/shaders_cpp/frame_renderer.hpp>
 #include <rtlab/study/ray_recorder.hpp>
 #include <rtlab/study/replay.hpp>
 #include <rtlab/tracer/ray_query.hpp>
@@ -44,19 +42,20 @@ const bench::LoadedScene& scene(bool watertight) {
 
 const study::RayTraceFile& recording() {
     static const study::RayTraceFile file = [] {
-        const bench::LoadedScene& s = scene(true);
-        shaders::PlanOptions options;
-        options.requested = shaders::parseEffectList("shadows,ao,pathtrace");
-        const shaders::FramePlan plan = shaders::planFrame(s.snapshot, options);
+        session::FrameOptions options;
+        options.scene = kSource;
+        options.effects = "shadows,ao,pathtrace";
+        options.width = options.height = 256;
+        options.maxDepth = 2;
+        options.denoise = "none";
+        session::FrameSession s(options);
+        s.load();
+        const session::FrameState& frame = s.advance();
         const std::filesystem::path path = std::filesystem::temp_directory_path() / "rtlab_replay_speed.rays";
         study::RecordingBackend recorder(nullptr);
         recorder.beginFrame(path);
-        shaders::RenderSettings settings;
-        settings.width = settings.height = 256;
-        settings.pathMaxDepth = 2;
-        settings.backend = &recorder;
-        shaders::renderFrame(*s.accel, s.snapshot, plan, settings);
-        recorder.endFrame(0, study::sceneFingerprint(s.snapshot), s.snapshot.instances.size(), 0);
+        s.render(&recorder);
+        recorder.endFrame(0, study::sceneFingerprint(frame.scene), frame.scene.instances.size(), 0);
         return study::RayTraceFile::read(path);
     }();
     return file;

@@ -45,7 +45,8 @@ LAYERS = {
     "rtcore_sim":  ["core", "tracer"],                              # "tracer's back-end interface"
     "shaders_cpp": ["core", "tracer"],
     "denoise":     ["core"],                                        # denoisers see images, never the scene
-    "study":       ["core", "tracer", "rtcore_sim", "shaders_cpp"],
+    "session":     ["core", "ecs", "tracer", "rtcore_sim", "shaders_cpp", "denoise"],  # the frame driver (docs/architecture.md)
+    "study":       ["core", "tracer", "rtcore_sim", "shaders_cpp", "session"],
     "apps":        ["*"],                                           # "everything"
 }
 
@@ -576,7 +577,7 @@ def broken_tree(root):
     write(root, "denoise/src/scene.cpp", "#include <rtlab/denoise/svgf.hpp>\n#include <rtlab/ecs/snapshot.hpp>\n")
     write(root, "shaders_cpp/src/private.cpp", '#include "../../core/src/detail.hpp"\n')
     write(root, "shaders_cpp/src/test_helper.cpp", '#include "../../tests/temp_dir.hpp"\n')
-    write(root, "study/src/session_user.cpp", "#include <rtlab/session/frame_session.hpp>\n")
+    write(root, "study/src/probe_user.cpp", "#include <rtlab/probe/probe.hpp>\n")
     write(root, "ecs/CMakeLists.txt",
           "rtlab_add_module(ecs\n  PUBLIC_DEPS rtlab::core\n  PRIVATE_DEPS TinyGLTF::TinyGLTF rtlab::tracer)\n")
     # A cycle of three headers across a quoted and two <rtlab/...> includes.
@@ -589,15 +590,15 @@ def broken_tree(root):
     write(root, "core/src/no_reason.cpp", filler(MAX_LINES + 50, "// " + MARKER + "   \n"))
     write(root, "core/src/marker_in_code.cpp", filler(MAX_LINES + 50, 'const char* s = "' + MARKER + ' x";\n'))
     write(root, "perf/long_bench.cpp", filler(MAX_LINES + 1))
-    write(root, "session/include/rtlab/session/frame_session.hpp", "#pragma once\n")
+    write(root, "probe/include/rtlab/probe/probe.hpp", "#pragma once\n")
     return {
-        ("table", "session", 0),
+        ("table", "probe", 0),
         ("layering", "core/src/uses_tracer.cpp", 3),
         ("layering", "tracer/src/world_user.cpp", 1),
         ("layering", "denoise/src/scene.cpp", 2),
         ("layering", "shaders_cpp/src/private.cpp", 1),
         ("layering", "shaders_cpp/src/test_helper.cpp", 1),
-        ("layering", "study/src/session_user.cpp", 1),
+        ("layering", "study/src/probe_user.cpp", 1),
         ("cmake", "ecs/CMakeLists.txt", 3),
         ("cycle", "core/include/rtlab/core/a.hpp", 0),
         ("cycle", "core/src/self.cpp", 0),
@@ -654,18 +655,18 @@ def self_test(out):
         expect("names the line count", lengths and lengths[0].startswith(f"{MAX_LINES + 1} lines"), f"got {lengths}")
         expect("a broken tree exits 1", main(["--root", broken], out=io.StringIO()) == 1)
 
-        # The table extends by one line: a session module between shaders_cpp/denoise/rtcore_sim and study/apps.
+        # The table extends by one line: a new module (here "probe") between the lower layers and study/apps.
         layers = dict(LAYERS)
-        layers["session"] = ["core", "tracer", "rtcore_sim", "shaders_cpp", "denoise"]
-        layers["study"] = LAYERS["study"] + ["session"]
+        layers["probe"] = ["core", "tracer", "rtcore_sim", "shaders_cpp", "denoise"]
+        layers["study"] = LAYERS["study"] + ["probe"]
         result = check(broken, layers=layers)
         got = found(result)
-        expect("a session line in the table accepts session/ and study -> session",
-               ("table", "session", 0) not in got and ("layering", "study/src/session_user.cpp", 1) not in got
+        expect("a new line in the table accepts probe/ and study -> probe",
+               ("table", "probe", 0) not in got and ("layering", "study/src/probe_user.cpp", 1) not in got
                and len(got) == len(expected) - 2)
-        write(broken, "session/src/up.cpp", "#include <rtlab/study/study.hpp>\n")
-        expect("... and still refuses session -> study",
-               ("layering", "session/src/up.cpp", 1) in found(check(broken, layers=layers)))
+        write(broken, "probe/src/up.cpp", "#include <rtlab/study/study.hpp>\n")
+        expect("... and still refuses probe -> study",
+               ("layering", "probe/src/up.cpp", 1) in found(check(broken, layers=layers)))
         try:
             allowed_deps({"a": ["b"]}, {})
             expect("a table naming an unknown module is refused", False)

@@ -2,6 +2,7 @@
 
 #include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/world.hpp>
+#include <rtlab/session/frame_session.hpp>
 
 #include <cstdio>
 
@@ -13,8 +14,11 @@ void addInfoCommand(CLI::App& app, InfoOptions& o) {
 }
 
 int runInfo(const InfoOptions& o) {
-    ecs::World world;
-    loadSceneWithWarnings(world, o.scene);
+    session::FrameOptions options;
+    options.scene = o.scene;
+    session::FrameSession s(options, session::Stages::Plan);
+    s.load();
+    const ecs::World& world = s.world();
 
     std::size_t triangles = 0, instancedTriangles = 0, degenerate = 0;
     for (const ecs::MeshAsset& m : world.meshes()) {

@@ -6,14 +6,10 @@
 
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
-#include <rtlab/core/parallel.hpp>
-#include <rtlab/ecs/snapshot.hpp>
-#include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
-#include <rtlab/shaders_cpp/frame_renderer.hpp>
+#include <rtlab/session/frame_session.hpp>
 #include <rtlab/study/replay.hpp>
-#include <rtlab/tracer/accel_manager.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -67,25 +63,21 @@ std::uint32_t rayTypeMask(const std::string& list) {
 
 void addReplayCommand(CLI::App& app, ReplayOptions& o) {
     CLI::App* cmd = app.add_subcommand("replay", "Trace recorded rays again without shading (docs/ray-trace-format.md)");
-    cmd->add_option("--scene", o.scene, "The scene the rays were recorded on (builtin:NAME, .gltf/.glb, .json)")->required();
+    addFrameOptions(*cmd, o.frame, session::kUseReplay, true);
     cmd->add_option("--rays", o.rays, "A .rays file, or a directory of them (rtlab render --record-rays DIR)")->required();
-    addBackendOptions(*cmd, o.backend, o.rtcoreConfig, o.rtcoreSet);
     cmd->add_option("--ray-types", o.rayTypes,
                     "all, or the recorded batches of these ray types only: primary,shadow,reflection,ao,gi,"
                     "translucency,pathBounce")
         ->capture_default_str();
-    cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
-    cmd->add_option("--out", o.out, "Output directory (stats.json)")->capture_default_str();
 }
 
-int runReplay(const ReplayOptions& o) {
+int runReplay(const ReplayOptions& options) {
+    const session::FrameOptions& o = options.frame;
     // Step: options and files, checked before the scene is loaded.
-    checkRtCoreOptionsNeedRtCore(o.backend, o.rtcoreConfig, o.rtcoreSet);
-    const std::uint32_t typeMask = rayTypeMask(o.rayTypes);
-    std::unique_ptr<rtcore_sim::RtCoreBackend> rtcore;
-    if (o.backend == "rtcore") rtcore = std::make_unique<rtcore_sim::RtCoreBackend>(resolveRtCoreConfig(o.rtcoreConfig, o.rtcoreSet));
+    session::FrameSession s(o);
+    const std::uint32_t typeMask = rayTypeMask(options.rayTypes);
     std::map<std::uint32_t, study::RayTraceFile> byFrame;
-    for (const std::filesystem::path& path : rayFiles(o.rays)) {
+    for (const std::filesystem::path& path : rayFiles(options.rays)) {
         study::RayTraceFile file = study::RayTraceFile::read(path);
         const std::uint32_t frame = file.header().frame;
         if (byFrame.count(frame))
@@ -96,19 +88,14 @@ int runReplay(const ReplayOptions& o) {
     std::error_code ec;
     std::filesystem::create_directories(o.out, ec);
     if (ec || !std::filesystem::is_directory(o.out)) throw InputError(o.out, "cannot create output directory");
-
-    const ThreadLimit threadLimit(o.threads);
-    ecs::World world;
-    loadSceneWithWarnings(world, o.scene);
-    tracer::AccelOptions accelOptions;
-    accelOptions.threads = o.threads;
-    tracer::AccelManager accel(accelOptions);
+    s.load();
+    rtcore_sim::RtCoreBackend* rtcore = s.rtcore();
 
     nlohmann::json stats;
     stats["scene"] = o.scene;
-    stats["rays"] = o.rays;
+    stats["rays"] = options.rays;
     stats["backend"] = o.backend;
-    stats["rayTypes"] = o.rayTypes;
+    stats["rayTypes"] = options.rayTypes;
     if (rtcore) stats["rtcore"] = {{"config", rtcore->config().toJson()}};
     stats["frames"] = nlohmann::json::array();
     std::uint64_t differing = 0, replayed = 0;
@@ -116,17 +103,14 @@ int runReplay(const ReplayOptions& o) {
     // refits and its cache see the same history); recorded frames are traced.
     const std::uint32_t lastFrame = byFrame.rbegin()->first;
     for (std::uint32_t f = 0; f <= lastFrame; ++f) {
-        const ecs::FrameUpdate update = world.update(f == 0 ? 0.f : world.settings().frameSeconds);
-        const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, update);
-        accel.update(scene);
-        if (rtcore) rtcore->update(scene);
+        const ecs::SceneSnapshot& scene = s.advance().scene;
         const auto found = byFrame.find(f);
         if (found == byFrame.end()) continue;
         const study::RayTraceFile& file = found->second;
         study::checkReplayable(file, study::sceneFingerprint(scene));
         progress("replaying frame " + std::to_string(f) + " (" + std::to_string(file.header().rayCount) + " rays)");
         if (rtcore) rtcore->beginFrame();
-        const study::ReplayResult r = study::replayRays(file, accel, rtcore.get(), typeMask);
+        const study::ReplayResult r = study::replayRays(file, s.accel(), rtcore, typeMask);
         differing += r.differingHits;
         replayed += r.rays;
 

@@ -1,9 +1,8 @@
-// rtlab sweep STUDY.json --out DIR [--jobs N] and rtlab report DIR
+// rtlab sweep STUDY.json --out DIR [--jobs N]
 // (docs/studies.md); the work is in the study library.
 #include "commands.hpp"
 
 #include <rtlab/core/error.hpp>
-#include <rtlab/study/report.hpp>
 #include <rtlab/study/sweep.hpp>
 
 #include <csignal>
@@ -91,18 +90,6 @@ int runSweep(const SweepOptions& o) {
     else
         std::cerr << "rtlab: sweep: some points failed (see above); rerun the same command to retry them\n";
     return code;
-}
-
-void addReportCommand(CLI::App& app, ReportOptions& o) {
-    CLI::App* cmd = app.add_subcommand("report", "Write DIR/report.html for a sweep's results (docs/studies.md)");
-    cmd->add_option("dir", o.dir, "The sweep's --out directory")->required();
-}
-
-int runReport(const ReportOptions& o) {
-    const study::ReportSummary s = study::writeReport(o.dir);
-    std::cerr << "rtlab: report: " << s.rows << " of " << s.points << " point(s), " << s.plots.size()
-              << " plot(s): " << s.html.string() << "\n";
-    return 0;
 }
 
 }  // namespace rtlab::app

@@ -136,7 +136,7 @@ StackParams StackParams::svgfAuto() {
     // The static shrink: the neighbourhood's difference beyond sqrt(2)
     // standard deviations, a pixel's own rest beyond sqrt(2) of its mean; the
     // a-trous reach over the long mean falls as (8 / n)^0.5. Showcase GI
-    // (96x54, test_static_convergence.cpp), relMSE after 8 / 16 / 32 / 64
+    // (96x54, tests/shaders_cpp/test_static_view_convergence.cpp), relMSE after 8 / 16 / 32 / 64
     // frames and the isolated outliers after 12 frames (reference 0.08 %),
     // first with the GI samples of before 2026-11-25:
     //   c = 1, own rest whole:  0.0159  / 0.00832 / 0.00452 / 0.0031,  1.78 %

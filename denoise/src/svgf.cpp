@@ -24,7 +24,6 @@ float momentsVariance(const vec2& m) {
 
 void SvgfFilter::reset() {
     hasHistory_ = false;
-    frames_ = 0;
     history_ = HistoryBuffers{};
     prevGuides_ = GuideBuffers{};
     variance_.clear();
@@ -144,7 +143,6 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     std::swap(history_.color, tapColor_);
     std::swap(prevGuides_, curGuides_);
     hasHistory_ = true;
-    ++frames_;
 }
 
 void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {

@@ -1,5 +1,7 @@
 // renderFrame: the planned passes in order, then the composed beauty image.
-#include "render_context.hpp"
+#include "passes/passes.hpp"
+
+#include <rtlab/shaders_cpp/effect_table.hpp>
 
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/core/timer.hpp>
@@ -40,6 +42,15 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
         copy.resize(mesh.geometries.size());
         for (std::size_t g = 0; g < mesh.geometries.size(); ++g) copy[g] = mesh.geometries[g].positions;
     }
+}
+
+void RenderSettings::validate() const {
+    if (width < 1 || height < 1 || spp < 1 || maxTranslucencyDepth < 1 || pathMaxDepth < 0)
+        throw std::invalid_argument("RenderSettings: width, height, spp and maxTranslucencyDepth must be >= 1 and "
+                                    "pathMaxDepth >= 0 (got " + std::to_string(width) + "x" + std::to_string(height) +
+                                    ", spp " + std::to_string(spp) + ", maxTranslucencyDepth " +
+                                    std::to_string(maxTranslucencyDepth) + ", pathMaxDepth " +
+                                    std::to_string(pathMaxDepth) + ")");
 }
 
 std::string_view rayTypeName(std::uint32_t rayType) {
@@ -164,57 +175,24 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
 
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
                         const RenderSettings& settings, FrameHistory& history) {
-    const FrameHistory& previous = history;
+    settings.validate();
     if (settings.recordRayOrder && (!settings.backend || !settings.backend->orderDependent()))
         throw std::invalid_argument("renderFrame: recordRayOrder needs an order-dependent back end");
     FrameOutput out;
     out.image = Image(settings.width, settings.height);
     detail::RenderContext ctx(accel, scene, plan, settings);
-    const auto run = [&](Pass pass, auto&& body) {
+    detail::PassFrame frame{ctx, history, out};
+    // Step: the planned passes, in the effect table's (execution) order.
+    for (const EffectRow& row : effectTable()) {
+        if (!row.run || !plan.has(row.pass)) continue;
         const Stopwatch clock;
         tracer::TraceCounters counters;
-        PassReport& report = out.passes[static_cast<std::size_t>(pass)];
-        report.bytesAllocated = body(counters);
+        PassReport& report = out.passes[static_cast<std::size_t>(row.pass)];
+        report.bytesAllocated = row.run(frame, counters);
         report.rays = counters.totalRays();
         report.milliseconds = clock.elapsedMs();
         out.counters.add(counters);
-    };
-    // Step: the passes, in plan order.
-    run(Pass::GBuffer, [&](tracer::TraceCounters& c) {
-        return detail::runGBufferPass(ctx, previous, out.image, settings.recordRayOrder ? &out.primaryRayPixels : nullptr, c);
-    });
-    // Each pass's own sums, allocated only for a planned pass (a skipped
-    // effect allocates nothing).
-    const std::size_t n = ctx.gbuffer.size();
-    const auto buffer = [&](Pass pass) { return std::vector<vec3>(plan.has(pass) ? n : 0, vec3(0.f)); };
-    std::vector<vec3> direct = buffer(Pass::Shadows), irradiance = buffer(Pass::GlobalIllumination),
-                      specular = buffer(Pass::Reflections), transmitted = buffer(Pass::Translucency),
-                      inscatter = buffer(Pass::Volumes);
-    std::vector<float> primaryTransmittance(plan.has(Pass::Volumes) ? n : 0, 1.f);
-    if (plan.has(Pass::Shadows))
-        run(Pass::Shadows, [&](tracer::TraceCounters& c) { return detail::runShadowPass(ctx, out.image, direct, c); });
-    if (plan.has(Pass::Reflections))
-        run(Pass::Reflections,
-            [&](tracer::TraceCounters& c) { return detail::runReflectionPass(ctx, out.image, specular, c); });
-    if (plan.has(Pass::Translucency))
-        run(Pass::Translucency,
-            [&](tracer::TraceCounters& c) { return detail::runTranslucencyPass(ctx, out.image, transmitted, c); });
-    if (plan.has(Pass::AmbientOcclusion))
-        run(Pass::AmbientOcclusion,
-            [&](tracer::TraceCounters& c) { return detail::runAmbientOcclusionPass(ctx, out.image, c); });
-    if (plan.has(Pass::GlobalIllumination))
-        run(Pass::GlobalIllumination, [&](tracer::TraceCounters& c) {
-            return plan.gi == GiTechnique::Ddgi
-                       ? detail::runDdgiPass(ctx, history, out.image, irradiance, out.ddgiAtlas, out.ddgi, c)
-                       : detail::runGlobalIlluminationPass(ctx, out.image, irradiance, c);
-        });
-    if (plan.has(Pass::Volumes) && !ctx.media.empty())
-        run(Pass::Volumes, [&](tracer::TraceCounters& c) {
-            return detail::runVolumePass(ctx, out.image, primaryTransmittance, inscatter, c);
-        });
-    if (plan.has(Pass::PathTrace))
-        run(Pass::PathTrace,
-            [&](tracer::TraceCounters& c) { return detail::runPathTracePass(ctx, out.image, out.pathVertices, c); });
+    }
 
     // Step: compose (from the layers, as after denoising).
     composeBeauty(out.image);

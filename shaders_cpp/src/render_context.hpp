@@ -139,7 +139,7 @@ public:
     vec2 screenStratified2D(std::size_t pixel, std::uint32_t sample, std::uint32_t streamId) const {
         const std::size_t w = static_cast<std::size_t>(width > 0 ? width : 1);
         return sampleScreenStratified2D(static_cast<std::uint32_t>(pixel % w), static_cast<std::uint32_t>(pixel / w), sample,
-                                        static_cast<std::uint32_t>(settings.spp > 0 ? settings.spp : 1),
+                                        static_cast<std::uint32_t>(settings.spp),
                                         key(pixel, sample, streamId), 0);
     }
 
@@ -184,53 +184,5 @@ vec3 cosineDirectionAbove(const vec3& n, const vec3& ng, vec2 u);
 vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction, float errorScale);
 // max |coordinate| of two points (a hit and the origin of the ray that found it).
 float errorScaleOf(const vec3& a, const vec3& b);
-
-// Passes (one file each in src/passes/). Each returns the bytes it allocated
-// and adds its layers to `out`.
-std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, Image& out,
-                             std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters);
-// Adds each light's (unshadowed x visibility) and the point lights' shadowed
-// light to `direct`.
-std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct, tracer::TraceCounters& counters);
-std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::TraceCounters& counters);
-// AO contact sampling (RenderSettings::aoContactExtraSamples) looks this many
-// pixels around a pixel (a 5x5 window).
-inline constexpr int kAoContactWindow = 2;
-// The contact samples per sample of each pixel: perSample for geometry
-// pixels whose window holds another pixel with occluderDistance (the mean
-// over its samples, +inf for none) below nearDistance, else 0; lowered where
-// needed so that the counts sum to at most budgetPerPixel x the geometry
-// pixels. A pixel's own samples never decide its count: a count that
-// depended on them would bias its mean (more samples after a near hit would
-// pull it down). Its neighbours' samples are independent of its own, and the
-// budget's share is computed as if its own samples had seen no near
-// occluder (the pixels that only it flags are taken off the flagged count,
-// and the most it could flag added back). Throws std::invalid_argument when
-// the buffers do not match width x height.
-std::vector<std::uint32_t> aoContactSampleCounts(int width, int height, std::span<const float> occluderDistance,
-                                                 std::span<const std::uint8_t> geometry, float nearDistance,
-                                                 std::uint32_t perSample, std::size_t budgetPerPixel);
-// Writes the irradiance (albedo demodulated) per pixel.
-std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vector<vec3>& irradiance,
-                                        tracer::TraceCounters& counters);
-// Writes brdf x incoming radiance per pixel.
-std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
-                                tracer::TraceCounters& counters);
-// DDGI (--gi ddgi): probe rays, probe update with hysteresis, irradiance
-// at every G-buffer surface; the probes persist in `history`.
-std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out, std::vector<vec3>& irradiance,
-                          Image& atlas, DdgiUpdateStats& stats, tracer::TraceCounters& counters);
-// Primary-ray transmittance and single scattering of the fog volumes.
-std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& primaryTransmittance,
-                            std::vector<vec3>& inscatter, tracer::TraceCounters& counters);
-// --effects pathtrace: RenderSettings::pathMaxDepth bounces of diffuse +
-// glossy paths from the G-buffer, next-event estimation at every vertex;
-// writes the "pathtrace" layer (the whole estimate) and the rays per vertex.
-std::uint64_t runPathTracePass(RenderContext& ctx, Image& out, std::vector<PathVertexRays>& vertices,
-                               tracer::TraceCounters& counters);
-// Writes the radiance arriving through (and reflected off) transmissive
-// surfaces, Fresnel-weighted, per pixel.
-std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<vec3>& transmitted,
-                                  tracer::TraceCounters& counters);
 
 }  // namespace rtlab::shaders::detail

@@ -212,7 +212,7 @@ ReportSummary writeReport(const fs::path& dir) {
     }
     for (const Override& o : study.base)
         h << "<tr><td class=\"l\">base (every point)</td><td class=\"l\">" << htmlEscape(o.assignment()) << "</td></tr>\n";
-    h << "<tr><td class=\"l\">render</td><td class=\"l\">" << htmlEscape(study.render.toJson().dump()) << "</td></tr>\n";
+    h << "<tr><td class=\"l\">render</td><td class=\"l\">" << htmlEscape(studyRenderJson(study.render).dump()) << "</td></tr>\n";
     h << "</table>\n";
 
     // Step: one plot per swept parameter and plotted metric that has values.

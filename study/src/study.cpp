@@ -110,11 +110,21 @@ json Workload::toJson() const {
     return j;
 }
 
-json RenderSettings::toJson() const {
-    json j = {{"width", width},     {"height", height},   {"spp", spp},         {"frames", frames},
-              {"backend", backend}, {"effects", effects}, {"denoise", denoise}, {"gi", gi},
-              {"seed", seed}};
-    if (!rtcoreConfig.empty()) j["rtcoreConfig"] = rtcoreConfig;
+session::FrameOptions defaultStudyRender() {
+    session::FrameOptions o;
+    o.width = 64;
+    o.height = 64;
+    o.backend = "rtcore";
+    o.denoise = "none";
+    o.scene.clear();  // each point's workload
+    o.out.clear();    // each point's directory
+    return o;
+}
+
+json studyRenderJson(const session::FrameOptions& render) {
+    json j = render.toJson(session::kUseStudy);
+    j.erase("threads");
+    if (render.rtcoreConfig.empty()) j.erase("rtcoreConfig");
     return j;
 }
 
@@ -124,7 +134,7 @@ json Study::toJson() const {
     json j;
     j["workloads"] = json::array();
     for (const Workload& w : workloads) j["workloads"].push_back(w.toJson());
-    j["render"] = render.toJson();
+    j["render"] = studyRenderJson(render);
     j["base"] = json::object();
     for (const Override& o : base) j["base"][o.key] = o.value;
     j["grid"] = json::object();
@@ -164,27 +174,26 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
     if (j.contains("render")) {
         const json& r = j.at("render");
         if (!r.is_object()) throw InputError(where, "render: must be an object");
-        rejectUnknownKeys(r,
-                          {"width", "height", "spp", "frames", "backend", "effects", "denoise", "gi", "seed", "threads",
-                           "rtcoreConfig"},
-                          where, "render.");
-        RenderSettings& s = study.render;
-        s.width = intField(r, "width", 1, 16384, s.width, where, "render.width");
-        s.height = intField(r, "height", 1, 16384, s.height, where, "render.height");
-        s.spp = intField(r, "spp", 1, 1 << 20, s.spp, where, "render.spp");
-        s.frames = intField(r, "frames", 1, 100000, s.frames, where, "render.frames");
-        s.backend = stringField(r, "backend", s.backend, where, "render.backend", {"embree", "rtcore"});
-        s.effects = stringField(r, "effects", s.effects, where, "render.effects");
-        s.denoise = stringField(r, "denoise", s.denoise, where, "render.denoise");
-        s.gi = stringField(r, "gi", s.gi, where, "render.gi", {"path", "ddgi"});
-        if (r.contains("seed")) {
-            const json& v = r.at("seed");
-            if (!v.is_number_unsigned() || v.get<std::uint64_t>() > 0xffffffffull)
-                throw InputError(where, "render.seed: must be an integer in 0..4294967295 (got " + v.dump() + ")");
-            s.seed = v.get<std::uint32_t>();
+        // Every option a study may set is a row of session::frameOptionFields().
+        for (const auto& [key, value] : r.items()) {
+            const session::FrameOptionField* field = session::frameOptionByKey(key);
+            if (!field || !(field->uses & session::kUseStudy)) {
+                std::string known;
+                for (const session::FrameOptionField& f : session::frameOptionFields())
+                    if (f.uses & session::kUseStudy) known += (known.empty() ? "" : ", ") + f.key;
+                throw InputError(where, "render." + key + ": unknown key (known: " + known + ")");
+            }
+            study.render.setFromJson(key, value, where, "render.");
         }
-        s.threads = intField(r, "threads", 0, 1024, s.threads, where, "render.threads");
-        s.rtcoreConfig = stringField(r, "rtcoreConfig", "", where, "render.rtcoreConfig");
+        // Cross-field checks and the effect list, as rtlab render makes them
+        // (RT-core options without the model are checked below, with their own message).
+        try {
+            if (study.render.backend == "rtcore") study.render.validate();
+            study.render.planOptions();
+            if (study.render.denoises()) study.render.denoiseList();
+        } catch (const InputError& e) {
+            throw InputError(where, std::string("render: ") + e.what());
+        }
     }
 
     // Step: the parameter space.
@@ -312,17 +321,20 @@ rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, c
 
 std::vector<std::string> renderArguments(const Study& study, const Point& point, const std::string& outDir,
                                          int threads) {
-    const RenderSettings& s = study.render;
-    // Step: a ray-trace workload replays its recorded rays (traversal only); a scene renders.
+    const session::FrameOptions& s = study.render;
+    // Step: a ray-trace workload replays its recorded rays (traversal only); a
+    // scene renders with every render option that differs from rtlab render's default.
     std::vector<std::string> a;
-    if (!point.workload.rays.empty())
+    if (!point.workload.rays.empty()) {
         a = {"replay", "--scene", point.workload.scene, "--rays", point.workload.rays, "--backend", s.backend};
-    else
-        a = {"render",    "--scene",   point.workload.scene,   "--width",
-             std::to_string(s.width),  "--height", std::to_string(s.height),
-             "--spp",     std::to_string(s.spp),   "--frames", std::to_string(s.frames),
-             "--backend", s.backend,   "--effects", s.effects, "--denoise",
-             s.denoise,   "--gi",      s.gi,        "--seed",  std::to_string(s.seed)};
+    } else {
+        a = {"render", "--scene", point.workload.scene};
+        session::FrameOptions render = s;
+        render.rtcoreConfig.clear();  // added below, for both
+        render.threads = 0;           // added below: the sweep's choice
+        const std::vector<std::string> options = render.toArgs(session::kUseStudy);
+        a.insert(a.end(), options.begin(), options.end());
+    }
     // Step: the RT-core configuration and the output, the same for both.
     if (!s.rtcoreConfig.empty()) a.insert(a.end(), {"--rtcore-config", s.rtcoreConfig});
     for (const Override& o : study.base) a.insert(a.end(), {"--rtcore-set", o.assignment()});

@@ -2,7 +2,7 @@
 // to a contact get more AO samples, the others keep exactly their spp
 // samples, the estimate stays unbiased, and the crease's error falls.
 // Scene: a unit box resting on a grey floor, seen from above at an angle.
-#include "../../shaders_cpp/src/render_context.hpp"
+#include "../../shaders_cpp/src/passes/passes.hpp"
 
 #include <rtlab/ecs/load/mesh_builders.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>

@@ -6,6 +6,7 @@
 // contact (RenderSettings::aoContactExtraSamples) get more, traced as one
 // compact list so that the rest of the image costs nothing.
 #include "../lighting.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 #include <stdexcept>
@@ -94,9 +95,11 @@ constexpr std::size_t kContactBudgetPerPixel = 2;
 
 }  // namespace
 
-std::uint64_t runAmbientOcclusionPass(RenderContext& ctx, Image& out, tracer::TraceCounters& counters) {
+std::uint64_t runAmbientOcclusionPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    Image& out = passFrame.out.image;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    const int spp = ctx.settings.spp;
     const float radius = ctx.settings.aoRadius;
     float* visibility = out.addChannel("ao.V", 1.f);
     float* hitT = out.addChannel("ao.hitT", 0.f);

@@ -5,6 +5,7 @@
 // probes blend the results with hysteresis, and every G-buffer surface
 // reads its irradiance with Chebyshev visibility and trilinear weights.
 #include "indirect_shading.hpp"
+#include "passes.hpp"
 
 #include <rtlab/shaders_cpp/ddgi.hpp>
 
@@ -66,8 +67,13 @@ void wakeAroundChanges(const ecs::SceneSnapshot& scene, const std::vector<Aabb>&
 
 }  // namespace
 
-std::uint64_t runDdgiPass(RenderContext& ctx, FrameHistory& history, Image& out, std::vector<vec3>& irradiance,
-                          Image& atlas, DdgiUpdateStats& stats, tracer::TraceCounters& counters) {
+std::uint64_t runDdgiPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    FrameHistory& history = passFrame.history;
+    Image& out = passFrame.out.image;
+    Image& atlas = passFrame.out.ddgiAtlas;
+    DdgiUpdateStats& stats = passFrame.out.ddgi;
+    std::vector<vec3> irradiance(ctx.gbuffer.size(), vec3(0.f));
     // Step: the probe volume (kept while the scene stays inside it).
     const std::vector<Aabb> perInstance = instanceBounds(ctx.scene);
     Aabb bounds;

@@ -2,6 +2,7 @@
 // every denoiser needs (depth, normals, albedo, roughness, metalness, ids,
 // motion vectors, emissive).
 #include "../render_context.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/tracer/instance_transform.hpp>
@@ -33,8 +34,11 @@ std::optional<vec3> previousDeformedPoint(const RenderContext& ctx, const FrameH
 
 }  // namespace
 
-std::uint64_t runGBufferPass(RenderContext& ctx, const FrameHistory& previous, Image& out,
-                             std::vector<std::uint32_t>* rayOrder, tracer::TraceCounters& counters) {
+std::uint64_t runGBufferPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    const FrameHistory& previous = passFrame.history;
+    Image& out = passFrame.out.image;
+    std::vector<std::uint32_t>* rayOrder = ctx.settings.recordRayOrder ? &passFrame.out.primaryRayPixels : nullptr;
     const int w = ctx.width, h = ctx.height;
     const vec3 forward = -glm::normalize(vec3(ctx.scene.camera.worldFromCamera[2]));
     const PinholeCamera camera(ctx.scene.camera, w, h);

@@ -3,15 +3,23 @@
 // irradiance (albedo demodulated: E = pi L_in for cosine sampling) and hit
 // distance.
 #include "indirect_shading.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 
 namespace rtlab::shaders::detail {
 
-std::uint64_t runGlobalIlluminationPass(RenderContext& ctx, Image& out, std::vector<vec3>& irradiance,
-                                        tracer::TraceCounters& counters) {
+std::uint64_t runDiffuseGiPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    return passFrame.ctx.plan.gi == GiTechnique::Ddgi ? runDdgiPass(passFrame, counters)
+                                                  : runGlobalIlluminationPass(passFrame, counters);
+}
+
+std::uint64_t runGlobalIlluminationPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    Image& out = passFrame.out.image;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    std::vector<vec3> irradiance(n, vec3(0.f));
+    const int spp = ctx.settings.spp;
     SecondaryResult result(n);
     std::vector<SecondaryRay> rays(n);
     for (int s = 0; s < spp; ++s) {

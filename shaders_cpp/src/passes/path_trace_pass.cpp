@@ -13,6 +13,7 @@
 // surface, or on a zero or non-finite weight (no Russian roulette, so the ray
 // counts per vertex do not depend on random termination beyond misses).
 #include "indirect_shading.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 
@@ -54,10 +55,12 @@ std::optional<BounceSample> sampleBounce(const ShadingPoint& sp, float uLobe, ve
 
 }  // namespace
 
-std::uint64_t runPathTracePass(RenderContext& ctx, Image& out, std::vector<PathVertexRays>& vertices,
-                               tracer::TraceCounters& counters) {
+std::uint64_t runPathTracePass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    Image& out = passFrame.out.image;
+    std::vector<PathVertexRays>& vertices = passFrame.out.pathVertices;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    const int spp = ctx.settings.spp;
     const int maxDepth = std::max(ctx.settings.pathMaxDepth, 0);
     const RayGrid grid = imageGrid(ctx);
     vertices.assign(std::size_t(maxDepth) + 1, PathVertexRays{});

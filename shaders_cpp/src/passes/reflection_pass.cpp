@@ -6,15 +6,18 @@
 // hit distance, and the pre-integrated specular term (F0 x + y), so the
 // denoiser filters radiance only and compose multiplies the term back.
 #include "indirect_shading.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 
 namespace rtlab::shaders::detail {
 
-std::uint64_t runReflectionPass(RenderContext& ctx, Image& out, std::vector<vec3>& specular,
-                                tracer::TraceCounters& counters) {
+std::uint64_t runReflectionPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    Image& out = passFrame.out.image;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    std::vector<vec3> specular(n, vec3(0.f));
+    const int spp = ctx.settings.spp;
     SecondaryResult result(n);
     std::vector<std::uint32_t> validSamples(n, 0);  // samples that left above the surface
     std::vector<SecondaryRay> rays(n);

@@ -5,6 +5,7 @@
 // samples). Point, spot and directional lights: a shadow ray to each (up to
 // kTraceEveryPointLight of them), else one picked per pixel by importance.
 #include "../lighting.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 
@@ -15,10 +16,12 @@ namespace rtlab::shaders::detail {
 // are sampled by an importance pick, per pixel and sample.
 constexpr std::size_t kTraceEveryPointLight = 4;
 
-std::uint64_t runShadowPass(RenderContext& ctx, Image& out, std::vector<vec3>& direct,
-                            tracer::TraceCounters& counters) {
+std::uint64_t runShadowPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    Image& out = passFrame.out.image;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    std::vector<vec3> direct(n, vec3(0.f));  // sum over lights of unshadowed x visibility
+    const int spp = ctx.settings.spp;
     std::uint64_t bytes = 0;
     // Closest-hit queries: the occluder distance is the nearest one, the same on every back end.
     const tracer::TraceArgs shadowArgs = ctx.args(kRayShadow);

@@ -7,6 +7,7 @@
 // scene, runs out of events (maxTranslucencyDepth) or its throughput falls
 // below throughputCutoff.
 #include "indirect_shading.hpp"
+#include "passes.hpp"
 
 #include <rtlab/core/parallel.hpp>
 
@@ -64,10 +65,12 @@ tracer::RayDesc interfaceEvent(const vec3& p, const vec3& n, const vec3& d, floa
 
 }  // namespace
 
-std::uint64_t runTranslucencyPass(RenderContext& ctx, Image& out, std::vector<vec3>& transmitted,
-                                  tracer::TraceCounters& counters) {
+std::uint64_t runTranslucencyPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    Image& out = passFrame.out.image;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    std::vector<vec3> transmitted(n, vec3(0.f));
+    const int spp = ctx.settings.spp;
     const int maxDepth = std::max(ctx.settings.maxTranslucencyDepth, 1);
     std::vector<PathState> state(n);
     std::vector<SecondaryRay> rays(n);

@@ -4,13 +4,18 @@
 // inside each medium, lit by one importance-picked light through a shadow
 // ray (itself attenuated by the fog). Isotropic phase function.
 #include "indirect_shading.hpp"
+#include "passes.hpp"
 
 namespace rtlab::shaders::detail {
 
-std::uint64_t runVolumePass(RenderContext& ctx, Image& out, std::vector<float>& primaryTransmittance,
-                            std::vector<vec3>& inscatter, tracer::TraceCounters& counters) {
+std::uint64_t runVolumePass(PassFrame& passFrame, tracer::TraceCounters& counters) {
+    RenderContext& ctx = passFrame.ctx;
+    if (ctx.media.empty()) return 0;  // planned, but no medium has density: nothing to trace
+    Image& out = passFrame.out.image;
     const std::size_t n = ctx.gbuffer.size();
-    const int spp = std::max(ctx.settings.spp, 1);
+    std::vector<float> primaryTransmittance(n, 1.f);
+    std::vector<vec3> inscatter(n, vec3(0.f));
+    const int spp = ctx.settings.spp;
     const int w = ctx.width, h = ctx.height;
     std::vector<vec3> contribution(n, vec3(0.f)), sum(n, vec3(0.f));
     std::vector<float> tSum(n, 0.f);

@@ -153,8 +153,6 @@ public:
     std::size_t staticResets() const { return staticResets_; }
     // 1 where the last frame found history by reprojection.
     std::span<const std::uint8_t> reprojectionValid() const { return valid_; }
-    // Frames filtered since construction or the last reset.
-    std::uint64_t frameCount() const { return frames_; }
 
 private:
     // convergeStatic's long accumulation and change test (after the variance estimate).
@@ -164,7 +162,6 @@ private:
 
     SvgfParams params_;
     bool hasHistory_ = false;
-    std::uint64_t frames_ = 0;
     GuideBuffers prevGuides_;
     GuideBuffers curGuides_;
     HistoryBuffers history_;      // colour = feedback tap, moments, length

@@ -56,6 +56,12 @@ struct RenderSettings {
     float throughputCutoff = 1e-3f;  // a translucent path ends below this throughput
     float areaLightUnshadowedSamples = 16;  // samples of the unshadowed area-light estimate (no rays)
     int pathMaxDepth = 4;         // pathtrace: bounce rays after the primary hit (each with its next-event ray)
+
+    // Throws std::invalid_argument unless width, height, spp and
+    // maxTranslucencyDepth are >= 1 and pathMaxDepth >= 0 (renderFrame calls
+    // it: the passes rely on it). Built from options, the settings come from
+    // session::FrameSession, which validated those options first.
+    void validate() const;
 };
 
 // What persists from frame to frame: the previous camera, instance

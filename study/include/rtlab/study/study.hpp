@@ -14,6 +14,7 @@
 // are workloads x override sets, workload-major. Bad input throws
 // rtlab::InputError naming the file and the key.
 #include <rtlab/rtcore_sim/config.hpp>
+#include <rtlab/session/frame_options.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -37,22 +38,15 @@ struct Workload {
     std::string label() const { return rays.empty() ? scene : scene + " [rays " + rays + "]"; }
 };
 
-// Settings every point of the study renders with (the `rtlab render` options).
-struct RenderSettings {
-    int width = 64;
-    int height = 64;
-    int spp = 1;
-    int frames = 1;
-    std::string backend = "rtcore";
-    std::string effects = "auto";
-    std::string denoise = "none";  // sweeps measure traversal; `rtlab render` defaults to auto
-    std::string gi = "path";
-    std::uint32_t seed = 0;
-    int threads = 0;            // per point; 0 = the sweep chooses (cores / concurrent points)
-    std::string rtcoreConfig;   // an RT-core configuration JSON file applied before "base"
-
-    nlohmann::json toJson() const;  // every field but threads (results do not depend on it)
-};
+// Settings every point of the study renders with: the `rtlab render`
+// options (session::FrameOptions, read from the study's "render" object by
+// their keys), with a sweep's defaults: 64x64, the RT-core model, no
+// denoising (sweeps measure traversal). `threads` is per point; 0 = the
+// sweep chooses (cores / concurrent points).
+session::FrameOptions defaultStudyRender();
+// The render settings as the study's fingerprint sees them: every study
+// option but threads (results do not depend on it), rtcoreConfig only when set.
+nlohmann::json studyRenderJson(const session::FrameOptions& render);
 
 // One "section.field=value" override.
 struct Override {
@@ -67,7 +61,7 @@ using OverrideSet = std::vector<Override>;
 
 struct Study {
     std::vector<Workload> workloads;
-    RenderSettings render;
+    session::FrameOptions render = defaultStudyRender();
     OverrideSet base;
     std::vector<std::pair<std::string, std::vector<nlohmann::json>>> grid;  // sorted by key
     std::vector<OverrideSet> list;

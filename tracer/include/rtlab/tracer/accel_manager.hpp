@@ -136,7 +136,6 @@ public:
 private:
     struct Blas;
     RTCSceneFlags sceneFlags() const;
-    void fillClusters(WatertightTriangles& data, const ecs::Geometry& g) const;
     void updateConservativePadding(const ecs::SceneSnapshot& scene, const std::vector<std::uint8_t>& changed);
     float requiredPadding(ecs::MeshId mesh) const;
     void attachUserGeometry(Blas& blas, std::size_t primitives, void* userData, RTCBuildQuality quality,

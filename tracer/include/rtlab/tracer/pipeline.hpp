@@ -13,10 +13,13 @@
 //
 // Out-of-range records, missing intersection shaders and recursion past the
 // limit raise PipelineError. The traversal itself lives in a type-erased
-// TraceEngine (tracer/src/trace_engine.cpp); this header only adapts types.
+// TraceEngine (embree_backend.hpp) or a TraversalBackend
+// (traversal_backend.hpp); this header only adapts types.
 #include <rtlab/core/parallel.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
 #include <rtlab/tracer/dxr.hpp>
+#include <rtlab/tracer/embree_backend.hpp>
+#include <rtlab/tracer/traversal_backend.hpp>
 
 #include <array>
 #include <cstdint>
@@ -29,191 +32,6 @@
 #include <vector>
 
 namespace rtlab::tracer {
-
-// TraceRay's arguments besides the acceleration structure, ray and payload.
-struct TraceArgs {
-    std::uint32_t rayFlags = RayFlag::None;
-    std::uint32_t instanceInclusionMask = 0xff;
-    std::uint32_t rayContribution = 0;  // RayContributionToHitGroupIndex; also the ray type for statistics
-    std::uint32_t multiplier = 1;       // MultiplierForGeometryContributionToHitGroupIndex
-    std::uint32_t missIndex = 0;
-};
-
-// DXR system values visible to hit-group shaders.
-struct HitContext {
-    vec3 worldRayOrigin{0.f};
-    vec3 worldRayDirection{0.f};
-    float rayTMin = 0.f;
-    float rayTCurrent = 0.f;  // the candidate's t in any-hit, the committed t in closest-hit
-    std::uint32_t rayFlags = 0;
-    std::uint32_t instanceIndex = 0;  // InstanceIndex(): position in the TLAS
-    std::uint32_t instanceId = 0;     // InstanceID(): the instance's user value
-    std::uint32_t geometryIndex = 0;
-    std::uint32_t primitiveIndex = 0;
-    std::uint32_t hitKind = 0;
-    std::uint32_t recursionDepth = 0;  // 1 for rays traced by ray generation
-    const ecs::InstanceSnapshot* instance = nullptr;
-
-    const mat4& objectToWorld() const { return instance->worldFromObject; }
-    mat4 worldToObject() const { return glm::inverse(instance->worldFromObject); }
-    vec3 objectRayOrigin() const { return vec3(worldToObject() * vec4(worldRayOrigin, 1.f)); }
-    vec3 objectRayDirection() const { return mat3(worldToObject()) * worldRayDirection; }
-    vec3 worldHitPosition() const { return worldRayOrigin + rayTCurrent * worldRayDirection; }
-};
-
-struct MissContext {
-    vec3 worldRayOrigin{0.f};
-    vec3 worldRayDirection{0.f};
-    float rayTMin = 0.f;
-    float rayTCurrent = 0.f;  // TMax
-    std::uint32_t rayFlags = 0;
-    std::uint32_t recursionDepth = 0;
-};
-
-// Intersection shaders see the hit context of the candidate primitive
-// (hitKind unused, rayTCurrent = current closest t) and report hits.
-class IntersectionContext : public HitContext {
-public:
-    // ReportHit(): ignored (returns false) unless RayTMin < t < RayTCurrent;
-    // otherwise the any-hit shader decides (non-opaque), and an accepted hit
-    // shrinks RayTCurrent. hitKind must be < 128 (DXR).
-    bool reportHit(float t, std::uint32_t hitKind, const HitAttributes& attributes) const {
-        return report_(state_, t, hitKind, attributes);
-    }
-    using ReportFn = bool (*)(void* state, float t, std::uint32_t hitKind, const HitAttributes& attributes);
-    void bind(void* state, ReportFn fn) { state_ = state; report_ = fn; }
-
-private:
-    void* state_ = nullptr;
-    ReportFn report_ = nullptr;
-};
-
-// The hit that traversal committed, if any.
-struct CommittedHit {
-    bool hit = false;
-    float t = kInfinity;
-    std::uint32_t instanceIndex = 0;
-    std::uint32_t geometryIndex = 0;
-    std::uint32_t primitiveIndex = 0;
-    std::uint32_t hitKind = 0;
-    std::uint32_t hitGroupRecord = 0;
-    HitAttributes attributes;
-};
-
-// Counters per ray type (RayContributionToHitGroupIndex & 0xf); summed per
-// tile and reduced in tile order, so totals are deterministic.
-struct TraceCounters {
-    static constexpr std::size_t kRayTypes = 16;
-    std::array<std::uint64_t, kRayTypes> rays{};
-    std::array<std::uint64_t, kRayTypes> hits{};
-    std::array<std::uint64_t, kRayTypes> misses{};
-    std::uint64_t anyHitInvocations = 0;
-    std::uint64_t intersectionInvocations = 0;
-    std::uint64_t closestHitInvocations = 0;
-    std::uint64_t missInvocations = 0;
-    std::uint64_t packetsTraced = 0;
-    void add(const TraceCounters& o);
-    std::uint64_t totalRays() const;
-};
-
-// Type-erased access to the shader table, implemented by Pipeline<Payload>.
-class ShaderTableView {
-public:
-    virtual ~ShaderTableView() = default;
-    virtual std::size_t hitGroupCount() const = 0;
-    virtual bool anyHitGroupHasAnyHit() const = 0;
-    virtual bool hasAnyHit(std::uint32_t record) const = 0;
-    virtual AnyHitResult anyHit(std::uint32_t record, const HitContext& ctx, void* payload,
-                                const HitAttributes& attributes) const = 0;
-    virtual bool hasIntersection(std::uint32_t record) const = 0;
-    virtual void intersection(std::uint32_t record, const IntersectionContext& ctx, void* payload) const = 0;
-};
-
-// Traversal with DXR semantics over an AccelManager's TLAS.
-class TraceEngine {
-public:
-    TraceEngine(const AccelManager& accel, const ShaderTableView& shaders, std::uint32_t rayTypeCount);
-
-    // One ray; runs any-hit and intersection shaders, not closest-hit/miss.
-    CommittedHit trace(const TraceArgs& args, const RayDesc& ray, void* payload, std::uint32_t depth,
-                       TraceCounters& counters) const;
-    // Eight rays as one Embree packet (rtcIntersect8 / rtcOccluded8); lanes
-    // with active[i] == false are left alone.
-    // `coherence` is a hint to Embree (RayCoherence); the hits are the same.
-    void trace8(const TraceArgs& args, const RayDesc* rays, void* const* payloads, const bool* active,
-                std::uint32_t depth, CommittedHit* out, TraceCounters& counters,
-                RayCoherence coherence = RayCoherence::Coherent) const;
-
-    // The hit-group record for a hit; throws PipelineError when out of range.
-    std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex, std::uint32_t geometryIndex) const {
-        const InstanceFacts& facts = accel_.instanceFacts(instanceIndex);
-        const std::uint64_t instanceContribution = facts.hitGroupOffset == ecs::MeshInstance::kAutomatic
-                                                       ? std::uint64_t(facts.geometrySlotBase) * rayTypeCount_
-                                                       : facts.hitGroupOffset;
-        const std::uint64_t record = (args.rayContribution & 0xf) +
-                                     std::uint64_t(args.multiplier & 0xf) * geometryIndex + instanceContribution;
-        if (record >= hitGroupCount_) [[unlikely]]
-            throwRecordOutOfRange(record, instanceIndex, geometryIndex);
-        return static_cast<std::uint32_t>(record);
-    }
-    HitContext hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit, std::uint32_t depth) const {
-        HitContext hc;
-        hc.worldRayOrigin = ray.origin;
-        hc.worldRayDirection = ray.direction;
-        hc.rayTMin = ray.tMin;
-        hc.rayTCurrent = hit.t;
-        hc.rayFlags = args.rayFlags;
-        hc.instanceIndex = hit.instanceIndex;
-        hc.instance = &accel_.instance(hit.instanceIndex);
-        hc.instanceId = hc.instance->instanceId;
-        hc.geometryIndex = hit.geometryIndex;
-        hc.primitiveIndex = hit.primitiveIndex;
-        hc.hitKind = hit.hitKind;
-        hc.recursionDepth = depth;
-        return hc;
-    }
-
-    const AccelManager& accel() const { return accel_; }
-    const ShaderTableView& shaders() const { return shaders_; }
-    std::uint32_t rayTypeCount() const { return rayTypeCount_; }
-
-private:
-    [[noreturn]] void throwRecordOutOfRange(std::uint64_t record, std::uint32_t instanceIndex,
-                                            std::uint32_t geometryIndex) const;
-
-    const AccelManager& accel_;
-    const ShaderTableView& shaders_;
-    std::uint32_t rayTypeCount_;
-    std::size_t hitGroupCount_;  // the shader table is fixed for the engine's lifetime
-};
-
-// The seam between the pipeline and a traversal back end. The pipeline owns
-// the shader table and the DXR stages (ray generation, closest-hit, miss);
-// a back end finds the committed hit of each ray, calling the shared
-// CandidateFilter (candidate_filter.hpp) for every candidate so that ray
-// flags, instance flags, any-hit and intersection shaders mean the same on
-// every back end. Embree is built in (TraceEngine::trace / trace8, used when
-// a Pipeline has no back end set); the RT-core model (rtcore_sim) is the
-// other implementation.
-class TraversalBackend {
-public:
-    virtual ~TraversalBackend() = default;
-    virtual std::string_view name() const = 0;
-
-    // Traces rays[i] for every i < count with active[i] (one TraceRay each,
-    // same arguments, recursion depth `depth`), running any-hit and
-    // intersection shaders but not closest-hit/miss; writes out[i] for
-    // active lanes and adds to `counters`. Throws what shaders throw and
-    // PipelineError for bad records, after the batch.
-    virtual void trace(const TraceEngine& engine, const TraceArgs& args, const RayDesc* rays, void* const* payloads,
-                       const bool* active, std::size_t count, std::uint32_t depth, CommittedHit* out,
-                       TraceCounters& counters) = 0;
-
-    // True when results depend on the order of trace calls (a simulated clock):
-    // the pipeline then runs dispatches on the calling thread in tile order,
-    // so that results are identical for any thread count.
-    virtual bool orderDependent() const = 0;
-};
 
 // Per-thread state of the ray-tracing call stack (recursion depth and the
 // counters of the tile being worked on).

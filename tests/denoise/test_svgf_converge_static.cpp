@@ -140,7 +140,7 @@ TEST(DenoiseStaticConvergence, ReachFallsOnlyOnceTheMeanHasMoreThanEightSamples)
     // filter is the same as with the full reach; after 64 the output differs
     // (3 of the 5 iterations) and the error stays close (measured: MSE
     // 0.000613 full, 0.000622 shorter; uniform noise leaves the full reach
-    // little bias to lose; its gain is on showcase GI, test_static_convergence
+    // little bias to lose; its gain is on showcase GI, test_static_view_convergence
     // in tests/shaders_cpp: 0.00203 -> 0.0017 after 64 frames).
     const GuideBuffers g = flatGuides(kRampW, kRampH);
     const auto run = [&](float exponent, std::vector<vec3>& at8, std::vector<vec3>& at64) {

@@ -1,0 +1,76 @@
+// What the rtlab subcommands share (cli_common.hpp).
+#include "cli_common.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <type_traits>
+#include <unistd.h>
+
+namespace rtlab::app {
+
+void addFrameOptions(CLI::App& cmd, session::FrameOptions& o, unsigned use, bool sceneRequired) {
+    for (const session::FrameOptionField& f : session::frameOptionFields()) {
+        if (!(f.uses & use)) continue;
+        std::visit(
+            [&](auto member) {
+                using T = std::remove_cvref_t<decltype(o.*member)>;
+                T& value = o.*member;
+                if constexpr (std::is_same_v<T, bool>) {
+                    cmd.add_flag(f.flag, value, f.help);
+                } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
+                    cmd.add_option(f.flag, value, f.help)->allow_extra_args(false);
+                } else {
+                    CLI::Option* option = cmd.add_option(f.flag, value, f.help);
+                    if constexpr (std::is_same_v<T, int>) option->check(CLI::Range(int(f.min), int(f.max)));
+                    if constexpr (std::is_same_v<T, float>) option->check(CLI::Range(float(f.min), float(f.max)));
+                    if constexpr (std::is_same_v<T, std::string>) {
+                        if (!f.choices.empty()) option->check(CLI::IsMember(f.choices));
+                        if (value.empty()) return;  // no default to show
+                    }
+                    if (f.flag == "--scene" && sceneRequired) option->required();
+                    else option->capture_default_str();
+                }
+            },
+            f.member);
+    }
+}
+
+nlohmann::json hitJson(const tracer::CommittedHit& h) {
+    if (!h.hit) return {{"hit", false}};
+    return {{"hit", true}, {"t", h.t}, {"instance", h.instanceIndex}, {"geometry", h.geometryIndex},
+            {"primitive", h.primitiveIndex}};
+}
+
+namespace {
+bool stderrIsTerminal() {
+    static const bool terminal = isatty(STDERR_FILENO) != 0;
+    return terminal;
+}
+}  // namespace
+
+void progress(const std::string& line) {
+    if (stderrIsTerminal()) std::cerr << "\r\033[K" << line << std::flush;
+}
+
+std::string etaText(double elapsedSeconds, std::size_t done, std::size_t total) {
+    if (done == 0 || total < done) return "?";
+    const long seconds = std::lround(elapsedSeconds / double(done) * double(total - done));
+    char buf[32];
+    if (seconds >= 3600)
+        std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", seconds / 3600, seconds / 60 % 60, seconds % 60);
+    else
+        std::snprintf(buf, sizeof buf, "%ld:%02ld", seconds / 60, seconds % 60);
+    return buf;
+}
+
+void progress(const ProgressStep& step, bool logLine) {
+    std::string line = step.what + " " + std::to_string(step.done) + "/" + std::to_string(step.total);
+    if (!step.detail.empty()) line += ", " + step.detail;
+    if (stderrIsTerminal())
+        progress(line + ", ETA " + etaText(step.elapsedSeconds, step.done, step.total));
+    else if (logLine)
+        std::cerr << "rtlab: " << line << "\n";
+}
+
+}  // namespace rtlab::app

@@ -1,0 +1,109 @@
+// The frame driver (frame_session.hpp).
+#include <rtlab/session/frame_session.hpp>
+
+#include <rtlab/core/error.hpp>
+#include <rtlab/core/timer.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
+#include <rtlab/ecs/world.hpp>
+#include <rtlab/rtcore_sim/rtcore_backend.hpp>
+
+#include <iostream>
+#include <stdexcept>
+
+namespace rtlab::session {
+
+FrameSession::FrameSession(FrameOptions options, Stages stages, tracer::AccelOptions accelBase)
+    : options_(std::move(options)), stages_(stages), threadLimit_(options_.threads) {
+    // Step: the options, checked before anything is loaded (in the order the
+    // command line has always reported them).
+    options_.validate();
+    planOptions_ = options_.planOptions();
+    if (stages_ == Stages::Render && options_.denoises())
+        denoiser_ = std::make_unique<denoise::EffectLayerDenoiser>(options_.denoiseList());
+    // Step: the RT-core model, configured before the scene is loaded (a bad key is the clearer error).
+    if (stages_ == Stages::Render && options_.backend == "rtcore") {
+        rtcore_ = std::make_unique<rtcore_sim::RtCoreBackend>(options_.rtcoreConfiguration());
+        rtcore_->setVerify(options_.verify);
+    }
+    world_ = std::make_unique<ecs::World>();
+    accelBase.threads = options_.threads;
+    if (stages_ == Stages::Render) accel_ = std::make_unique<tracer::AccelManager>(accelBase);
+}
+
+FrameSession::~FrameSession() = default;
+
+void FrameSession::load() {
+    if (loaded_) throw std::logic_error("FrameSession::load: the scene is already loaded");
+    ecs::load::loadScene(*world_, options_.scene);
+    for (const std::string& w : world_->loadReport().warnings) std::cerr << "rtlab: warning: " << w << "\n";
+    loaded_ = true;
+}
+
+const FrameState& FrameSession::advance() {
+    if (!loaded_) throw std::logic_error("FrameSession::advance before load");
+    // Step: systems -> what changed -> snapshot -> acceleration structures -> plan -> the model's BVHs.
+    FrameState next;
+    next.index = frame_ ? frame_->index + 1 : 0;
+    next.update = world_->update(frame_ ? world_->settings().frameSeconds : 0.f);
+    next.scene = ecs::makeSnapshot(*world_, next.update);
+    if (accel_) next.accel = accel_->update(next.scene);
+    next.plan = shaders::planFrame(next.scene, planOptions_);
+    if (next.index == 0 && stages_ == Stages::Render)
+        for (const std::string& note : next.plan.notes) std::cerr << "rtlab: note: " << note << "\n";
+    if (rtcore_) {
+        const Stopwatch clock;
+        next.model = rtcore_->update(next.scene);
+        next.modelUpdateMs = clock.elapsedMs();
+    }
+    frame_ = std::move(next);
+    return *frame_;
+}
+
+shaders::RenderSettings FrameSession::renderSettings() const {
+    if (!frame_) throw std::logic_error("FrameSession::renderSettings before advance");
+    shaders::RenderSettings s;
+    s.width = options_.width;
+    s.height = options_.height;
+    s.spp = options_.spp;
+    s.frame = frame_->index;
+    s.seed = options_.seed;
+    s.aoRadius = options_.aoRadius;
+    s.aoContactExtraSamples = options_.aoContactSamples;
+    s.maxTranslucencyDepth = options_.maxTranslucencyDepth;
+    s.pathMaxDepth = options_.maxDepth;
+    // The model records which pixel each primary ray came from (heatmaps).
+    s.backend = rtcore_.get();
+    s.recordRayOrder = rtcore_ != nullptr;
+    return s;
+}
+
+shaders::FrameOutput FrameSession::render(tracer::TraversalBackend* interpose) {
+    if (!accel_) throw std::logic_error("FrameSession::render in a Stages::Plan session");
+    shaders::RenderSettings s = renderSettings();
+    if (rtcore_) rtcore_->beginFrame();
+    if (interpose) s.backend = interpose;
+    return shaders::renderFrame(*accel_, frame_->scene, frame_->plan, s, history_);
+}
+
+shaders::FrameOutput FrameSession::render(const shaders::RenderSettings& settings,
+                                          shaders::FrameHistory& history) const {
+    if (!accel_ || !frame_) throw std::logic_error("FrameSession::render before advance (or in a Stages::Plan session)");
+    return shaders::renderFrame(*accel_, frame_->scene, frame_->plan, settings, history);
+}
+
+std::vector<denoise::DenoisedLayer> FrameSession::denoise(shaders::FrameOutput& frame) {
+    if (!denoiser_) return {};
+    frame.image.addRgbLayer("noisy", frame.image.rgbLayer(""));
+    std::vector<denoise::DenoisedLayer> layers = denoiser_->apply(frame.image);
+    shaders::composeBeauty(frame.image);
+    return layers;
+}
+
+std::uint64_t uniqueTriangles(const ecs::SceneSnapshot& scene) {
+    std::uint64_t triangles = 0;
+    for (const ecs::MeshAsset& mesh : *scene.meshes)
+        for (const ecs::Geometry& g : mesh.geometries) triangles += g.triangleCount();
+    return triangles;
+}
+
+}  // namespace rtlab::session
