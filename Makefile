@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench converge workloads study test-asan clean
+.PHONY: deps configure build demo test bench converge workloads study doc-figures test-asan clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -46,6 +46,12 @@ converge: build
 study: build
 	./build/release/apps/rtlab sweep docs/studies/cache-policy.json --out out/study --jobs $$(nproc)
 	./build/release/apps/rtlab report out/study
+
+# The deterministic tables of README.md and docs/ (cycles, rays, hit rates),
+# rewritten from the commands that produce them (scripts/check_doc_figures.py;
+# `make test` checks them).
+doc-figures: build
+	@python3 scripts/check_doc_figures.py build/release/apps/rtlab --write
 
 # The sanitizer configuration (ASan + UBSan) over the whole suite.
 test-asan: deps
