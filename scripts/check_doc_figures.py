@@ -10,6 +10,7 @@ Each generated table is marked in its file by a comment on the line before it:
     scripts/check_doc_figures.py RTLAB [NAME...]          check (exit 1 on a difference, with a diff)
     scripts/check_doc_figures.py RTLAB --write [NAME...]  rewrite the tables in place
     scripts/check_doc_figures.py RTLAB --list             the blocks, their files and commands
+    scripts/check_doc_figures.py RTLAB --check-markers    every marker has a block and every block a marker
 
 RTLAB is the rtlab executable; `make test` runs the check (ctest
 docs.figures), `make doc-figures` the rewrite. Each block's commands are in
@@ -29,6 +30,10 @@ ENGINE = "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEn
 
 
 def run(argv):
+    # One thread per render: the figures are the same for any thread count
+    # (so this also checks that), and ctest runs other tests beside this one.
+    if argv[1] == "render":
+        argv = argv + ["--threads", "1"]
     r = subprocess.run(argv, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"check_doc_figures: {' '.join(argv)}: exit {r.returncode}: {r.stderr.strip()[-500:]}")
@@ -190,11 +195,35 @@ def table_at(lines, name):
     return None
 
 
+def check_markers():
+    """Every marker names a block, and every block has its marker."""
+    seen, bad = set(), 0
+    paths = ["README.md"] + ["docs/" + f for f in sorted(os.listdir(os.path.join(ROOT, "docs"))) if f.endswith(".md")]
+    for path in paths:
+        with open(os.path.join(ROOT, path)) as f:
+            for number, line in enumerate(f, 1):
+                m = MARKER.search(line)
+                if not m:
+                    continue
+                if m.group(1) not in BLOCKS or BLOCKS[m.group(1)][0] != path:
+                    print(f"{path}:{number}: marker '{m.group(1)}' has no block for this file in check_doc_figures.py")
+                    bad += 1
+                seen.add(m.group(1))
+    for name in BLOCKS:
+        if name not in seen:
+            print(f"{name}: no marker in {BLOCKS[name][0]}")
+            bad += 1
+    print(f"check_doc_figures: {len(seen)} markers, {len(BLOCKS)} blocks, {bad} problem(s)")
+    return 1 if bad else 0
+
+
 def main(argv):
     if not argv or argv[0].startswith("-"):
         sys.exit(__doc__)
     rtlab, rest = argv[0], argv[1:]
     write = "--write" in rest
+    if "--check-markers" in rest:
+        return check_markers()
     if "--list" in rest:
         for name, (path, _, commands) in BLOCKS.items():
             print(f"{name}: {path}\n  " + "\n  ".join(commands))
