@@ -12,8 +12,10 @@ Each generated table is marked in its file by a comment on the line before it:
     scripts/check_doc_figures.py RTLAB --list             the blocks, their files and commands
     scripts/check_doc_figures.py RTLAB --check-markers    every marker has a block and every block a marker
 
-RTLAB is the rtlab executable; `make test` runs the check (ctest
-docs.figures), `make doc-figures` the rewrite. Each block's commands are in
+RTLAB is the rtlab executable; `make test` runs the check of every block
+but rtcore-work-per-ray (ctest docs.figures.*; that one's twelve 640x480
+renders would add a tenth to the suite: run it here, or `make doc-figures`),
+`make doc-figures` the rewrite of all. Each block's commands are in
 BLOCKS below; they are what the surrounding text of each table quotes.
 """
 import csv
@@ -154,6 +156,38 @@ def POLICY_ARGS(scene, policy):
     return EXAMPLE_ARGS(scene) + ["--rtcore-set", "cache.sizeBytes=8192", "--rtcore-set", "scheduler.policy=" + policy]
 
 
+# Block: docs/rtcore-model.md's work per ray by BVH width (primary rays, 640x480).
+WIDTHS = [2, 4, 6, 8]
+WORK_SCENES = [("showcase", "builtin:showcase"), ("cornell", "builtin:cornell"), ("2CylinderEngine", ENGINE)]
+
+
+def WORK_ARGS(scene, width):
+    return ["render", "--scene", scene, "--width", "640", "--height", "480", "--effects", "gbuffer", "--backend",
+            "rtcore", "--denoise", "none", "--rtcore-set", f"bvh.width={width}"]
+
+
+def work_per_ray(rtlab, tmp):
+    lines = ["| scene (triangles) | width | nodes/ray | boxes/ray | triangles/ray | instances/ray | max stack |",
+             "|---|---|---|---|---|---|---|"]
+    for name, scene in WORK_SCENES:
+        rays, triangles = [], 0
+        for width in WIDTHS:
+            out = os.path.join(tmp, f"work-{name}-{width}")
+            run([rtlab, *WORK_ARGS(scene, width), "--out", out])
+            with open(os.path.join(out, "stats.json")) as f:
+                frame = json.load(f)["frames"][0]
+            rays.append(frame["rtcore"]["rays"])
+            triangles = frame["accelMemory"]["uniqueTriangles"]
+        def means(key):
+            return " / ".join(f"{r[key]['mean']:.1f}" for r in rays)
+
+        stack = " / ".join(str(r["maxStackDepth"]["max"]) for r in rays)
+        widths = " / ".join(f"**{w}**" if w == 6 else str(w) for w in WIDTHS)
+        lines.append(f"| {name} ({thousands(triangles)}) | {widths} | {means('nodeVisits')} | {means('boxTests')} | "
+                     f"{means('triangleTests')} | {means('instanceTransitions')} | {stack} |")
+    return lines
+
+
 def EXAMPLE_ARGS(scene):
     return ["render", "--scene", scene, "--width", "320", "--height", "240", "--effects", "gbuffer",
             "--backend", "rtcore", "--denoise", "none"]
@@ -170,6 +204,9 @@ BLOCKS = {
                              ["rtlab sweep docs/studies/cache-policy.json --out out/study --jobs 2"]),
     "rtcore-examples": ("docs/rtcore-model.md", rtcore_examples,
                         ["rtlab " + " ".join(EXAMPLE_ARGS(s)) + " --out out/example" for _, s in EXAMPLE_SCENES]),
+    "rtcore-work-per-ray": ("docs/rtcore-model.md", work_per_ray,
+                            ["rtlab " + " ".join(WORK_ARGS(s, w)) + " --out out/work"
+                             for _, s in WORK_SCENES for w in WIDTHS]),
     "rtcore-policies": ("docs/rtcore-model.md", rtcore_policies,
                         ["rtlab " + " ".join(POLICY_ARGS(s, p)) + " --out out/policy"
                          for _, s in (EXAMPLE_SCENES[0], EXAMPLE_SCENES[2]) for p in POLICIES]),

@@ -16,54 +16,69 @@ namespace {
 using F = FrameOptions;
 constexpr unsigned kRenderLike = kUseRender | kUseStudy | kUseStatsEcho;
 
+// One row: flag, key, member, uses and help; .range() or .oneOf() as the field needs.
+FrameOptionField field(std::string flag, std::string key, FrameOptionField::Member member, unsigned uses,
+                       std::string help) {
+    FrameOptionField f;
+    f.flag = std::move(flag);
+    f.key = std::move(key);
+    f.member = member;
+    f.uses = uses;
+    f.help = std::move(help);
+    return f;
+}
+
 std::vector<FrameOptionField> makeFields() {
     const std::string listable = shaders::effectNames(shaders::EffectFilter::Listable);
     const std::string denoised = shaders::effectNames(shaders::EffectFilter::Denoised);
     // Step: one row per option. Ranges are those the command line always had.
+    const unsigned all = kUseRender | kUseConverge | kUseReplay | kUsePlan;
     return {
-        {"--scene", "scene", "builtin:NAME[?k=v&...], .gltf/.glb, or scene .json", &F::scene, 0, 0, {},
-         kUseRender | kUseConverge | kUseReplay | kUsePlan},
-        {"--width", "width", "Image width in pixels", &F::width, 1, 16384, {}, kRenderLike | kUseConverge},
-        {"--height", "height", "Image height in pixels", &F::height, 1, 16384, {}, kRenderLike | kUseConverge},
-        {"--spp", "spp", "Samples per pixel per effect", &F::spp, 1, 1 << 20, {}, kRenderLike},
-        {"--frames", "frames", "Number of frames", &F::frames, 1, 100000, {}, kRenderLike},
-        {"--backend", "backend", "Traversal back end", &F::backend, 0, 0, {"embree", "rtcore"},
-         kRenderLike | kUseReplay},
-        {"--rtcore-config", "rtcoreConfig", "RT-core model parameters (JSON; docs/rtcore-model.md)", &F::rtcoreConfig,
-         0, 0, {}, kUseRender | kUseReplay | kUseStudy},
-        {"--rtcore-set", "rtcoreSet", "Override one RT-core parameter: section.field=value (repeatable)",
-         &F::rtcoreSet, 0, 0, {}, kUseRender | kUseReplay},
-        {"--verify", "verify", "With --backend rtcore: trace every ray on Embree too and report mismatches",
-         &F::verify, 0, 0, {}, kUseRender | kUseStatsEcho},
-        {"--threads", "threads", "Worker threads (0 = all cores)", &F::threads, 0, 1024, {},
-         kUseRender | kUseConverge | kUseReplay | kUseStudy},
-        {"--seed", "seed", "Random seed", &F::seed, 0, 4294967295.0, {}, kRenderLike | kUseConverge},
-        {"--effects", "effects",
-         "auto (what the scene needs; see rtlab plan) or a comma-separated list narrowing it: " + listable +
-             "; pathtrace (multi-bounce paths, a ray workload) only when listed (gbuffer alone: primary rays only)",
-         &F::effects, 0, 0, {}, kRenderLike | kUsePlan},
-        {"--gi", "gi", "Diffuse GI technique", &F::gi, 0, 0, {"path", "ddgi"}, kRenderLike | kUsePlan},
-        {"--reflection-roughness", "reflectionRoughness", "Reflections trace where roughness <= this",
-         &F::reflectionRoughness, 0, 1, {}, kRenderLike | kUseConverge | kUsePlan},
-        {"--ao-radius", "aoRadius", "Ambient-occlusion ray length (world units)", &F::aoRadius, 0, 1e30, {},
-         kRenderLike | kUseConverge},
-        {"--ao-contact-samples", "aoContactSamples",
-         "More AO samples per sample at pixels next to a contact (an occluder nearer than a quarter of --ao-radius "
-         "within 2 pixels); 0 = the same count everywhere",
-         &F::aoContactSamples, 0, 1024, {}, kRenderLike | kUseConverge},
-        {"--max-translucency-depth", "maxTranslucencyDepth", "Refraction/reflection events along a translucent path",
-         &F::maxTranslucencyDepth, 1, 64, {}, kRenderLike | kUseConverge},
-        {"--max-depth", "maxDepth", "Path-tracer bounces after the primary hit (--effects pathtrace)", &F::maxDepth,
-         0, 64, {}, kRenderLike},
-        {"--denoise", "denoise",
-         "auto (every effect's signal), none, or a comma-separated list of " + denoised +
-             ": SVGF per signal layer, noisy layers kept as noisy.*",
-         &F::denoise, 0, 0, {}, kRenderLike},
-        {"--record-rays", "recordRays",
-         "Write every ray as submitted to the back end, with its hit, to DIR/frame_NNNN.rays "
-         "(docs/ray-trace-format.md; rtlab replay)",
-         &F::recordRays, 0, 0, {}, kUseRender},
-        {"--out", "out", "Output directory", &F::out, 0, 0, {}, kUseRender | kUseReplay},
+        field("--scene", "scene", &F::scene, all, "builtin:NAME[?k=v&...], .gltf/.glb, or scene .json"),
+        field("--width", "width", &F::width, kRenderLike | kUseConverge, "Image width in pixels").range(1, 16384),
+        field("--height", "height", &F::height, kRenderLike | kUseConverge, "Image height in pixels").range(1, 16384),
+        field("--spp", "spp", &F::spp, kRenderLike, "Samples per pixel per effect").range(1, 1 << 20),
+        field("--frames", "frames", &F::frames, kRenderLike, "Number of frames").range(1, 100000),
+        field("--backend", "backend", &F::backend, kRenderLike | kUseReplay, "Traversal back end")
+            .oneOf({"embree", "rtcore"}),
+        field("--rtcore-config", "rtcoreConfig", &F::rtcoreConfig, kUseRender | kUseReplay | kUseStudy,
+              "RT-core model parameters (JSON; docs/rtcore-model.md)"),
+        field("--rtcore-set", "rtcoreSet", &F::rtcoreSet, kUseRender | kUseReplay,
+              "Override one RT-core parameter: section.field=value (repeatable)"),
+        field("--verify", "verify", &F::verify, kUseRender | kUseStatsEcho,
+              "With --backend rtcore: trace every ray on Embree too and report mismatches"),
+        field("--threads", "threads", &F::threads, kUseRender | kUseConverge | kUseReplay | kUseStudy,
+              "Worker threads (0 = all cores)")
+            .range(0, 1024),
+        field("--seed", "seed", &F::seed, kRenderLike | kUseConverge, "Random seed").range(0, 4294967295.0),
+        field("--effects", "effects", &F::effects, kRenderLike | kUsePlan,
+              "auto (what the scene needs; see rtlab plan) or a comma-separated list narrowing it: " + listable +
+                  "; pathtrace (multi-bounce paths, a ray workload) only when listed (gbuffer alone: primary "
+                  "rays only)"),
+        field("--gi", "gi", &F::gi, kRenderLike | kUsePlan, "Diffuse GI technique").oneOf({"path", "ddgi"}),
+        field("--reflection-roughness", "reflectionRoughness", &F::reflectionRoughness,
+              kRenderLike | kUseConverge | kUsePlan, "Reflections trace where roughness <= this")
+            .range(0, 1),
+        field("--ao-radius", "aoRadius", &F::aoRadius, kRenderLike | kUseConverge,
+              "Ambient-occlusion ray length (world units)")
+            .range(0, 1e30),
+        field("--ao-contact-samples", "aoContactSamples", &F::aoContactSamples, kRenderLike | kUseConverge,
+              "More AO samples per sample at pixels next to a contact (an occluder nearer than a quarter of "
+              "--ao-radius within 2 pixels); 0 = the same count everywhere")
+            .range(0, 1024),
+        field("--max-translucency-depth", "maxTranslucencyDepth", &F::maxTranslucencyDepth, kRenderLike | kUseConverge,
+              "Refraction/reflection events along a translucent path")
+            .range(1, 64),
+        field("--max-depth", "maxDepth", &F::maxDepth, kRenderLike,
+              "Path-tracer bounces after the primary hit (--effects pathtrace)")
+            .range(0, 64),
+        field("--denoise", "denoise", &F::denoise, kRenderLike,
+              "auto (every effect's signal), none, or a comma-separated list of " + denoised +
+                  ": SVGF per signal layer, noisy layers kept as noisy.*"),
+        field("--record-rays", "recordRays", &F::recordRays, kUseRender,
+              "Write every ray as submitted to the back end, with its hit, to DIR/frame_NNNN.rays "
+              "(docs/ray-trace-format.md; rtlab replay)"),
+        field("--out", "out", &F::out, kUseRender | kUseReplay, "Output directory"),
     };
 }
 
@@ -72,8 +87,7 @@ std::string formatNumber(double v) {
     char buf[64];
     if (v == double(static_cast<long long>(v)) && v < 1e15 && v > -1e15)
         std::snprintf(buf, sizeof buf, "%lld", static_cast<long long>(v));
-    else
-        std::snprintf(buf, sizeof buf, "%.9g", v);
+    else std::snprintf(buf, sizeof buf, "%.9g", v);
     return buf;
 }
 
@@ -216,14 +230,16 @@ void FrameOptions::setFromJson(std::string_view key, const nlohmann::json& value
                                                 formatNumber(f->max) + " (got " + value.dump() + ")");
                 v = value.get<float>();
             } else if constexpr (std::is_same_v<T, bool>) {
-                if (!value.is_boolean()) throw InputError(where, path + ": must be true or false (got " + value.dump() + ")");
+                if (!value.is_boolean())
+                    throw InputError(where, path + ": must be true or false (got " + value.dump() + ")");
                 v = value.get<bool>();
             } else if constexpr (std::is_same_v<T, std::string>) {
                 if (!value.is_string() || value.get<std::string>().empty())
                     throw InputError(where, path + ": must be a non-empty string (got " + value.dump() + ")");
                 const std::string s = value.get<std::string>();
                 if (!f->choices.empty() && std::find(f->choices.begin(), f->choices.end(), s) == f->choices.end())
-                    throw InputError(where, path + ": must be one of " + joinChoices(f->choices) + " (got \"" + s + "\")");
+                    throw InputError(where,
+                                     path + ": must be one of " + joinChoices(f->choices) + " (got \"" + s + "\")");
                 v = s;
             } else {
                 if (!value.is_array()) throw InputError(where, path + ": must be a list of strings");

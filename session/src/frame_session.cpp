@@ -87,7 +87,8 @@ shaders::FrameOutput FrameSession::render(tracer::TraversalBackend* interpose) {
 
 shaders::FrameOutput FrameSession::render(const shaders::RenderSettings& settings,
                                           shaders::FrameHistory& history) const {
-    if (!accel_ || !frame_) throw std::logic_error("FrameSession::render before advance (or in a Stages::Plan session)");
+    if (!accel_ || !frame_)
+        throw std::logic_error("FrameSession::render before advance (or in a Stages::Plan session)");
     return shaders::renderFrame(*accel_, frame_->scene, frame_->plan, settings, history);
 }
 

@@ -27,23 +27,23 @@ struct FrameOptions {
     std::string scene = "builtin:showcase";  // builtin:NAME[?k=v...], .gltf/.glb, or scene .json
     int width = 640;
     int height = 360;
-    int spp = 1;                             // samples per pixel per effect
+    int spp = 1;  // samples per pixel per effect
     int frames = 1;
     std::uint32_t seed = 0;
-    int threads = 0;                         // 0 = all cores
-    std::string backend = "embree";          // embree | rtcore
-    std::string rtcoreConfig;                // JSON file of RT-core parameters
-    std::vector<std::string> rtcoreSet;      // section.field=value, applied in order after rtcoreConfig
-    bool verify = false;                     // rtcore: trace every ray on Embree too
-    std::string effects = "auto";            // auto | comma-separated pass names
-    std::string denoise = "auto";            // auto | none | comma-separated effect names
-    std::string gi = "path";                 // path | ddgi
-    float reflectionRoughness = 0.3f;        // reflections trace where roughness <= this
-    float aoRadius = 1.0f;                   // world units
-    int aoContactSamples = 8;                // shaders::RenderSettings::aoContactExtraSamples
+    int threads = 0;                     // 0 = all cores
+    std::string backend = "embree";      // embree | rtcore
+    std::string rtcoreConfig;            // JSON file of RT-core parameters
+    std::vector<std::string> rtcoreSet;  // section.field=value, applied in order after rtcoreConfig
+    bool verify = false;                 // rtcore: trace every ray on Embree too
+    std::string effects = "auto";        // auto | comma-separated pass names
+    std::string denoise = "auto";        // auto | none | comma-separated effect names
+    std::string gi = "path";             // path | ddgi
+    float reflectionRoughness = 0.3f;    // reflections trace where roughness <= this
+    float aoRadius = 1.0f;               // world units
+    int aoContactSamples = 8;            // shaders::RenderSettings::aoContactExtraSamples
     int maxTranslucencyDepth = 8;
-    int maxDepth = 4;                        // path-tracer bounces (--effects pathtrace)
-    std::string recordRays;                  // DIR for frame_NNNN.rays ("" = no recording)
+    int maxDepth = 4;        // path-tracer bounces (--effects pathtrace)
+    std::string recordRays;  // DIR for frame_NNNN.rays ("" = no recording)
     std::string out = "out";
 
     // Range and cross-field checks (InputError naming the option); the
@@ -83,16 +83,26 @@ enum OptionUse : unsigned {
 };
 
 struct FrameOptionField {
-    using Member = std::variant<int FrameOptions::*, float FrameOptions::*, std::uint32_t FrameOptions::*,
-                                std::string FrameOptions::*, bool FrameOptions::*,
-                                std::vector<std::string> FrameOptions::*>;
-    std::string flag;                  // "--max-translucency-depth"
-    std::string key;                   // "maxTranslucencyDepth" (stats.json settings, study render object)
+    using Member =
+        std::variant<int FrameOptions::*, float FrameOptions::*, std::uint32_t FrameOptions::*,
+                     std::string FrameOptions::*, bool FrameOptions::*, std::vector<std::string> FrameOptions::*>;
+    std::string flag;  // "--max-translucency-depth"
+    std::string key;   // "maxTranslucencyDepth" (stats.json settings, study render object)
     std::string help;
     Member member;
     double min = 0, max = 0;           // numeric fields: the accepted range
     std::vector<std::string> choices;  // string fields: the accepted values (empty = any)
     unsigned uses = 0;                 // OptionUse bits
+
+    FrameOptionField& range(double lo, double hi) {
+        min = lo;
+        max = hi;
+        return *this;
+    }
+    FrameOptionField& oneOf(std::vector<std::string> values) {
+        choices = std::move(values);
+        return *this;
+    }
 };
 
 // Every option, in the order help lists them.

@@ -40,9 +40,9 @@ struct FrameState {
     std::uint32_t index = 0;
     ecs::FrameUpdate update;
     ecs::SceneSnapshot scene;
-    tracer::AccelUpdateStats accel;               // Embree's BLAS/TLAS work (none with Stages::Plan)
+    tracer::AccelUpdateStats accel;  // Embree's BLAS/TLAS work (none with Stages::Plan)
     shaders::FramePlan plan;
-    rtcore_sim::ModelUpdateStats model;           // the RT-core model's BVH work (--backend rtcore)
+    rtcore_sim::ModelUpdateStats model;  // the RT-core model's BVH work (--backend rtcore)
     double modelUpdateMs = 0.0;
 };
 
