@@ -63,7 +63,8 @@ void BM_RenderFrame(benchmark::State& state) {
     }
     for (std::size_t p = 0; p < shaders::kPassCount; ++p)
         if (last.passes[p].milliseconds > 0.0)
-            state.counters[std::string(shaders::passName(static_cast<shaders::Pass>(p))) + "Ms"] = last.passes[p].milliseconds;
+            state.counters[std::string(shaders::passName(static_cast<shaders::Pass>(p))) + "Ms"] =
+                last.passes[p].milliseconds;
     state.SetLabel(std::string(effect) + " " + std::to_string(settings.width) + "x" + std::to_string(settings.height));
 }
 
@@ -82,8 +83,16 @@ void BM_DenoiseFrame(benchmark::State& state) {
     state.SetLabel(std::string(effect) + " " + std::to_string(settings.width) + "x" + std::to_string(settings.height));
 }
 
-BENCHMARK(BM_RenderFrame)->ArgsProduct({{0, 1, 2, 3}, {0, 1}})->MinTime(0.5)->UseRealTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_DenoiseFrame)->ArgsProduct({{0, 1, 2, 3}, {0, 1}})->MinTime(0.5)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderFrame)
+    ->ArgsProduct({{0, 1, 2, 3}, {0, 1}})
+    ->MinTime(0.5)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DenoiseFrame)
+    ->ArgsProduct({{0, 1, 2, 3}, {0, 1}})
+    ->MinTime(0.5)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

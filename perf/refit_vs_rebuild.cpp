@@ -38,7 +38,8 @@ struct DeformingGrid {
         g.restPositions = g.positions;  // deformable: keeps a refittable BVH
         g.restNormals = g.normals;
         ecs::MorphTarget wave;
-        for (const vec3& p : g.positions) wave.positionDeltas.emplace_back(0.f, 0.3f * std::sin(3.f * p.x + 2.f * p.z), 0.f);
+        for (const vec3& p : g.positions)
+            wave.positionDeltas.emplace_back(0.f, 0.3f * std::sin(3.f * p.x + 2.f * p.z), 0.f);
         g.morphTargets.push_back(std::move(wave));
         world.addMaterial({});
         mesh = world.addMesh(ecs::load::makeMesh("grid", std::move(g)));
@@ -111,7 +112,8 @@ void BM_OneMoves1000(benchmark::State& state) {
     float x = 0.f;
     for (auto _ : state) {
         x += 0.01f;
-        scene.world.patch<ecs::LocalTransform>(scene.entities[500], [&](ecs::LocalTransform& t) { t.translation.x = x; });
+        scene.world.patch<ecs::LocalTransform>(scene.entities[500],
+                                               [&](ecs::LocalTransform& t) { t.translation.x = x; });
         const ecs::SceneSnapshot snap = ecs::makeSnapshot(scene.world, scene.world.update(0.04f));
         const tracer::AccelUpdateStats s = accel.update(snap);
         if (s.instancesMoved != 1 || s.blasRebuilt != 0) state.SkipWithError("expected one moved instance");

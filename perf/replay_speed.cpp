@@ -62,9 +62,7 @@ const study::RayTraceFile& recording() {
 }
 
 // Argument: -1 every ray, else one ray type (shaders::RayType).
-std::uint32_t typeMask(const benchmark::State& state) {
-    return state.range(0) < 0 ? 0xffffu : 1u << state.range(0);
-}
+std::uint32_t typeMask(const benchmark::State& state) { return state.range(0) < 0 ? 0xffffu : 1u << state.range(0); }
 
 void BM_ReplayEmbree(benchmark::State& state) {
     const ThreadLimit limit(1);
@@ -98,8 +96,12 @@ void BM_RawEmbreeSameRays(benchmark::State& state) {
                 for (std::size_t i = 0; i < 8 && first + i < batch.rays.size(); ++i) {
                     const study::RayRecord& r = batch.rays[first + i];
                     valid[i] = -1;
-                    rh.ray.org_x[i] = r.origin[0]; rh.ray.org_y[i] = r.origin[1]; rh.ray.org_z[i] = r.origin[2];
-                    rh.ray.dir_x[i] = r.direction[0]; rh.ray.dir_y[i] = r.direction[1]; rh.ray.dir_z[i] = r.direction[2];
+                    rh.ray.org_x[i] = r.origin[0];
+                    rh.ray.org_y[i] = r.origin[1];
+                    rh.ray.org_z[i] = r.origin[2];
+                    rh.ray.dir_x[i] = r.direction[0];
+                    rh.ray.dir_y[i] = r.direction[1];
+                    rh.ray.dir_z[i] = r.direction[2];
                     rh.ray.tnear[i] = r.tMin;
                     rh.ray.tfar[i] = r.tMax;
                     rh.ray.mask[i] = batch.record->instanceInclusionMask;
@@ -132,8 +134,8 @@ void BM_QueryApiSameRays(benchmark::State& state) {
         for (const study::RayTraceFile::Batch& batch : file.batches()) {
             if (!(typeMask(state) >> (batch.record->rayContribution & 0xf) & 1)) continue;
             const bool firstHit = (batch.record->rayFlags & tracer::RayFlag::AcceptFirstHitAndEndSearch) != 0;
-            const auto coherence = batch.record->rayContribution == 0 ? tracer::RayCoherence::Coherent
-                                                                      : tracer::RayCoherence::Incoherent;
+            const auto coherence =
+                batch.record->rayContribution == 0 ? tracer::RayCoherence::Coherent : tracer::RayCoherence::Incoherent;
             for (std::size_t first = 0; first < batch.rays.size(); first += 8) {
                 std::array<tracer::RayDesc, 8> packet;
                 std::array<bool, 8> active{};
@@ -160,9 +162,33 @@ void BM_QueryApiSameRays(benchmark::State& state) {
     state.counters["rays_per_s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
 }
 
-BENCHMARK(BM_ReplayEmbree)->Arg(-1)->Arg(0)->Arg(1)->Arg(3)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
-BENCHMARK(BM_QueryApiSameRays)->Arg(-1)->Arg(0)->Arg(1)->Arg(3)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
-BENCHMARK(BM_RawEmbreeSameRays)->Arg(-1)->Arg(0)->Arg(1)->Arg(3)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_ReplayEmbree)
+    ->Arg(-1)
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(6)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+BENCHMARK(BM_QueryApiSameRays)
+    ->Arg(-1)
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(6)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+BENCHMARK(BM_RawEmbreeSameRays)
+    ->Arg(-1)
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(6)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
 
 }  // namespace
 

@@ -83,9 +83,10 @@ std::string withSeed(const std::string& source, const std::string& seed) {
 }
 
 int run(const Options& o) {
-    std::printf("scene,seed,policy,l1Bytes,l2Bytes,rays,cycles,raysPerCycle,l1HitRate,l2HitRate,dramBytesPerCycle,"
-                "dramUtilization,meanLatency,shareFetch,shareL2,shareDram,shareInputQueue,shareScheduler,portUtilization,"
-                "prefetchLines,prefetchAccuracy\n");
+    std::printf(
+        "scene,seed,policy,l1Bytes,l2Bytes,rays,cycles,raysPerCycle,l1HitRate,l2HitRate,dramBytesPerCycle,"
+        "dramUtilization,meanLatency,shareFetch,shareL2,shareDram,shareInputQueue,shareScheduler,portUtilization,"
+        "prefetchLines,prefetchAccuracy\n");
     for (const std::string& source : o.scenes)
         for (const std::string& seed : o.seeds) {
             const std::string src = withSeed(source, seed);
@@ -138,16 +139,19 @@ int run(const Options& o) {
                                              std::max(1.0, s["rays"]["latency"]["count"].get<double>());
                         const auto share = [&](const char* k) { return total > 0 ? b[k].get<double>() / total : 0.0; };
                         const bool pf = s["cache"].contains("prefetch");
-                        std::printf("%s,%s,%s,%s,%s,%zu,%llu,%.4f,%.4f,%.4f,%.2f,%.4f,%.1f,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%llu,%.4f\n",
-                                    source.c_str(), seed.c_str(), policy.c_str(), l1.c_str(), l2.c_str(), rays.size(),
-                                    static_cast<unsigned long long>(s["frame"]["cycles"].get<std::uint64_t>()),
-                                    s["frame"]["raysPerCycle"].get<double>(), s["cache"]["hitRate"].get<double>(),
-                                    s["l2"]["hitRate"].get<double>(), s["dram"]["bytesPerCycle"].get<double>(),
-                                    s["dram"]["utilization"].get<double>(), s["rays"]["latency"]["mean"].get<double>(),
-                                    share("fetch"), share("l2"), share("dram"), share("inputQueue"), share("scheduler"),
-                                    s["memory"]["utilization"].get<double>(),
-                                    static_cast<unsigned long long>(pf ? s["cache"]["prefetch"]["lines"].get<std::uint64_t>() : 0),
-                                    pf ? s["cache"]["prefetch"]["accuracy"].get<double>() : 0.0);
+                        std::printf(
+                            "%s,%s,%s,%s,%s,%zu,%llu,%.4f,%.4f,%.4f,%.2f,%.4f,%.1f,%.3f,%.3f,%.3f,%.3f,%.3f,%.4f,%llu,%"
+                            ".4f\n",
+                            source.c_str(), seed.c_str(), policy.c_str(), l1.c_str(), l2.c_str(), rays.size(),
+                            static_cast<unsigned long long>(s["frame"]["cycles"].get<std::uint64_t>()),
+                            s["frame"]["raysPerCycle"].get<double>(), s["cache"]["hitRate"].get<double>(),
+                            s["l2"]["hitRate"].get<double>(), s["dram"]["bytesPerCycle"].get<double>(),
+                            s["dram"]["utilization"].get<double>(), s["rays"]["latency"]["mean"].get<double>(),
+                            share("fetch"), share("l2"), share("dram"), share("inputQueue"), share("scheduler"),
+                            s["memory"]["utilization"].get<double>(),
+                            static_cast<unsigned long long>(pf ? s["cache"]["prefetch"]["lines"].get<std::uint64_t>()
+                                                               : 0),
+                            pf ? s["cache"]["prefetch"]["accuracy"].get<double>() : 0.0);
                         std::fflush(stdout);
                     }
         }

@@ -222,9 +222,26 @@ void embreeLoop(benchmark::State& state, RTCScene tlas, const std::vector<SimRay
 
 }  // namespace
 
-BENCHMARK(BM_RtCoreTimingModel)->ArgsProduct({{0, 1}, {0, 1, 2}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreTimingModel)
+    ->ArgsProduct({{0, 1}, {0, 1, 2}})
+    ->MinTime(1.0)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RtCoreFunctional)->Arg(0)->Arg(1)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_EmbreeIntersect1)->ArgsProduct({{0, 1}, {1, 0}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_RtCoreGpu8)->ArgsProduct({{0, 1}, {0, 1}, {0, 1, 2}})->MinTime(1.0)->UseRealTime()->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_EmbreeIntersect1Scene)->ArgsProduct({{1}, {0, 1}})->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EmbreeIntersect1)
+    ->ArgsProduct({{0, 1}, {1, 0}})
+    ->MinTime(1.0)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreGpu8)
+    ->ArgsProduct({{0, 1}, {0, 1}, {0, 1, 2}})
+    ->MinTime(1.0)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EmbreeIntersect1Scene)
+    ->ArgsProduct({{1}, {0, 1}})
+    ->MinTime(1.0)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

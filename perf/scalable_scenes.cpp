@@ -60,8 +60,15 @@ void BM_TerrainAccelScaling(benchmark::State& state) {
     state.counters["uniqueTriangles"] = unique;
 }
 BENCHMARK(BM_TerrainAccelScaling)
-    ->Arg(10000)->Arg(30000)->Arg(100000)->Arg(300000)->Arg(1000000)->Arg(2000000)->Arg(4000000)
-    ->Iterations(1)->Unit(benchmark::kMillisecond);
+    ->Arg(10000)
+    ->Arg(30000)
+    ->Arg(100000)
+    ->Arg(300000)
+    ->Arg(1000000)
+    ->Arg(2000000)
+    ->Arg(4000000)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 #define SCALABLE(name, source) \
     BENCHMARK_CAPTURE(BM_LoadScalableScene, name, std::string(source))->Iterations(1)->Unit(benchmark::kMillisecond)

@@ -49,7 +49,9 @@ tracer::Pipeline<HitPayload>::Desc trivialShaders(const tracer::AccelManager& ac
     tracer::Pipeline<HitPayload>::Desc desc;
     desc.hitGroups.resize(accel.geometrySlotCount());
     for (auto& g : desc.hitGroups)
-        g.closestHit = [](const tracer::HitContext& ctx, HitPayload& p, const tracer::HitAttributes&) { p.t = ctx.rayTCurrent; };
+        g.closestHit = [](const tracer::HitContext& ctx, HitPayload& p, const tracer::HitAttributes&) {
+            p.t = ctx.rayTCurrent;
+        };
     desc.missShaders.push_back([](const tracer::MissContext&, HitPayload& p) { p.t = -1.f; });
     return desc;
 }
@@ -75,8 +77,12 @@ void tracePacket(const tracer::AccelManager& accel, const tracer::RayDesc* rays,
     for (int i = 0; i < 8; ++i) {
         valid[i] = active[i] ? -1 : 0;
         const tracer::RayDesc& r = rays[i];
-        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
-        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+        rh.ray.org_x[i] = r.origin.x;
+        rh.ray.org_y[i] = r.origin.y;
+        rh.ray.org_z[i] = r.origin.z;
+        rh.ray.dir_x[i] = r.direction.x;
+        rh.ray.dir_y[i] = r.direction.y;
+        rh.ray.dir_z[i] = r.direction.z;
         rh.ray.tnear[i] = r.tMin;
         rh.ray.tfar[i] = r.tMax;
         rh.ray.mask[i] = 0xff;
@@ -106,12 +112,14 @@ void BM_RawIntersect8(benchmark::State& state) {
                         if (active[i]) rays[i] = bench::primaryRay(camera, x0 + i, y);
                     }
                     tracePacket(*scene.accel, rays.data(), active.data(), t.data(), tracer::RayCoherence::Coherent);
-                    for (int i = 0; i < 8 && x0 + i < tile.x1; ++i) out[static_cast<std::size_t>(y) * kSize + x0 + i] = t[i];
+                    for (int i = 0; i < 8 && x0 + i < tile.x1; ++i)
+                        out[static_cast<std::size_t>(y) * kSize + x0 + i] = t[i];
                 }
         });
         benchmark::DoNotOptimize(out.data());
     }
-    state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
+    state.counters["rays_per_s"] =
+        benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
 }
 
 // Diffuse bounce rays of the showcase at 512x512 (the RT-core model finds
@@ -160,12 +168,14 @@ void BM_RawIntersect8Bounce(benchmark::State& state) {
                 packet[i] = tracer::RayDesc{r.origin, r.tMin, r.direction, r.tMax};
                 active[i] = true;
             }
-            tracePacket(*scene.accel, packet.data(), active.data(), t.data(), tracer::RayCoherence::Incoherent, viaQuery);
+            tracePacket(*scene.accel, packet.data(), active.data(), t.data(), tracer::RayCoherence::Incoherent,
+                        viaQuery);
             for (std::size_t i = 0; i < 8 && first + i < rays.size(); ++i) out[first + i] = t[i];
         }
         benchmark::DoNotOptimize(out.data());
     }
-    state.counters["rays_per_s"] = benchmark::Counter(double(rays.size()) * state.iterations(), benchmark::Counter::kIsRate);
+    state.counters["rays_per_s"] =
+        benchmark::Counter(double(rays.size()) * state.iterations(), benchmark::Counter::kIsRate);
 }
 
 void BM_PipelinePacket(benchmark::State& state) {
@@ -176,11 +186,13 @@ void BM_PipelinePacket(benchmark::State& state) {
     std::vector<float> out(static_cast<std::size_t>(kSize) * kSize);
     for (auto _ : state) {
         pipeline.dispatchCoherent(
-            kSize, kSize, tracer::TraceArgs{}, [&](int x, int y, HitPayload&) { return bench::primaryRay(camera, x, y); },
+            kSize, kSize, tracer::TraceArgs{},
+            [&](int x, int y, HitPayload&) { return bench::primaryRay(camera, x, y); },
             [&](int x, int y, const HitPayload& p) { out[static_cast<std::size_t>(y) * kSize + x] = p.t; });
         benchmark::DoNotOptimize(out.data());
     }
-    state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
+    state.counters["rays_per_s"] =
+        benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
 }
 
 void BM_PipelineSingleRay(benchmark::State& state) {
@@ -197,13 +209,18 @@ void BM_PipelineSingleRay(benchmark::State& state) {
         });
         benchmark::DoNotOptimize(out.data());
     }
-    state.counters["rays_per_s"] = benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
+    state.counters["rays_per_s"] =
+        benchmark::Counter(double(kSize) * kSize * state.iterations(), benchmark::Counter::kIsRate);
 }
 
 BENCHMARK(BM_RawIntersect8)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_RawIntersect8Bounce)->Arg(1)->Arg(0)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_PipelinePacket)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
-BENCHMARK(BM_PipelineSingleRay)->ArgsProduct({{1, 2}, {1, 0}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_PipelineSingleRay)
+    ->ArgsProduct({{1, 2}, {1, 0}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
 
 }  // namespace
 

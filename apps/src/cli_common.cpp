@@ -38,7 +38,10 @@ void addFrameOptions(CLI::App& cmd, session::FrameOptions& o, unsigned use, bool
 
 nlohmann::json hitJson(const tracer::CommittedHit& h) {
     if (!h.hit) return {{"hit", false}};
-    return {{"hit", true}, {"t", h.t}, {"instance", h.instanceIndex}, {"geometry", h.geometryIndex},
+    return {{"hit", true},
+            {"t", h.t},
+            {"instance", h.instanceIndex},
+            {"geometry", h.geometryIndex},
             {"primitive", h.primitiveIndex}};
 }
 
@@ -59,18 +62,15 @@ std::string etaText(double elapsedSeconds, std::size_t done, std::size_t total) 
     char buf[32];
     if (seconds >= 3600)
         std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", seconds / 3600, seconds / 60 % 60, seconds % 60);
-    else
-        std::snprintf(buf, sizeof buf, "%ld:%02ld", seconds / 60, seconds % 60);
+    else std::snprintf(buf, sizeof buf, "%ld:%02ld", seconds / 60, seconds % 60);
     return buf;
 }
 
 void progress(const ProgressStep& step, bool logLine) {
     std::string line = step.what + " " + std::to_string(step.done) + "/" + std::to_string(step.total);
     if (!step.detail.empty()) line += ", " + step.detail;
-    if (stderrIsTerminal())
-        progress(line + ", ETA " + etaText(step.elapsedSeconds, step.done, step.total));
-    else if (logLine)
-        std::cerr << "rtlab: " << line << "\n";
+    if (stderrIsTerminal()) progress(line + ", ETA " + etaText(step.elapsedSeconds, step.done, step.total));
+    else if (logLine) std::cerr << "rtlab: " << line << "\n";
 }
 
 }  // namespace rtlab::app

@@ -23,8 +23,8 @@ struct ReplayOptions {
         o.out = "out/replay";
         return o;
     }();
-    std::string rays;                       // a .rays file or a directory of frame_NNNN.rays
-    std::string rayTypes = "all";           // --ray-types all|LIST (primary,shadow,...)
+    std::string rays;              // a .rays file or a directory of frame_NNNN.rays
+    std::string rayTypes = "all";  // --ray-types all|LIST (primary,shadow,...)
 };
 void addReplayCommand(CLI::App& app, ReplayOptions& options);
 int runReplay(const ReplayOptions& options);
@@ -61,12 +61,12 @@ struct ConvergeOptions {
         return o;
     }();
     std::string effect;
-    std::string out;                        // "" = out/converge/<scene>-<effect>
+    std::string out;  // "" = out/converge/<scene>-<effect>
     std::string cache = "out/converge-cache";
     int referenceSpp = 4096;
     int maxSpp = 256;
     int denoiseMaxSpp = 4;
-    int frames = 16;                        // temporal history: 1, 2, 4 ... this many 1-spp frames
+    int frames = 16;  // temporal history: 1, 2, 4 ... this many 1-spp frames
 };
 void addConvergeCommand(CLI::App& app, ConvergeOptions& options);
 int runConverge(const ConvergeOptions& options);

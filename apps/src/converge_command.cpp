@@ -102,7 +102,7 @@ struct Measured {
     std::string kind;    // "spp" (one frame) or "frames" (1 spp per frame, temporal history)
     int spp = 1;
     int frames = 1;
-    double ms = 0;       // wall ms of everything that produced this image (all its frames)
+    double ms = 0;  // wall ms of everything that produced this image (all its frames)
     double relMse = 0, psnr = 0, ssim = 0, flip = 0;
     double worstPercentShare = 0;  // ImageDifference::relMseWorstPercentShare
     // Equal-error speed-ups: ms raw needs for this error / ms, against raw
@@ -255,10 +255,12 @@ void ConvergeRun::reference() {
                 referenceCached_ = true;
             }
         } catch (const InputError& e) {
-            std::cerr << "rtlab: note: ignoring the unreadable cached reference (" << e.what() << "); rendering it again\n";
+            std::cerr << "rtlab: note: ignoring the unreadable cached reference (" << e.what()
+                      << "); rendering it again\n";
         }
         if (!referenceCached_)
-            std::cerr << "rtlab: note: the cached reference " << cacheFile_.string() << " does not fit; rendering it again\n";
+            std::cerr << "rtlab: note: the cached reference " << cacheFile_.string()
+                      << " does not fit; rendering it again\n";
     }
     if (!referenceCached_) {
         std::vector<glm::dvec3> sum(static_cast<std::size_t>(w_) * h_, glm::dvec3(0.0));
@@ -423,13 +425,22 @@ void ConvergeRun::writeResults() {
     nlohmann::json j;
     j["scene"] = o_.frame.scene;
     j["effect"] = o_.effect;
-    j["settings"] = {{"width", w_}, {"height", h_}, {"referenceSpp", o_.referenceSpp}, {"maxSpp", o_.maxSpp},
-                     {"denoiseMaxSpp", o_.denoiseMaxSpp}, {"frames", o_.frames}, {"threads", o_.frame.threads},
+    j["settings"] = {{"width", w_},
+                     {"height", h_},
+                     {"referenceSpp", o_.referenceSpp},
+                     {"maxSpp", o_.maxSpp},
+                     {"denoiseMaxSpp", o_.denoiseMaxSpp},
+                     {"frames", o_.frames},
+                     {"threads", o_.frame.threads},
                      {"threadsUsed", static_cast<int>(tbb::this_task_arena::max_concurrency())},
-                     {"seed", o_.frame.seed}, {"reflectionRoughness", o_.frame.reflectionRoughness}, {"aoRadius", o_.frame.aoRadius},
+                     {"seed", o_.frame.seed},
+                     {"reflectionRoughness", o_.frame.reflectionRoughness},
+                     {"aoRadius", o_.frame.aoRadius},
                      {"aoContactSamples", o_.frame.aoContactSamples},
                      {"maxTranslucencyDepth", o_.frame.maxTranslucencyDepth}};
-    j["reference"] = {{"file", cacheFile_.string()}, {"cached", referenceCached_}, {"ms", referenceMs_},
+    j["reference"] = {{"file", cacheFile_.string()},
+                      {"cached", referenceCached_},
+                      {"ms", referenceMs_},
                       {"seed", o_.frame.seed ^ kReferenceSeedSalt}};
     j["plan"] = session_.frame().plan.toJson();
     j["metrics"] = {{"relMse", "mean over pixels and R,G,B of (x - ref)^2 / (ref^2 + 1e-2)"},
@@ -437,23 +448,35 @@ void ConvergeRun::writeResults() {
                     {"ssim", "Wang et al. 2004 on Rec.709 luminance clamped to [0, 1]"},
                     {"flip", "mean HDR-FLIP (Andersson et al. 2020, 2021), 67 pixels per degree"},
                     {"ms", "wall milliseconds of every render and denoise that produced the image"},
-                    {"speedup", "ms raw (N spp in one frame) needs to reach the same relMSE (log-log "
-                                "interpolation; beyond the last raw point relMSE ~ 1/ms) / ms"},
+                    {"speedup",
+                     "ms raw (N spp in one frame) needs to reach the same relMSE (log-log "
+                     "interpolation; beyond the last raw point relMSE ~ 1/ms) / ms"},
                     {"speedupFrames", "the same against raw accumulation of 1-spp frames"},
                     {"worstPercentShare", "share of the per-pixel relMSE sum held by the worst 1% of pixels"}};
     j["displayExposure"] = exposure_;
     j["rows"] = nlohmann::json::array();
-    std::string csv = "method,kind,spp,frames,ms,relmse,psnr,ssim,flip,raw_ms_at_equal_error,speedup,extrapolated,"
-                      "raw_frames_ms_at_equal_error,speedup_frames,extrapolated_frames,worst_percent_share\n";
+    std::string csv =
+        "method,kind,spp,frames,ms,relmse,psnr,ssim,flip,raw_ms_at_equal_error,speedup,extrapolated,"
+        "raw_frames_ms_at_equal_error,speedup_frames,extrapolated_frames,worst_percent_share\n";
     for (const Measured& m : rows_) {
-        nlohmann::json r = {{"method", m.method}, {"kind", m.kind}, {"spp", m.spp}, {"frames", m.frames},
-                            {"ms", m.ms}, {"relMse", m.relMse}, {"psnr", std::isinf(m.psnr) ? 1e300 : m.psnr},
-                            {"ssim", m.ssim}, {"flip", m.flip}, {"worstPercentShare", m.worstPercentShare}};
+        nlohmann::json r = {{"method", m.method},
+                            {"kind", m.kind},
+                            {"spp", m.spp},
+                            {"frames", m.frames},
+                            {"ms", m.ms},
+                            {"relMse", m.relMse},
+                            {"psnr", std::isinf(m.psnr) ? 1e300 : m.psnr},
+                            {"ssim", m.ssim},
+                            {"flip", m.flip},
+                            {"worstPercentShare", m.worstPercentShare}};
         const bool isRaw = m.method == "raw" || m.method == "raw frames";
         if (!isRaw)
-            r.update({{"rawMsAtEqualError", m.rawMsAtEqualError}, {"speedup", m.speedup},
-                      {"extrapolated", m.extrapolated}, {"rawFramesMsAtEqualError", m.rawFramesMsAtEqualError},
-                      {"speedupFrames", m.speedupFrames}, {"extrapolatedFrames", m.extrapolatedFrames}});
+            r.update({{"rawMsAtEqualError", m.rawMsAtEqualError},
+                      {"speedup", m.speedup},
+                      {"extrapolated", m.extrapolated},
+                      {"rawFramesMsAtEqualError", m.rawFramesMsAtEqualError},
+                      {"speedupFrames", m.speedupFrames},
+                      {"extrapolatedFrames", m.extrapolatedFrames}});
         j["rows"].push_back(r);
         csv += m.method + "," + m.kind + "," + std::to_string(m.spp) + "," + std::to_string(m.frames) + "," +
                formatDouble(m.ms) + "," + formatDouble(m.relMse) + "," + formatDouble(m.psnr) + "," +
@@ -492,20 +515,20 @@ void ConvergeRun::writeResults() {
         seriesOf(method.name + " temporal", "frames", method.name + " (1 spp, after 1, 2, 4 ... frames)");
     }
     PlotOptions plotOptions;
-    plotOptions.title = o_.effect + " on " + o_.frame.scene + " (" + std::to_string(w_) + "x" + std::to_string(h_) + ")";
+    plotOptions.title =
+        o_.effect + " on " + o_.frame.scene + " (" + std::to_string(w_) + "x" + std::to_string(h_) + ")";
     plotOptions.xLabel = "wall milliseconds";
     plotOptions.yLabel = "relMSE";
     const PlotReport plotted = writeLogLogPlot(std::filesystem::path(out_) / "converge.png", series, plotOptions);
     if (plotted.pointsSkipped)
         std::cerr << "rtlab: note: converge.png leaves out " << plotted.pointsSkipped
                   << " points that a log axis cannot show (relMSE or ms <= 0)\n";
-
 }
 
 void ConvergeRun::printTable() const {
     // Step: the table.
-    std::printf("%s on %s, %dx%d, reference %d spp%s\n", o_.effect.c_str(), o_.frame.scene.c_str(), w_, h_, o_.referenceSpp,
-                referenceCached_ ? " (cached)" : "");
+    std::printf("%s on %s, %dx%d, reference %d spp%s\n", o_.effect.c_str(), o_.frame.scene.c_str(), w_, h_,
+                o_.referenceSpp, referenceCached_ ? " (cached)" : "");
     std::printf("%-22s %6s %6s %10s %11s %8s %7s %7s %10s %10s\n", "method", "spp", "frames", "ms", "relMSE", "PSNR",
                 "SSIM", "FLIP", "vs spp", "vs frames");
     const auto speedupText = [](double v, bool extrapolated) {
@@ -517,16 +540,19 @@ void ConvergeRun::printTable() const {
                     m.ms, m.relMse, m.psnr, m.ssim, m.flip, isRaw ? "" : speedupText(m.speedup, m.extrapolated).c_str(),
                     isRaw ? "" : speedupText(m.speedupFrames, m.extrapolatedFrames).c_str());
     }
-    std::printf("(speed-up = ms raw needs for the same relMSE / ms; vs spp: N spp in one frame, vs frames: N 1-spp "
-                "frames accumulated; * = beyond the last raw point, extrapolated with relMSE ~ 1/ms)\n");
-    std::printf("%s, 1 spp: relMSE %.4g raw -> %.4g denoised (%.1fx lower); equal-error speed-up %s vs spp, %s vs "
-                "frames\n",
-                methods_.front().name.c_str(), raw_.front().relMse, headline().relMse,
-                headline().relMse > 0 ? raw_.front().relMse / headline().relMse : 0.0,
-                speedupText(headline().speedup, headline().extrapolated).c_str(),
-                speedupText(headline().speedupFrames, headline().extrapolatedFrames).c_str());
+    std::printf(
+        "(speed-up = ms raw needs for the same relMSE / ms; vs spp: N spp in one frame, vs frames: N 1-spp "
+        "frames accumulated; * = beyond the last raw point, extrapolated with relMSE ~ 1/ms)\n");
+    std::printf(
+        "%s, 1 spp: relMSE %.4g raw -> %.4g denoised (%.1fx lower); equal-error speed-up %s vs spp, %s vs "
+        "frames\n",
+        methods_.front().name.c_str(), raw_.front().relMse, headline().relMse,
+        headline().relMse > 0 ? raw_.front().relMse / headline().relMse : 0.0,
+        speedupText(headline().speedup, headline().extrapolated).c_str(),
+        speedupText(headline().speedupFrames, headline().extrapolatedFrames).c_str());
     std::printf("%s, 1 spp: the worst 1%% of pixels hold %.0f%% of the denoised error (%.0f%% of the raw)\n",
-                methods_.front().name.c_str(), 100.0 * headline().worstPercentShare, 100.0 * raw_.front().worstPercentShare);
+                methods_.front().name.c_str(), 100.0 * headline().worstPercentShare,
+                100.0 * raw_.front().worstPercentShare);
     // Static-view convergence (issue 16): each method's error with history after
     // 8 frames and after the last, and their ratio (history on a static view
     // keeps lowering the error; `--frames 64` gives the 8-vs-64 figure).

@@ -40,7 +40,10 @@ int runInfo(const InfoOptions& o) {
     std::size_t deformable = 0;
     for (const ecs::MeshAsset& m : world.meshes())
         for (const ecs::Geometry& g : m.geometries)
-            if (g.deformable()) { ++deformable; break; }
+            if (g.deformable()) {
+                ++deformable;
+                break;
+            }
 
     std::printf("scene: %s\n", o.scene.c_str());
     const ecs::SceneSettings& settings = world.settings();
@@ -58,9 +61,8 @@ int runInfo(const InfoOptions& o) {
     std::printf("materials: %zu (%zu alpha-masked, %zu transmissive, %zu with roughness <= 0.3, %zu emissive)\n",
                 world.materials().size(), masked, transmissive, glossy, emissive);
     std::printf("textures: %zu\n", world.textures().size());
-    std::printf("lights: %zu (point %zu, spot %zu, directional %zu, rect %zu, sphere %zu)\n",
-                world.count<ecs::Light>(), lightsByType[0], lightsByType[1], lightsByType[2], lightsByType[3],
-                lightsByType[4]);
+    std::printf("lights: %zu (point %zu, spot %zu, directional %zu, rect %zu, sphere %zu)\n", world.count<ecs::Light>(),
+                lightsByType[0], lightsByType[1], lightsByType[2], lightsByType[3], lightsByType[4]);
     std::printf("cameras: %zu\n", world.count<ecs::Camera>());
     std::printf("skins: %zu\n", world.count<ecs::Skin>());
     std::printf("volumes: %zu\n", world.count<ecs::Volume>());
@@ -69,8 +71,7 @@ int runInfo(const InfoOptions& o) {
     std::printf("skipped primitives: %u points, %u lines (triangles only)\n", report.skippedPointPrimitives,
                 report.skippedLinePrimitives);
     const Aabb b = ecs::load::worldBounds(world);
-    if (!b.empty())
-        std::printf("bounds: [%g %g %g] - [%g %g %g]\n", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);
+    if (!b.empty()) std::printf("bounds: [%g %g %g] - [%g %g %g]\n", b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z);
     return 0;
 }
 

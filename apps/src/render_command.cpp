@@ -92,9 +92,9 @@ nlohmann::json sessionJson(const session::FrameSession& s, double loadMs) {
     if (s.rtcore()) stats["rtcore"] = {{"config", s.rtcore()->config().toJson()}};
     stats["timing"] = {{"loadMs", loadMs}};
     const ecs::LoadReport& report = s.world().loadReport();
-    stats["load"] = {{"skippedPrimitives",
-                      {{"points", report.skippedPointPrimitives}, {"lines", report.skippedLinePrimitives}}},
-                     {"warnings", report.warnings}};
+    stats["load"] = {
+        {"skippedPrimitives", {{"points", report.skippedPointPrimitives}, {"lines", report.skippedLinePrimitives}}},
+        {"warnings", report.warnings}};
     stats["frames"] = nlohmann::json::array();
     return stats;
 }
@@ -108,10 +108,10 @@ void addUpdateJson(nlohmann::json& fj, const session::FrameState& frame) {
                     {"refit", update.refitMeshes.size()},
                     {"rebuilt", update.rebuiltMeshes.size()},
                     {"instanceSetChanged", update.instanceSetChanged}};
-    fj["accel"] = {{"blasRebuilt", a.blasRebuilt},           {"blasRebuiltForQuality", a.blasRebuiltForQuality},
-                   {"blasRepadded", a.blasRepadded},         {"blasRefit", a.blasRefit},
-                   {"blasReused", a.blasReused},             {"worstRefitDegradation", a.worstRefitDegradation},
-                   {"tlasBuilds", a.tlasBuilds},             {"tlasUpdates", a.tlasUpdates},
+    fj["accel"] = {{"blasRebuilt", a.blasRebuilt},      {"blasRebuiltForQuality", a.blasRebuiltForQuality},
+                   {"blasRepadded", a.blasRepadded},    {"blasRefit", a.blasRefit},
+                   {"blasReused", a.blasReused},        {"worstRefitDegradation", a.worstRefitDegradation},
+                   {"tlasBuilds", a.tlasBuilds},        {"tlasUpdates", a.tlasUpdates},
                    {"instancesMoved", a.instancesMoved}};
 }
 
@@ -121,7 +121,8 @@ void addWorkJson(nlohmann::json& fj, const session::FrameSession& s, const shade
     const tracer::TraceCounters& c = frame.counters;
     fj["rays"] = nlohmann::json::object();
     for (std::uint32_t t = 0; t < shaders::kRayTypeCount; ++t)
-        fj["rays"][std::string(shaders::rayTypeName(t))] = {{"traced", c.rays[t]}, {"hits", c.hits[t]}, {"misses", c.misses[t]}};
+        fj["rays"][std::string(shaders::rayTypeName(t))] = {
+            {"traced", c.rays[t]}, {"hits", c.hits[t]}, {"misses", c.misses[t]}};
     if (plan.has(shaders::Pass::PathTrace)) {
         nlohmann::json vertices = nlohmann::json::array();
         for (std::size_t d = 0; d < frame.pathVertices.size(); ++d)
@@ -133,9 +134,14 @@ void addWorkJson(nlohmann::json& fj, const session::FrameSession& s, const shade
     }
     if (plan.has(shaders::Pass::GlobalIllumination) && plan.gi == shaders::GiTechnique::Ddgi) {
         const shaders::DdgiUpdateStats& d = frame.ddgi;
-        fj["ddgi"] = {{"probes", {{"active", d.activeProbes}, {"relocating", d.relocatingProbes},
-                                  {"inside", d.insideProbes}, {"idle", d.idleProbes}, {"traced", d.tracedProbes},
-                                  {"moved", d.movedProbes}, {"offset", d.offsetProbes}}},
+        fj["ddgi"] = {{"probes",
+                       {{"active", d.activeProbes},
+                        {"relocating", d.relocatingProbes},
+                        {"inside", d.insideProbes},
+                        {"idle", d.idleProbes},
+                        {"traced", d.tracedProbes},
+                        {"moved", d.movedProbes},
+                        {"offset", d.offsetProbes}}},
                       {"rays", d.rays},
                       {"misses", d.misses},
                       {"backfaceHits", d.backfaceHits}};
@@ -246,7 +252,8 @@ int runRender(const session::FrameOptions& o) {
         writePng(base.string() + ".png", out.image);
         if (out.ddgiAtlas.width() > 0) writeExr(base.string() + "_ddgi.exr", out.ddgiAtlas, ExrPixelType::Float);
         nlohmann::json heatmap;
-        if (s.rtcore()) heatmap = writeHeatmaps(base, o.width, o.height, out.primaryRayPixels, s.rtcore()->primaryRays());
+        if (s.rtcore())
+            heatmap = writeHeatmaps(base, o.width, o.height, out.primaryRayPixels, s.rtcore()->primaryRays());
 
         // Step: the frame's stats; everything outside "timing" and "measured" is deterministic.
         nlohmann::json fj;
@@ -276,7 +283,8 @@ int runRender(const session::FrameOptions& o) {
         mismatches += fj["rtcore"]["verify"]["mismatches"].get<std::uint64_t>();
         verified += fj["rtcore"]["verify"]["rays"].get<std::uint64_t>();
     }
-    std::cerr << "rtlab: verify: " << verified << " rays traced on rtcore and embree, " << mismatches << " mismatch(es)\n";
+    std::cerr << "rtlab: verify: " << verified << " rays traced on rtcore and embree, " << mismatches
+              << " mismatch(es)\n";
     // A mismatch is the model's bug, not the input's: internal error.
     return mismatches > 0 ? static_cast<int>(ExitCode::Internal) : 0;
 }

@@ -62,9 +62,11 @@ std::uint32_t rayTypeMask(const std::string& list) {
 }  // namespace
 
 void addReplayCommand(CLI::App& app, ReplayOptions& o) {
-    CLI::App* cmd = app.add_subcommand("replay", "Trace recorded rays again without shading (docs/ray-trace-format.md)");
+    CLI::App* cmd =
+        app.add_subcommand("replay", "Trace recorded rays again without shading (docs/ray-trace-format.md)");
     addFrameOptions(*cmd, o.frame, session::kUseReplay, true);
-    cmd->add_option("--rays", o.rays, "A .rays file, or a directory of them (rtlab render --record-rays DIR)")->required();
+    cmd->add_option("--rays", o.rays, "A .rays file, or a directory of them (rtlab render --record-rays DIR)")
+        ->required();
     cmd->add_option("--ray-types", o.rayTypes,
                     "all, or the recorded batches of these ray types only: primary,shadow,reflection,ao,gi,"
                     "translucency,pathBounce")
@@ -81,8 +83,8 @@ int runReplay(const ReplayOptions& options) {
         study::RayTraceFile file = study::RayTraceFile::read(path);
         const std::uint32_t frame = file.header().frame;
         if (byFrame.count(frame))
-            throw InputError(path.string(), "frame " + std::to_string(frame) + " is also in " +
-                                                byFrame.at(frame).path().string());
+            throw InputError(path.string(),
+                             "frame " + std::to_string(frame) + " is also in " + byFrame.at(frame).path().string());
         byFrame.emplace(frame, std::move(file));
     }
     std::error_code ec;
@@ -151,8 +153,8 @@ int runReplay(const ReplayOptions& options) {
     }
     progress("");
     writeTextFileAtomically(std::filesystem::path(o.out) / "stats.json", stats.dump(2) + "\n");
-    std::cerr << "rtlab: replayed " << replayed << " rays of " << byFrame.size() << " frame(s) on " << o.backend
-              << ", " << differing << " hit(s) differ from the recording; wrote " << o.out << "/stats.json\n";
+    std::cerr << "rtlab: replayed " << replayed << " rays of " << byFrame.size() << " frame(s) on " << o.backend << ", "
+              << differing << " hit(s) differ from the recording; wrote " << o.out << "/stats.json\n";
     return differing > 0 ? 1 : 0;
 }
 

@@ -15,9 +15,10 @@
 namespace rtlab::app {
 
 void addSweepCommand(CLI::App& app, SweepOptions& o) {
-    CLI::App* cmd = app.add_subcommand(
-        "sweep", "Run a study: every point (workload x RT-core overrides) once, resumable; under mpirun, "
-                 "distributed (docs/studies.md)");
+    CLI::App* cmd =
+        app.add_subcommand("sweep",
+                           "Run a study: every point (workload x RT-core overrides) once, resumable; under mpirun, "
+                           "distributed (docs/studies.md)");
     cmd->add_option("study", o.study, "STUDY.json")->required();
     cmd->add_option("--out", o.out, "Result directory (rerun with the same DIR to resume)")->required();
     cmd->add_option("--jobs", o.jobs, "Points rendered at once on this machine")
@@ -30,8 +31,9 @@ namespace {
 // Ctrl-C / SIGTERM: say how to resume, then die of the signal as before
 // (the renders die with the sweep; complete points are kept).
 void onInterrupt(int sig) {
-    static const char message[] = "\nrtlab: sweep interrupted: complete points are kept; rerun the same command "
-                                  "to resume\n";
+    static const char message[] =
+        "\nrtlab: sweep interrupted: complete points are kept; rerun the same command "
+        "to resume\n";
     const ssize_t ignored = write(STDERR_FILENO, message, sizeof message - 1);
     (void)ignored;
     raise(sig);  // the handler was reset (SA_RESETHAND): the default action now
@@ -85,10 +87,10 @@ int runSweep(const SweepOptions& o) {
     const int code = study::runSweep(options);
     if (study::launcherRank() != 0) return code;  // MPI workers: rank 0 reports
     progress("");
-    if (code == 0) std::cerr << "rtlab: sweep: results in " << (std::filesystem::path(o.out) / "results.csv").string()
-                             << " (rtlab report " << o.out << " for plots)\n";
-    else
-        std::cerr << "rtlab: sweep: some points failed (see above); rerun the same command to retry them\n";
+    if (code == 0)
+        std::cerr << "rtlab: sweep: results in " << (std::filesystem::path(o.out) / "results.csv").string()
+                  << " (rtlab report " << o.out << " for plots)\n";
+    else std::cerr << "rtlab: sweep: some points failed (see above); rerun the same command to retry them\n";
     return code;
 }
 

@@ -10,12 +10,12 @@ namespace rtlab {
 vec3 falseColour(float value, float scaleMax) {
     // Stops in display (sRGB) space, evenly spaced over [0, scaleMax].
     static constexpr std::array<std::array<float, 3>, 7> kStops{{{0.f, 0.f, 0.f},
-                                                                  {0.1f, 0.15f, 0.85f},
-                                                                  {0.f, 0.8f, 0.9f},
-                                                                  {0.1f, 0.85f, 0.2f},
-                                                                  {1.f, 0.9f, 0.1f},
-                                                                  {0.95f, 0.15f, 0.05f},
-                                                                  {1.f, 1.f, 1.f}}};
+                                                                 {0.1f, 0.15f, 0.85f},
+                                                                 {0.f, 0.8f, 0.9f},
+                                                                 {0.1f, 0.85f, 0.2f},
+                                                                 {1.f, 0.9f, 0.1f},
+                                                                 {0.95f, 0.15f, 0.05f},
+                                                                 {1.f, 1.f, 1.f}}};
     if (!std::isfinite(value) || !(scaleMax > 0.f)) return vec3(0.f);
     const float x = std::clamp(value / scaleMax, 0.f, 1.f) * float(kStops.size() - 1);
     const std::size_t i = std::min(static_cast<std::size_t>(x), kStops.size() - 2);

@@ -377,8 +377,8 @@ Kernel1d normalisedSignedKernel(const std::vector<double>& values, int radius) {
 FlipFilters makeFilters(double pixelsPerDegree) {
     FlipFilters filters;
     // CSFs: common radius from the widest Gaussian.
-    const int csfRadius = static_cast<int>(
-        std::ceil(3.0 * std::sqrt(kCsfWidestB / (2.0 * kPiDouble * kPiDouble)) * pixelsPerDegree));
+    const int csfRadius =
+        static_cast<int>(std::ceil(3.0 * std::sqrt(kCsfWidestB / (2.0 * kPiDouble * kPiDouble)) * pixelsPerDegree));
     filters.csf[0] = makeCsfFilter(kCsfAchromatic, csfRadius, pixelsPerDegree);
     filters.csf[1] = makeCsfFilter(kCsfRedGreen, csfRadius, pixelsPerDegree);
     filters.csf[2] = makeCsfFilter(kCsfBlueYellow, csfRadius, pixelsPerDegree);
@@ -490,9 +490,9 @@ public:
     LdrFlipEvaluator(int width, int height, const FlipOptions& options)
         : width_(width), height_(height), filters_(makeFilters(options.pixelsPerDegree)) {
         const std::size_t count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-        for (Plane* plane : {&opponent_[0], &opponent_[1], &opponent_[2], &luminance_, &filtered_[0], &filtered_[1],
-                             &filtered_[2], &rows_, &secondTerm_, &gaussianRows_, &edgeRows_, &pointRows_, &edgeX_,
-                             &edgeY_, &pointX_, &pointY_})
+        for (Plane* plane :
+             {&opponent_[0], &opponent_[1], &opponent_[2], &luminance_, &filtered_[0], &filtered_[1], &filtered_[2],
+              &rows_, &secondTerm_, &gaussianRows_, &edgeRows_, &pointRows_, &edgeX_, &edgeY_, &pointX_, &pointY_})
             plane->resize(count);
         for (PerceivedImage* image : {&test_, &reference_}) {
             image->huntLab.resize(count);
@@ -600,8 +600,7 @@ void validate(const char* function, const std::vector<vec3>& test, const std::ve
     if (test.size() != expected || reference.size() != expected)
         throw std::invalid_argument(name + ": a " + std::to_string(width) + "x" + std::to_string(height) +
                                     " image needs " + std::to_string(expected) + " pixels, got test " +
-                                    std::to_string(test.size()) + " and reference " +
-                                    std::to_string(reference.size()));
+                                    std::to_string(test.size()) + " and reference " + std::to_string(reference.size()));
     if (!(options.pixelsPerDegree > 0.0 && options.pixelsPerDegree <= kMaxPixelsPerDegree))
         throw std::invalid_argument(name + ": pixelsPerDegree must be in (0, 100000], got " +
                                     std::to_string(options.pixelsPerDegree));

@@ -54,7 +54,8 @@ float* Image::addChannel(const std::string& name, float fill) {
     auto& data = channels_.back().data;
     data.resize(count);  // uninitialised
     parallelForChunks(count, kPixelChunk, [&](std::size_t begin, std::size_t end) {
-        std::fill(data.begin() + static_cast<std::ptrdiff_t>(begin), data.begin() + static_cast<std::ptrdiff_t>(end), fill);
+        std::fill(data.begin() + static_cast<std::ptrdiff_t>(begin), data.begin() + static_cast<std::ptrdiff_t>(end),
+                  fill);
     });
     return data.data();
 }
@@ -295,7 +296,8 @@ double ssim(const std::vector<float>& x, const std::vector<float>& y, int width,
     for (std::size_t i = 0; i < n; ++i) {
         const double vx = std::max(0.0, sxx[i] - mx[i] * mx[i]), vy = std::max(0.0, syy[i] - my[i] * my[i]);
         const double cov = sxy[i] - mx[i] * my[i];
-        sum += ((2.0 * mx[i] * my[i] + c1) * (2.0 * cov + c2)) / ((mx[i] * mx[i] + my[i] * my[i] + c1) * (vx + vy + c2));
+        sum +=
+            ((2.0 * mx[i] * my[i] + c1) * (2.0 * cov + c2)) / ((mx[i] * mx[i] + my[i] * my[i] + c1) * (vx + vy + c2));
     }
     return sum / double(n);
 }

@@ -166,7 +166,7 @@ vec3 fromSrgb8(int r, int g, int b) {
 }
 
 // Tableau-style categorical palette (grey and olive left out: grey is the grid's).
-constexpr int kPaletteSrgb8[8][3] = {{31, 119, 180}, {255, 127, 14},  {44, 160, 44},   {214, 39, 40},
+constexpr int kPaletteSrgb8[8][3] = {{31, 119, 180},  {255, 127, 14}, {44, 160, 44},   {214, 39, 40},
                                      {148, 103, 189}, {140, 86, 75},  {227, 119, 194}, {23, 190, 207}};
 
 const vec3 kBackground = fromSrgb8(255, 255, 255);
@@ -282,7 +282,8 @@ public:
 
 private:
     PixelRect boundsOf(glm::dvec2 lo, glm::dvec2 hi) const {
-        return {std::max(0, static_cast<int>(std::floor(lo.x)) - 1), std::max(0, static_cast<int>(std::floor(lo.y)) - 1),
+        return {std::max(0, static_cast<int>(std::floor(lo.x)) - 1),
+                std::max(0, static_cast<int>(std::floor(lo.y)) - 1),
                 std::min(width_ - 1, static_cast<int>(std::ceil(hi.x)) + 1),
                 std::min(height_ - 1, static_cast<int>(std::ceil(hi.y)) + 1)};
     }
@@ -299,10 +300,10 @@ private:
                 float& cell = coverage_[static_cast<std::size_t>(y) * width_ + x];
                 cell = std::max(cell, coverage);
             }
-        touched_ = touched_.empty() ? bounds
-                                    : PixelRect{std::min(touched_.left, bounds.left), std::min(touched_.top, bounds.top),
-                                                std::max(touched_.right, bounds.right),
-                                                std::max(touched_.bottom, bounds.bottom)};
+        touched_ = touched_.empty()
+                       ? bounds
+                       : PixelRect{std::min(touched_.left, bounds.left), std::min(touched_.top, bounds.top),
+                                   std::max(touched_.right, bounds.right), std::max(touched_.bottom, bounds.bottom)};
     }
 
     template <class Visit>
@@ -375,7 +376,7 @@ bool isLabelled(int exponent, int stride) { return ((exponent % stride) + stride
 constexpr int kMinWidth = 200;
 constexpr int kMinHeight = 150;
 constexpr int kMinPlotSide = 32;
-constexpr double kMinGridSpacing = 6.0;   // pixels between decade grid lines, else only labelled ones
+constexpr double kMinGridSpacing = 6.0;    // pixels between decade grid lines, else only labelled ones
 constexpr double kMinMinorSpacing = 40.0;  // pixels per decade needed for minor ticks at 2..9
 
 // Sizes derived from the text scale s.
@@ -652,7 +653,8 @@ PixelRect drawLegend(Canvas& canvas, const Layout& layout, const std::vector<Plo
     const int rightX = area.right - inset - boxWidth + 1;
     const int topY = area.top + inset;
     const int bottomY = area.bottom - inset - boxHeight + 1;
-    const std::array<std::array<int, 2>, 4> corners = {{{rightX, topY}, {leftX, topY}, {leftX, bottomY}, {rightX, bottomY}}};
+    const std::array<std::array<int, 2>, 4> corners = {
+        {{rightX, topY}, {leftX, topY}, {leftX, bottomY}, {rightX, bottomY}}};
     PixelRect best;
     double bestInk = 0.0;
     for (const auto& [left, top] : corners) {
@@ -680,8 +682,7 @@ PixelRect drawLegend(Canvas& canvas, const Layout& layout, const std::vector<Plo
         const double centreY = rowTop + rowHeight / 2 - m.gap / 2 + 0.5;
         const double swatchLeft = best.left + padding + 0.5;
         const double swatchRight = swatchLeft + swatchWidth - 1;
-        if (!series[s].markersOnly)
-            swatch.addSegment({swatchLeft, centreY}, {swatchRight, centreY}, m.lineHalfWidth);
+        if (!series[s].markersOnly) swatch.addSegment({swatchLeft, centreY}, {swatchRight, centreY}, m.lineHalfWidth);
         swatch.addMarker({std::floor((swatchLeft + swatchRight) / 2) + 0.5, centreY}, kMarkerShapes[s % 3],
                          m.markerRadius);
         swatch.compositeOnto(canvas, plotSeriesColour(s));
@@ -696,10 +697,10 @@ PixelRect drawLegend(Canvas& canvas, const Layout& layout, const std::vector<Plo
 void drawLabels(Canvas& canvas, const Layout& layout, const PlotOptions& options) {
     const PlotFrame& frame = layout.frame;
     const int scale = frame.textScale;
-    if (!layout.title.empty()) canvas.text(layout.title, frame.titleArea.left, frame.titleArea.top, layout.titleScale, kInk);
+    if (!layout.title.empty())
+        canvas.text(layout.title, frame.titleArea.left, frame.titleArea.top, layout.titleScale, kInk);
     if (!options.xLabel.empty()) {
-        const int centred =
-            (frame.plotArea.left + frame.plotArea.right + 1 - textWidth(options.xLabel, scale)) / 2;
+        const int centred = (frame.plotArea.left + frame.plotArea.right + 1 - textWidth(options.xLabel, scale)) / 2;
         canvas.text(options.xLabel, std::max(layout.metrics.margin, centred), layout.xLabelTop, scale, kInk);
     }
     if (!options.yLabel.empty()) canvas.text(options.yLabel, layout.metrics.margin, layout.yLabelTop, scale, kInk);

@@ -44,7 +44,8 @@ struct Layout {
         return static_cast<std::size_t>(height + 2 * top) * static_cast<std::size_t>(stride) + kLanes;
     }
     std::size_t at(int x, int y) const {
-        return static_cast<std::size_t>(y + top) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(margin + x);
+        return static_cast<std::size_t>(y + top) * static_cast<std::size_t>(stride) +
+               static_cast<std::size_t>(margin + x);
     }
     bool operator==(const Layout&) const = default;
     // Taps up to 2 * maxStep pixels away. Steps with 2 * step <= fastReach
@@ -83,15 +84,16 @@ void forEachRow(const Layout& l, F&& f) {
 struct GuidePlanes {
     Layout layout;
     std::vector<float> depth, nx, ny, nz, gradX, gradY;  // normals of unit length
-    std::vector<float> geometry;  // 1 on geometry, 0 on sky and in the margins
-    std::vector<float> footprint; // per-pixel reach in pixels; empty = unlimited
+    std::vector<float> geometry;                         // 1 on geometry, 0 on sky and in the margins
+    std::vector<float> footprint;                        // per-pixel reach in pixels; empty = unlimited
 
     // Fills the planes from the guides; reuses the allocations of a previous call.
     void assign(const GuideBuffers& g, const std::vector<vec2>& grad, std::span<const float> footprintPx,
                 const Layout& l) {
         const bool relayout = !(l == layout);
         layout = l;
-        for (std::vector<float>* plane : {&depth, &nx, &ny, &nz, &gradX, &gradY, &geometry}) fitPlane(*plane, l, relayout);
+        for (std::vector<float>* plane : {&depth, &nx, &ny, &nz, &gradX, &gradY, &geometry})
+            fitPlane(*plane, l, relayout);
         forEachRow(l, [&](int, int, std::size_t k, std::size_t i) {
             const bool sky = g.isSky(i);
             geometry[k] = sky ? 0.f : 1.f;
@@ -149,12 +151,12 @@ struct TapRow {
     const float *nx, *ny, *nz, *depth, *gradX, *gradY, *geometry, *footprint, *lum, *var, *red, *green, *blue;
     float *outR, *outG, *outB, *outVar, *outLum;
     int w, h, y, step, stride;
-    int x0, x1;          // the run: pixels [x0, x1), x0 a multiple of the vector width, at most kRun
-    std::size_t row;     // plane index of the row's pixel 0
-    float normalScale;   // sigmaN log2(e) 2^23 (the centre's normal is scaled by it)
-    float bias;          // 127 2^23 - normalScale: the weight's bits are bias + n.n' normalScale - depth and luminance terms
-    float gradScale;     // sigmaZ * step
-    float planeScale;    // step with AtrousParams::depthFromPlane, else 0: the centre's depth moves along its gradient
+    int x0, x1;         // the run: pixels [x0, x1), x0 a multiple of the vector width, at most kRun
+    std::size_t row;    // plane index of the row's pixel 0
+    float normalScale;  // sigmaN log2(e) 2^23 (the centre's normal is scaled by it)
+    float bias;  // 127 2^23 - normalScale: the weight's bits are bias + n.n' normalScale - depth and luminance terms
+    float gradScale;   // sigmaZ * step
+    float planeScale;  // step with AtrousParams::depthFromPlane, else 0: the centre's depth moves along its gradient
     float depthEps;
     float sigmaL, luminanceEps;
 };
@@ -217,18 +219,19 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                 sum = sum + kw * simd::loadu<N>(t.var + j);
                 weight = weight + kw;
             }
-        const V blurred = simd::select<N>(weight > 0.f, sum / simd::select<N>(weight > 0.f, weight, simd::splat<N>(1.f)),
-                                          simd::splat<N>(0.f));
+        const V blurred = simd::select<N>(
+            weight > 0.f, sum / simd::select<N>(weight > 0.f, weight, simd::splat<N>(1.f)), simd::splat<N>(0.f));
         const V lumDen = sqrtNonNegative<N>(blurred) * t.sigmaL + t.luminanceEps;
         // Finite, so that equal luminances give the term 0 (0 * inf would be NaN).
-        cILs[v] = simd::select<N>(lumDen > 0.f, simd::min<N>(simd::splat<N>(kLog2e * kExpUnit) / lumDen, simd::splat<N>(3e38f)),
+        cILs[v] = simd::select<N>(lumDen > 0.f,
+                                  simd::min<N>(simd::splat<N>(kLog2e * kExpUnit) / lumDen, simd::splat<N>(3e38f)),
                                   simd::splat<N>(3e38f));
         // The depth term's reciprocal denominators log2(e) 2^23 / max(sigmaZ |grad . offset| + eps |z|, 1e-30)
         // for the 12 offsets (kx, ky) with ky > 0 or ky = 0 < kx (the other 12 are their negatives).
         const V gA = simd::loadu<N>(t.gradX + i) * t.gradScale, gB = simd::loadu<N>(t.gradY + i) * t.gradScale;
         const V gA2 = gA + gA, gB2 = gB + gB;
         const V eps = simd::abs<N>(simd::loadu<N>(t.depth + i)) * t.depthEps;
-        const V along[12] = {gA,       gA2,      gB - gA2, gB - gA, gB,      gB + gA,
+        const V along[12] = {gA,       gA2,       gB - gA2, gB - gA, gB,       gB + gA,
                              gB + gA2, gB2 - gA2, gB2 - gA, gB2,     gB2 + gA, gB2 + gA2};
         for (int k = 0; k < 12; ++k) {
             const V den = simd::abs<N>(along[k]) + eps;
@@ -257,8 +260,8 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
           sB = cB * hCentre;
         // A tap's kernel weight h = m 2^-k (m 1 or 3/2) is folded into the bits: 2^-k as k 2^23 less,
         // exact except that weights below 2^-(127-k) become 0.
-        const auto tap = [&](std::ptrdiff_t offset, const V& rz, const V& bias, bool threeHalves, const V& expectedDepth)
-                             __attribute__((always_inline)) {
+        const auto tap = [&](std::ptrdiff_t offset, const V& rz, const V& bias, bool threeHalves,
+                             const V& expectedDepth) __attribute__((always_inline)) {
             const std::size_t j = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(i) + offset);
             const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
             const V eZ = simd::abs<N>(expectedDepth - simd::loadu<N>(t.depth + j)) * rz;
@@ -266,7 +269,7 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
             // The terms are >= 0 and finite or +inf: never NaN. Unit normals keep n.n' <= 1 up to
             // round-off, so the bits stay below those of 2^-k * (1 + 1e-5): no upper clamp.
             const V bits = simd::max<N>((dot + bias) - (eZ + eL), zero);
-            V hw = (V)__builtin_convertvector(bits, VI);
+            V hw = (V) __builtin_convertvector(bits, VI);
             if constexpr (GateSky) hw = hw * simd::loadu<N>(t.geometry + j);
             if (threeHalves) hw = hw * 1.5f;
             sW = sW + hw;
@@ -277,8 +280,8 @@ RTLAB_SIMD_INLINE void filterRow(const TapRow& t) {
                 sB = sB + hw * simd::loadu<N>(t.blue + j);
             }
         };
-        constexpr int kOffsets[12][2] = {{1, 0},  {2, 0},  {-2, 1}, {-1, 1}, {0, 1}, {1, 1},
-                                         {2, 1},  {-2, 2}, {-1, 2}, {0, 2},  {1, 2}, {2, 2}};
+        constexpr int kOffsets[12][2] = {{1, 0}, {2, 0},  {-2, 1}, {-1, 1}, {0, 1}, {1, 1},
+                                         {2, 1}, {-2, 2}, {-1, 2}, {0, 2},  {1, 2}, {2, 2}};
 #pragma GCC unroll 12
         for (int k = 0; k < 12; ++k) {
             const int kx = kOffsets[k][0], ky = kOffsets[k][1], ax = kx < 0 ? -kx : kx;
@@ -326,10 +329,12 @@ void filterRowOfWidth(const TapRow& t, bool avx2) {
 
 void filterRowAny(const TapRow& t, bool avx2, bool gateSky, bool checked, bool grey) {
     if (grey) {
-        if (gateSky) checked ? filterRowOfWidth<true, true, true>(t, avx2) : filterRowOfWidth<true, false, true>(t, avx2);
+        if (gateSky)
+            checked ? filterRowOfWidth<true, true, true>(t, avx2) : filterRowOfWidth<true, false, true>(t, avx2);
         else checked ? filterRowOfWidth<false, true, true>(t, avx2) : filterRowOfWidth<false, false, true>(t, avx2);
     } else {
-        if (gateSky) checked ? filterRowOfWidth<true, true, false>(t, avx2) : filterRowOfWidth<true, false, false>(t, avx2);
+        if (gateSky)
+            checked ? filterRowOfWidth<true, true, false>(t, avx2) : filterRowOfWidth<true, false, false>(t, avx2);
         else checked ? filterRowOfWidth<false, true, false>(t, avx2) : filterRowOfWidth<false, false, false>(t, avx2);
     }
 }
@@ -349,12 +354,39 @@ void iterate(const GuidePlanes& g, const SignalPlanes& in, int step, const Atrou
     const float sigmaL = p.sigmaL > 0.f ? p.sigmaL : 0.f;
     const float lumEps = p.luminanceEpsilon > 0.f ? p.luminanceEpsilon : 0.f;
     const float depthEps = p.depthEpsilon > 0.f ? p.depthEpsilon : 0.f;
-    const TapRow common{g.nx.data(), g.ny.data(), g.nz.data(), g.depth.data(), g.gradX.data(), g.gradY.data(),
-                        g.geometry.data(), g.footprint.empty() ? nullptr : g.footprint.data(), in.luminance.data(),
-                        in.variance.data(), in.r.data(), in.g.data(), in.b.data(), out.r.data(), out.g.data(),
-                        out.b.data(), out.variance.data(), out.luminance.data(), l.width, l.height, 0, step,
-                        l.stride, 0, 0, 0, normalScale, bias, sigmaZ * static_cast<float>(step),
-                        p.depthFromPlane ? static_cast<float>(step) : 0.f, depthEps, sigmaL, lumEps};
+    const TapRow common{g.nx.data(),
+                        g.ny.data(),
+                        g.nz.data(),
+                        g.depth.data(),
+                        g.gradX.data(),
+                        g.gradY.data(),
+                        g.geometry.data(),
+                        g.footprint.empty() ? nullptr : g.footprint.data(),
+                        in.luminance.data(),
+                        in.variance.data(),
+                        in.r.data(),
+                        in.g.data(),
+                        in.b.data(),
+                        out.r.data(),
+                        out.g.data(),
+                        out.b.data(),
+                        out.variance.data(),
+                        out.luminance.data(),
+                        l.width,
+                        l.height,
+                        0,
+                        step,
+                        l.stride,
+                        0,
+                        0,
+                        0,
+                        normalScale,
+                        bias,
+                        sigmaZ * static_cast<float>(step),
+                        p.depthFromPlane ? static_cast<float>(step) : 0.f,
+                        depthEps,
+                        sigmaL,
+                        lumEps};
     // One task per kRowGroup rows y0 + k step: consecutive ones share 4 of their 5 tap rows, so
     // the runs of kRun pixels of the group's rows, filtered one after the other, find the shared
     // taps in L1/L2 (one row after the other, the tap rows of steps >= 4 fell out of L2 between
@@ -427,9 +459,8 @@ void atrousIteration(const GuideBuffers& g, std::span<const vec3> color, std::sp
 }
 
 void atrousFilter(const GuideBuffers& g, std::span<const vec3> color, std::span<const float> variance,
-                  const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
-                  int tapIterations, std::span<vec3> tapColor, std::span<const float> footprintPx,
-                  AtrousWorkspace* workspace) {
+                  const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut, int tapIterations,
+                  std::span<vec3> tapColor, std::span<const float> footprintPx, AtrousWorkspace* workspace) {
     AtrousWorkspace local;
     AtrousWorkspace::Buffers& w = *(workspace ? workspace : &local)->buffers_;
     const std::vector<vec2>& grad = detail::gradientOf(g, w.gradient);

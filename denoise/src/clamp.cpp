@@ -138,7 +138,8 @@ void clampHistory(int width, int height, std::span<const vec3> current, std::spa
     if (!historyLength.empty()) detail::checkSize(historyLength.size(), n, "clampHistory: historyLength");
     if (params.mode == HistoryClampMode::None) return;
     // No pixel with a history (a first frame): nothing to clamp, no window statistics.
-    if (!historyLength.empty() && std::none_of(historyLength.begin(), historyLength.end(), [](float l) { return l > 0.f; }))
+    if (!historyLength.empty() &&
+        std::none_of(historyLength.begin(), historyLength.end(), [](float l) { return l > 0.f; }))
         return;
     const int radius = std::clamp(params.radius, 0, 16);
     const double k = params.k > 0.f ? params.k : 0.0;

@@ -15,7 +15,7 @@ struct SignalLayer {
     std::string layer;  // "gi" (RGB) or "ao.V" (one channel)
     bool scalar = false;
     DenoiseStack stack = DenoiseStack::Svgf;
-    std::string footprintSource;  // shadows: the penumbra channel
+    std::string footprintSource;    // shadows: the penumbra channel
     bool demodulateAlbedo = false;  // filter colour / albedo.RGB, then multiply back (texture stays sharp)
 };
 
@@ -79,13 +79,12 @@ std::vector<float> footprintOf(const Image& frame, const SignalLayer& s, const G
                                    params);
         case DenoiseStack::Reflection:
             return reflectionFootprint(w, h, channelSpan(frame, "roughness.Y", "roughness"),
-                                       channelSpan(frame, "reflection.hitT", "hit distance"), pixelWorld,
-                                       guides.meshId, params);
+                                       channelSpan(frame, "reflection.hitT", "hit distance"), pixelWorld, guides.meshId,
+                                       params);
         case DenoiseStack::AmbientOcclusion:
-            return aoFootprint(w, h, channelSpan(frame, "ao.hitT", "hit distance"), channelSpan(frame, "ao.V", "visibility"),
-                               pixelWorld, guides.meshId, params);
-        case DenoiseStack::Svgf:
-            break;
+            return aoFootprint(w, h, channelSpan(frame, "ao.hitT", "hit distance"),
+                               channelSpan(frame, "ao.V", "visibility"), pixelWorld, guides.meshId, params);
+        case DenoiseStack::Svgf: break;
     }
     return {};
 }

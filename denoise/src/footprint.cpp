@@ -62,7 +62,10 @@ std::vector<float> surfacePixelWorld(std::span<const float> pixelWorld, std::spa
     std::vector<float> out(pixelWorld.size());
     detail::forEachIndex(out.size(), [&](std::size_t i) {
         const float pw = pixelWorld[i];
-        if (!(pw > 0.f) || !std::isfinite(pw)) { out[i] = pw; return; }
+        if (!(pw > 0.f) || !std::isfinite(pw)) {
+            out[i] = pw;
+            return;
+        }
         const vec2 g = depthGrad[i];
         const float slope2 = (g.x * g.x + g.y * g.y) / (pw * pw);
         const float tan2 = slope2 < kMaxTan2 ? slope2 : (std::isnan(slope2) ? 0.f : kMaxTan2);
@@ -108,10 +111,16 @@ std::vector<float> reflectionFootprint(int width, int height, std::span<const fl
     checkSizes(width, height, {roughness.size(), hitT.size(), pixelWorld.size(), meshId.size()});
     std::vector<float> px(roughness.size());
     detail::forEachIndex(px.size(), [&](std::size_t i) {
-        if (meshId[i] < 0) { px[i] = 0.f; return; }
+        if (meshId[i] < 0) {
+            px[i] = 0.f;
+            return;
+        }
         const float r = detail::clampNaNLow(roughness[i], 0.f, 1.f);
         const float alpha = r * r;
-        if (!(alpha > 0.f)) { px[i] = 0.f; return; }
+        if (!(alpha > 0.f)) {
+            px[i] = 0.f;
+            return;
+        }
         const float lobeWorld = hitT[i] > 0.f ? lobeScale * alpha * hitT[i] : kInfinity;
         px[i] = std::isinf(lobeWorld) ? params.maxPx : toPixels(lobeWorld, pixelWorld[i], params.maxPx);
     });

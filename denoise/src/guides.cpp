@@ -36,11 +36,17 @@ float axisDerivative(const GuideBuffers& g, std::size_t i, int x, int y, int dx,
     const int bx = x - dx, by = y - dy, fx = x + dx, fy = y + dy;
     if (bx >= 0 && by >= 0) {
         const std::size_t j = static_cast<std::size_t>(by) * g.width + bx;
-        if (g.meshId[j] == id) { haveBack = true; back = z - g.depth[j]; }
+        if (g.meshId[j] == id) {
+            haveBack = true;
+            back = z - g.depth[j];
+        }
     }
     if (fx < g.width && fy < g.height) {
         const std::size_t j = static_cast<std::size_t>(fy) * g.width + fx;
-        if (g.meshId[j] == id) { haveFwd = true; fwd = g.depth[j] - z; }
+        if (g.meshId[j] == id) {
+            haveFwd = true;
+            fwd = g.depth[j] - z;
+        }
     }
     float d = 0.f;
     if (haveBack && haveFwd) d = std::fabs(fwd) < std::fabs(back) ? fwd : back;

@@ -36,8 +36,7 @@ void demodulate(std::span<const vec3> color, std::span<const vec3> albedo, std::
     perPixel(color, albedo, out, epsilon, "demodulate", [](float c, float a) { return c / a; });
 }
 
-void remodulate(std::span<const vec3> illumination, std::span<const vec3> albedo, std::span<vec3> out,
-                float epsilon) {
+void remodulate(std::span<const vec3> illumination, std::span<const vec3> albedo, std::span<vec3> out, float epsilon) {
     perPixel(illumination, albedo, out, epsilon, "remodulate", [](float c, float a) { return c * a; });
 }
 

@@ -30,8 +30,7 @@ Reprojection reproject(const GuideBuffers& cur, const GuideBuffers& prev, const 
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {
         const vec2 pos = vec2(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f) + cur.motion[i];
         // Off screen (and NaN) -> no history.
-        if (!(pos.x >= 0.f && pos.x < static_cast<float>(w) && pos.y >= 0.f && pos.y < static_cast<float>(h)))
-            return;
+        if (!(pos.x >= 0.f && pos.x < static_cast<float>(w) && pos.y >= 0.f && pos.y < static_cast<float>(h))) return;
         const float qx = pos.x - 0.5f, qy = pos.y - 0.5f;
         const float fx0 = std::floor(qx), fy0 = std::floor(qy);
         const int x0 = static_cast<int>(fx0), y0 = static_cast<int>(fy0);

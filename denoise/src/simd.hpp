@@ -69,17 +69,17 @@ template <int N>
 RTLAB_SIMD_INLINE vfloat<N> exp2NonPositive(const vfloat<N>& f) {
     const vint<N> tooSmall = f < -126.f;
     const vfloat<N> fc = select<N>(tooSmall, splat<N>(-126.f), f);
-    const vfloat<N> shifted = fc + 0.5f;                      // <= 0.5
-    vint<N> i = __builtin_convertvector(shifted, vint<N>);    // truncation toward 0
+    const vfloat<N> shifted = fc + 0.5f;                    // <= 0.5
+    vint<N> i = __builtin_convertvector(shifted, vint<N>);  // truncation toward 0
     const vint<N> adjust = __builtin_convertvector(i, vfloat<N>) > shifted;
-    i += adjust;                                              // floor: true lanes are -1
+    i += adjust;  // floor: true lanes are -1
     const vfloat<N> t = fc - __builtin_convertvector(i, vfloat<N>);
-    vfloat<N> p = splat<N>(1.540353039e-4f);                  // ln2^6 / 6!
-    p = p * t + 1.333355815e-3f;                              // ln2^5 / 5!
-    p = p * t + 9.618129108e-3f;                              // ln2^4 / 4!
-    p = p * t + 5.550410866e-2f;                              // ln2^3 / 3!
-    p = p * t + 2.402265070e-1f;                              // ln2^2 / 2!
-    p = p * t + 6.931471806e-1f;                              // ln2
+    vfloat<N> p = splat<N>(1.540353039e-4f);  // ln2^6 / 6!
+    p = p * t + 1.333355815e-3f;              // ln2^5 / 5!
+    p = p * t + 9.618129108e-3f;              // ln2^4 / 4!
+    p = p * t + 5.550410866e-2f;              // ln2^3 / 3!
+    p = p * t + 2.402265070e-1f;              // ln2^2 / 2!
+    p = p * t + 6.931471806e-1f;              // ln2
     p = p * t + 1.f;
     const vint<N> bits = (i + 127) << 23;
     return select<N>(tooSmall, splat<N>(0.f), p * (vfloat<N>)bits);
@@ -151,8 +151,7 @@ RTLAB_SIMD_INLINE vfloat<N> depthTerm(const vfloat<N>& z, const vfloat<N>& zq, c
 
 // n . n' of two normals stored as x, y, z planes, at indices i and j.
 template <int N>
-RTLAB_SIMD_INLINE vfloat<N> normalDot(const float* nx, const float* ny, const float* nz, std::size_t i,
-                                      std::size_t j) {
+RTLAB_SIMD_INLINE vfloat<N> normalDot(const float* nx, const float* ny, const float* nz, std::size_t i, std::size_t j) {
     return loadu<N>(nx + i) * loadu<N>(nx + j) + loadu<N>(ny + i) * loadu<N>(ny + j) +
            loadu<N>(nz + i) * loadu<N>(nz + j);
 }

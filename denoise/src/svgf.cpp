@@ -118,9 +118,9 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     // everywhere would filter the same, on the a-trous passes' slower
     // per-pixel path.)
     std::span<const float> reach = footprintPx;
-    const bool anyLongMean = params_.convergeStatic && params_.staticReachExponent > 0.f &&
-                             std::any_of(staticLength_.begin(), staticLength_.end(),
-                                         [](float len) { return len > kStaticMinSamples; });
+    const bool anyLongMean =
+        params_.convergeStatic && params_.staticReachExponent > 0.f &&
+        std::any_of(staticLength_.begin(), staticLength_.end(), [](float len) { return len > kStaticMinSamples; });
     if (anyLongMean) {
         const float full = std::ldexp(1.f, std::clamp(params_.atrous.iterations, 0, 30));
         staticReach_.resize(n);
@@ -134,8 +134,8 @@ void SvgfFilter::filter(const GuideBuffers& current, std::span<const vec3> noisy
     }
     filteredVariance_.resize(n);
     tapColor_.resize(n);
-    atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_,
-                 params_.historyTap, tapColor_, reach, &atrousWorkspace_);
+    atrousFilter(curGuides_, reprojected_.color, variance_, params_.atrous, out, filteredVariance_, params_.historyTap,
+                 tapColor_, reach, &atrousWorkspace_);
     if (params_.convergeStatic) shrinkTowardStaticMean(w, h, out);
 
     // The next frame's history: the feedback-tap colour, the accumulated moments and lengths.
@@ -177,8 +177,9 @@ void SvgfFilter::shrinkTowardStaticMean(int w, int h, std::span<vec3> out) {
     // Per counted pixel once: M - F and the variance of its mean.
     shrinkTerms_.resize(n);
     detail::forEachIndex(n, [&](std::size_t i) {
-        shrinkTerms_[i] = counted(i) ? vec4(reprojected_.color[i] - out[i], momentsVariance(staticMoments_[i]) / staticLength_[i])
-                                     : vec4(0.f);
+        shrinkTerms_[i] =
+            counted(i) ? vec4(reprojected_.color[i] - out[i], momentsVariance(staticMoments_[i]) / staticLength_[i])
+                       : vec4(0.f);
     });
     shrunk_.resize(n);
     detail::forEachPixel(w, h, [&](int x, int y, std::size_t i) {

@@ -16,7 +16,9 @@ void HistoryBuffers::resize(int w, int h) {
 namespace {
 // x + a (y - x): exactly x when y == x (glm::mix's x(1-a) + ya is not).
 template <class T>
-T blend(const T& x, const T& y, float a) { return x + a * (y - x); }
+T blend(const T& x, const T& y, float a) {
+    return x + a * (y - x);
+}
 
 void checkHistory(const HistoryBuffers& h, const char* what) {
     const std::size_t n = detail::pixelCount(h.width, h.height);

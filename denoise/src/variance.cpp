@@ -76,10 +76,11 @@ RTLAB_SIMD_INLINE void accumulateMoments(const MomentRow& t) {
                 const V laneMask = simd::select<N>(inRow & (qx >= 0) & (qx < w), one, zero);
                 // j may lie up to radius before the row's first pixel: the planes' front padding.
                 const std::ptrdiff_t j = static_cast<std::ptrdiff_t>(rowQ) + x + dx;
-                const V dot = cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
+                const V dot =
+                    cx * simd::loadu<N>(t.nx + j) + cy * simd::loadu<N>(t.ny + j) + cz * simd::loadu<N>(t.nz + j);
                 const V eZ = simd::abs<N>(z - simd::loadu<N>(t.depth + j)) * rZ[kOffset];
-                const V wgt = simd::expNegWeight<N>(eZ) * t.normalPower->apply<N>(dot) * simd::loadu<N>(t.geometry + j) *
-                              laneMask;
+                const V wgt = simd::expNegWeight<N>(eZ) * t.normalPower->apply<N>(dot) *
+                              simd::loadu<N>(t.geometry + j) * laneMask;
                 const V dev = simd::loadu<N>(t.mean + j) - mean;
                 s0 = s0 + wgt;
                 s1 = s1 + wgt * dev;
@@ -153,9 +154,26 @@ void estimateVariance(const GuideBuffers& g, const HistoryBuffers& acc, const Va
         if (activeBefore[w] == 0) return;
         const std::size_t padded = static_cast<std::size_t>(w) + simd::kMaxWidth;
         std::vector<float> s0(padded), s1(padded), s2(padded);
-        const MomentRow t{pixelVariance, mean, depth, geometry, nx, ny, nz, gx.data(), gy.data(), s0.data(), s1.data(),
-                          s2.data(), activeBefore.data(), w, h, y, radius, row,
-                          params.sigmaZ > 0.f ? params.sigmaZ : 0.f, params.depthEpsilon > 0.f ? params.depthEpsilon : 0.f,
+        const MomentRow t{pixelVariance,
+                          mean,
+                          depth,
+                          geometry,
+                          nx,
+                          ny,
+                          nz,
+                          gx.data(),
+                          gy.data(),
+                          s0.data(),
+                          s1.data(),
+                          s2.data(),
+                          activeBefore.data(),
+                          w,
+                          h,
+                          y,
+                          radius,
+                          row,
+                          params.sigmaZ > 0.f ? params.sigmaZ : 0.f,
+                          params.depthEpsilon > 0.f ? params.depthEpsilon : 0.f,
                           &normalPower};
         if (simd::preferredWidth() == 8) accumulateMomentsAvx2(t);
         else accumulateMoments<4>(t);

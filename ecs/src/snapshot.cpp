@@ -12,8 +12,8 @@ SceneSnapshot makeSnapshot(const World& world, FrameUpdate update) {
     s.textures = &world.textures();
     world.each<MeshInstance>([&](Entity e, const MeshInstance& inst) {
         const std::uint32_t id = inst.instanceId == MeshInstance::kAutomatic ? e.index : inst.instanceId;
-        s.instances.push_back(
-            {e, inst.mesh, world.instanceWorldFromObject(e), inst.mask, inst.flags, id & 0xffffffu, inst.hitGroupOffset});
+        s.instances.push_back({e, inst.mesh, world.instanceWorldFromObject(e), inst.mask, inst.flags, id & 0xffffffu,
+                               inst.hitGroupOffset});
     });
     // Stable order independent of component-store history.
     std::sort(s.instances.begin(), s.instances.end(),

@@ -40,9 +40,7 @@ void World::destroy(Entity e) {
 
 void World::markDirty(Entity e, DirtyKind kind) {
     switch (kind) {
-        case DirtyKind::Hierarchy:
-            hierarchyOrderValid_ = false;
-            [[fallthrough]];
+        case DirtyKind::Hierarchy: hierarchyOrderValid_ = false; [[fallthrough]];
         case DirtyKind::Transform: dirty_->transforms.insert(e.index); break;
         case DirtyKind::Instance:
             dirty_->instanceSet = true;
@@ -73,10 +71,8 @@ void World::deformMesh(MeshId id, const std::function<void(MeshAsset&)>& edit) {
     bool sameTopology = counts.size() == m.geometries.size();
     for (std::size_t i = 0; sameTopology && i < counts.size(); ++i)
         sameTopology = counts[i] == std::make_pair(m.geometries[i].positions.size(), m.geometries[i].indices.size());
-    if (sameTopology)
-        dirty_->refitMeshes.insert(id);
-    else
-        dirty_->rebuiltMeshes.insert(id);
+    if (sameTopology) dirty_->refitMeshes.insert(id);
+    else dirty_->rebuiltMeshes.insert(id);
 }
 
 void World::replaceMesh(MeshId id, MeshAsset mesh) {

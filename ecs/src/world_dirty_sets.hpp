@@ -32,10 +32,10 @@ private:
 };
 
 struct World::DirtySets {
-    DirtyIndexSet transforms;      // entity indices whose LocalTransform/Parent changed
-    DirtyIndexSet morphWeights;    // entity indices whose MorphWeights changed
-    DirtyIndexSet skins;           // entity indices whose Skin changed
-    DirtyIndexSet newInstances;    // entity indices that gained a MeshInstance
+    DirtyIndexSet transforms;    // entity indices whose LocalTransform/Parent changed
+    DirtyIndexSet morphWeights;  // entity indices whose MorphWeights changed
+    DirtyIndexSet skins;         // entity indices whose Skin changed
+    DirtyIndexSet newInstances;  // entity indices that gained a MeshInstance
     DirtyIndexSet refitMeshes;
     DirtyIndexSet rebuiltMeshes;
     std::vector<std::uint8_t> worldChanged;  // per entity index, this update (transform system output)

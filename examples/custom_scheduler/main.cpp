@@ -97,7 +97,8 @@ int main() {
     const Result fifo = renderWith("fifo", accel, scene);
     const Result mine = renderWith("nearestAddress", accel, scene);
     for (const Result* r : {&fifo, &mine})
-        std::printf("%-15s %10llu cycles, cache hit rate %.4f\n", r->stats["scheduler"]["policy"].get<std::string>().c_str(),
+        std::printf("%-15s %10llu cycles, cache hit rate %.4f\n",
+                    r->stats["scheduler"]["policy"].get<std::string>().c_str(),
                     (unsigned long long)r->stats["frame"]["cycles"].get<std::uint64_t>(),
                     r->stats["cache"]["hitRate"].get<double>());
     const bool identical = compareImages(mine.preview.image, fifo.preview.image).identical;

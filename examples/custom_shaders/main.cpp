@@ -105,7 +105,8 @@ int main() {
             const ecs::Geometry& g = (*scene.meshes)[c.instance->mesh].geometries[c.geometryIndex];
             const shaders::SurfacePoint s =
                 shaders::surfacePoint(scene, accel.instanceFacts(c.instanceIndex).normalFromObject, c, a);
-            const float light = 0.25f + 0.75f * std::max(0.f, glm::dot(s.shadingNormal, glm::normalize(vec3(-1, 2, 1))));
+            const float light =
+                0.25f + 0.75f * std::max(0.f, glm::dot(s.shadingNormal, glm::normalize(vec3(-1, 2, 1))));
             p.color = vec3((*scene.materials)[g.material].baseColor) * light;
             p.distance = c.rayTCurrent;
         };

@@ -21,12 +21,18 @@ constexpr std::uint32_t kSpatialSplitGeomIdMask = 0xffffffffu >> 5;
 // (fallback splits) before reaching it.
 constexpr unsigned kMaxBuildDepth = 40;
 
-Aabb toAabb(const RTCBounds& b) { return Aabb{vec3(b.lower_x, b.lower_y, b.lower_z), vec3(b.upper_x, b.upper_y, b.upper_z)}; }
+Aabb toAabb(const RTCBounds& b) {
+    return Aabb{vec3(b.lower_x, b.lower_y, b.lower_z), vec3(b.upper_x, b.upper_y, b.upper_z)};
+}
 
 RTCBounds toRtcBounds(const Aabb& b) {
     RTCBounds r{};
-    r.lower_x = b.lo.x; r.lower_y = b.lo.y; r.lower_z = b.lo.z;
-    r.upper_x = b.hi.x; r.upper_y = b.hi.y; r.upper_z = b.hi.z;
+    r.lower_x = b.lo.x;
+    r.lower_y = b.lo.y;
+    r.lower_z = b.lo.z;
+    r.upper_x = b.hi.x;
+    r.upper_y = b.hi.y;
+    r.upper_z = b.hi.z;
     return r;
 }
 
@@ -86,7 +92,8 @@ void* createLeaf(RTCThreadLocalAllocator alloc, const RTCBuildPrimitive* prims, 
 void splitPrimitive(const RTCBuildPrimitive* prim, unsigned axis, float position, RTCBounds* left, RTCBounds* right,
                     void* userPtr) {
     const auto& ctx = *static_cast<const BuildContext*>(userPtr);
-    const Aabb current{vec3(prim->lower_x, prim->lower_y, prim->lower_z), vec3(prim->upper_x, prim->upper_y, prim->upper_z)};
+    const Aabb current{vec3(prim->lower_x, prim->lower_y, prim->lower_z),
+                       vec3(prim->upper_x, prim->upper_y, prim->upper_z)};
     Aabb l, r;
     ctx.splitter->split(PrimitiveRef{prim->geomID & kSpatialSplitGeomIdMask, prim->primID}, current,
                         static_cast<int>(axis), position, l, r);
@@ -102,7 +109,8 @@ NodeRef flatten(const void* tempPtr, Bvh& bvh) {
         std::sort(refs.begin(), refs.end());
         refs.erase(std::unique(refs.begin(), refs.end()), refs.end());
         const auto index = static_cast<std::uint32_t>(bvh.leaves.size());
-        bvh.leaves.push_back(BvhLeaf{static_cast<std::uint32_t>(bvh.refs.size()), static_cast<std::uint32_t>(refs.size())});
+        bvh.leaves.push_back(
+            BvhLeaf{static_cast<std::uint32_t>(bvh.refs.size()), static_cast<std::uint32_t>(refs.size())});
         bvh.refs.insert(bvh.refs.end(), refs.begin(), refs.end());
         return NodeRef::leaf(index);
     }
@@ -145,7 +153,8 @@ bool finiteTriangle(const ecs::Geometry& g, std::size_t t) {
 }
 
 Triangle triangleOf(const ecs::Geometry& g, std::uint32_t t) {
-    return Triangle{{g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]], g.positions[g.indices[3 * t + 2]]}};
+    return Triangle{
+        {g.positions[g.indices[3 * t]], g.positions[g.indices[3 * t + 1]], g.positions[g.indices[3 * t + 2]]}};
 }
 
 // A leaf slot's data: the triangle's vertices, or a procedural box's corners.
@@ -234,8 +243,12 @@ Bvh BvhBuilder::build(const std::vector<BuildPrimitive>& primitives, const Build
     for (std::size_t i = 0; i < primitives.size(); ++i) {
         const BuildPrimitive& p = primitives[i];
         RTCBuildPrimitive& r = prims[i];
-        r.lower_x = p.bounds.lo.x; r.lower_y = p.bounds.lo.y; r.lower_z = p.bounds.lo.z;
-        r.upper_x = p.bounds.hi.x; r.upper_y = p.bounds.hi.y; r.upper_z = p.bounds.hi.z;
+        r.lower_x = p.bounds.lo.x;
+        r.lower_y = p.bounds.lo.y;
+        r.lower_z = p.bounds.lo.z;
+        r.upper_x = p.bounds.hi.x;
+        r.upper_y = p.bounds.hi.y;
+        r.upper_z = p.bounds.hi.z;
         r.geomID = p.ref.geometry;
         r.primID = p.ref.primitive;
     }
@@ -330,7 +343,8 @@ Blas buildBlas(const BvhBuilder& builder, const ecs::MeshAsset& mesh, const BvhP
 
     // Step: the leaves' triangle data, in reference order.
     blas.triangles.reserve(blas.bvh.refs.size());
-    for (const PrimitiveRef& r : blas.bvh.refs) blas.triangles.push_back(leafSlotOf(mesh.geometries[r.geometry], r.primitive));
+    for (const PrimitiveRef& r : blas.bvh.refs)
+        blas.triangles.push_back(leafSlotOf(mesh.geometries[r.geometry], r.primitive));
     blas.buildSahCost = blas.bvh.sahCost(params.sahTraversalCost, params.sahIntersectionCost);
     blas.magnitude = tracer::maxAbsCoordinate(blas.bvh.rootBounds);
     return blas;
@@ -344,7 +358,8 @@ void refitBlas(Blas& blas, const ecs::MeshAsset& mesh) {
         sameTopology = (geo.procedural() ? 0 : geo.triangleCount()) == blas.triangleCounts[g] &&
                        (geo.procedural() ? geo.proceduralBoxes.size() : 0) == blas.proceduralCounts[g];
     }
-    if (!sameTopology) throw std::invalid_argument("refitBlas: mesh \"" + mesh.name + "\" changed topology; rebuild it");
+    if (!sameTopology)
+        throw std::invalid_argument("refitBlas: mesh \"" + mesh.name + "\" changed topology; rebuild it");
 
     Bvh& bvh = blas.bvh;
     if (bvh.empty()) return;
@@ -356,7 +371,8 @@ void refitBlas(Blas& blas, const ecs::MeshAsset& mesh) {
             const PrimitiveRef& r = bvh.refs[i];
             blas.triangles[i] = leafSlotOf(mesh.geometries[r.geometry], r.primitive);
             if (blas.isProcedural(r)) leafBounds[l].extend(blas.proceduralBox(i));
-            else for (const vec3& v : blas.triangles[i].v) leafBounds[l].extend(v);
+            else
+                for (const vec3& v : blas.triangles[i].v) leafBounds[l].extend(v);
         }
     }
     // Step: children before parents (pre-order), so walk the nodes backwards.

@@ -88,9 +88,10 @@ nlohmann::json checkParamValue(const ParamInfo& info, const nlohmann::json& valu
     switch (info.kind) {
         case ParamKind::Unsigned: {
             if (!value.is_number_integer()) fail(where, key, "must be an unsigned integer (got " + value.dump() + ")");
-            const std::int64_t v = value.is_number_unsigned() ? static_cast<std::int64_t>(std::min<std::uint64_t>(
-                                                                     value.get<std::uint64_t>(), INT64_MAX))
-                                                               : value.get<std::int64_t>();
+            const std::int64_t v =
+                value.is_number_unsigned()
+                    ? static_cast<std::int64_t>(std::min<std::uint64_t>(value.get<std::uint64_t>(), INT64_MAX))
+                    : value.get<std::int64_t>();
             if (!info.allowed.empty()) {
                 for (const nlohmann::json& a : info.allowed)
                     if (a.get<std::int64_t>() == v) return nlohmann::json(static_cast<std::uint32_t>(v));
@@ -98,7 +99,8 @@ nlohmann::json checkParamValue(const ParamInfo& info, const nlohmann::json& valu
             }
             if (double(v) < info.min || double(v) > info.max)
                 fail(where, key,
-                     "must be in [" + formatNumber(info.min) + ", " + formatNumber(info.max) + "] (got " + value.dump() + ")");
+                     "must be in [" + formatNumber(info.min) + ", " + formatNumber(info.max) + "] (got " +
+                         value.dump() + ")");
             return nlohmann::json(static_cast<std::uint32_t>(v));
         }
         case ParamKind::Real: {
@@ -106,7 +108,8 @@ nlohmann::json checkParamValue(const ParamInfo& info, const nlohmann::json& valu
             const double v = value.get<double>();
             if (!std::isfinite(v) || v < info.min || v > info.max)
                 fail(where, key,
-                     "must be in [" + formatNumber(info.min) + ", " + formatNumber(info.max) + "] (got " + value.dump() + ")");
+                     "must be in [" + formatNumber(info.min) + ", " + formatNumber(info.max) + "] (got " +
+                         value.dump() + ")");
             return nlohmann::json(static_cast<float>(v));
         }
         case ParamKind::Boolean:
@@ -136,13 +139,14 @@ const ParamTable<BvhParams>& bvhParamTable() {
         ParamTable<BvhParams> t;
         t.addUnsignedOneOf("width", &BvhParams::width, "children per internal BVH node (both levels)", {2, 4, 6, 8});
         t.addUnsigned("maxLeafSize", &BvhParams::maxLeafSize, "most triangles referenced by one BLAS leaf", 1, 32);
-        t.addUnsigned("tlasMaxLeafSize", &BvhParams::tlasMaxLeafSize, "most instances referenced by one TLAS leaf", 1, 32);
+        t.addUnsigned("tlasMaxLeafSize", &BvhParams::tlasMaxLeafSize, "most instances referenced by one TLAS leaf", 1,
+                      32);
         t.addChoice("buildQuality", &BvhParams::buildQuality,
                     "Embree builder: low = Morton, medium = binned SAH, high = SAH with spatial splits (rigid meshes)",
                     std::vector<std::pair<std::string, BuildQuality>>{
                         {"low", BuildQuality::Low}, {"medium", BuildQuality::Medium}, {"high", BuildQuality::High}});
-        t.addReal("sahTraversalCost", &BvhParams::sahTraversalCost, "SAH cost of one node traversal step, for the builder",
-                  0.001f, 1000.f);
+        t.addReal("sahTraversalCost", &BvhParams::sahTraversalCost,
+                  "SAH cost of one node traversal step, for the builder", 0.001f, 1000.f);
         t.addReal("sahIntersectionCost", &BvhParams::sahIntersectionCost,
                   "SAH cost of one primitive intersection, for the builder", 0.001f, 1000.f);
         t.addReal("refitRebuildThreshold", &BvhParams::refitRebuildThreshold,
@@ -160,7 +164,8 @@ const ParamTable<CoreParams>& coreParamTable() {
         t.addUnsigned("warpWidth", &CoreParams::warpWidth, "rays per warp the shader side submits at once", 1, 64);
         t.addUnsigned("inputQueueRays", &CoreParams::inputQueueRays,
                       "input queue capacity in rays (a warp enters only when all its rays fit)", 1, 65536);
-        t.addUnsigned("raySlots", &CoreParams::raySlots, "rays traversing at once, each with its own short stack", 1, 4096);
+        t.addUnsigned("raySlots", &CoreParams::raySlots, "rays traversing at once, each with its own short stack", 1,
+                      4096);
         t.addUnsigned("admitPerCycle", &CoreParams::admitPerCycle,
                       "rays moved from the input queue into free ray slots per cycle", 1, 64);
         t.addUnsigned("completionQueueRays", &CoreParams::completionQueueRays,
@@ -180,7 +185,8 @@ const ParamTable<SchedulerParams>& schedulerParamTable() {
                             "queues), treeletPrefetch (fifo + treelet prefetch into the L1, Chou et al. 2023) or a "
                             "policy registered with registerSchedulerPolicy",
                             &schedulerPolicyNames);
-        t.addUnsigned("issueWidth", &SchedulerParams::issueWidth, "traversal steps the scheduler issues per cycle", 1, 64);
+        t.addUnsigned("issueWidth", &SchedulerParams::issueWidth, "traversal steps the scheduler issues per cycle", 1,
+                      64);
         t.addUnsigned("treeletBytes", &SchedulerParams::treeletBytes,
                       "treelet policy: BVH memory per treelet (a treelet = an aligned block of this many bytes)", 64,
                       1u << 24);
@@ -199,8 +205,8 @@ const ParamTable<TraversalUnitParams>& traversalParamTable() {
         t.addUnsigned("units", &TraversalUnitParams::units, "box-test (traversal) units", 1, 64);
         t.addUnsigned("boxesPerCycle", &TraversalUnitParams::boxesPerCycle,
                       "child boxes one unit tests per cycle (a node occupies it ceil(children / this) cycles)", 1, 64);
-        t.addUnsigned("latency", &TraversalUnitParams::latency, "cycles from a node's last issue cycle to its result", 1,
-                      1000);
+        t.addUnsigned("latency", &TraversalUnitParams::latency, "cycles from a node's last issue cycle to its result",
+                      1, 1000);
         return t;
     }();
     return table;
@@ -212,7 +218,8 @@ const ParamTable<TriangleUnitParams>& triangleParamTable() {
         t.addUnsigned("units", &TriangleUnitParams::units,
                       "primitive intersection units (watertight triangle tests, procedural AABB tests)", 1, 64);
         t.addUnsigned("testsPerCycle", &TriangleUnitParams::testsPerCycle,
-                      "primitive tests one unit starts per cycle (a leaf occupies it ceil(tests / this) cycles)", 1, 64);
+                      "primitive tests one unit starts per cycle (a leaf occupies it ceil(tests / this) cycles)", 1,
+                      64);
         t.addUnsigned("latency", &TriangleUnitParams::latency, "cycles from a leaf's last issue cycle to its result", 1,
                       1000);
         return t;
@@ -303,11 +310,12 @@ const ParamTable<GpuParams>& gpuParamTable() {
                     "`cores` contiguous runs",
                     std::vector<std::pair<std::string, WarpDispatch>>{{"roundRobin", WarpDispatch::RoundRobin},
                                                                       {"contiguous", WarpDispatch::Contiguous}});
-        t.addChoice("rayOrder", &GpuParams::rayOrder,
-                    "ray reordering before warp formation: submission = as submitted; directionOrigin = stable sort "
-                    "by direction octant, then origin and direction Morton codes (src/policies/order_direction_origin.cpp)",
-                    std::vector<std::pair<std::string, RayOrder>>{{"submission", RayOrder::Submission},
-                                                                  {"directionOrigin", RayOrder::DirectionOrigin}});
+        t.addChoice(
+            "rayOrder", &GpuParams::rayOrder,
+            "ray reordering before warp formation: submission = as submitted; directionOrigin = stable sort "
+            "by direction octant, then origin and direction Morton codes (src/policies/order_direction_origin.cpp)",
+            std::vector<std::pair<std::string, RayOrder>>{{"submission", RayOrder::Submission},
+                                                          {"directionOrigin", RayOrder::DirectionOrigin}});
         return t;
     }();
     return table;

@@ -14,9 +14,8 @@ std::uint32_t ceilDiv(std::uint32_t a, std::uint32_t b) { return (a + b - 1) / b
 }  // namespace
 
 Core::Core(const RtCoreConfig& cfg, const ModelScene& s, const MemoryLayout& l, BatchState& b, SharedL2* l2)
-    : config(cfg), scene(s), layout(l), batch(b), cache(cfg.cache),
-      port(cfg.memory, l2, cfg.l2.hitLatency), boxUnits(cfg.traversal.units, cfg.traversal.latency),
-      triangleUnits(cfg.triangle.units, cfg.triangle.latency),
+    : config(cfg), scene(s), layout(l), batch(b), cache(cfg.cache), port(cfg.memory, l2, cfg.l2.hitLatency),
+      boxUnits(cfg.traversal.units, cfg.traversal.latency), triangleUnits(cfg.triangle.units, cfg.triangle.latency),
       transformUnits(cfg.transform.units, cfg.transform.latency), policy(makeSchedulerPolicy(cfg.scheduler)),
       slots(cfg.core.raySlots), inputQueueOcc(cfg.core.inputQueueRays), slotOcc(cfg.core.raySlots),
       readyOcc(cfg.core.raySlots), completionOcc(cfg.core.completionQueueRays) {
@@ -46,8 +45,7 @@ inline MemoryRange Core::stepRange(const StepInfo& st) const {
     switch (st.kind) {
         case StepKind::Instance: return layout.instance(st.index);
         case StepKind::TlasLeaf: return layout.tlasLeaf(scene.tlas().leaves[st.index], st.index);
-        case StepKind::BlasLeaf:
-            return layout.blasLeaf(st.mesh, scene.blas(st.mesh)->bvh.leaves[st.index], st.index);
+        case StepKind::BlasLeaf: return layout.blasLeaf(st.mesh, scene.blas(st.mesh)->bvh.leaves[st.index], st.index);
         case StepKind::Node: return st.tlas ? layout.tlasNode(st.index) : layout.blasNode(st.mesh, st.index);
     }
     return {};
@@ -140,7 +138,8 @@ void Core::resolveDeferred() {
     if (deferredReads.empty()) return;
     cache.resolve(deferredReads);
     for (const DeferredFetch& f : deferredFetches) {
-        const LineFill fetched = cache.evaluate(f.cycle, deferredReads.terms.data() + f.firstTerm, f.terms, deferredReads);
+        const LineFill fetched =
+            cache.evaluate(f.cycle, deferredReads.terms.data() + f.firstTerm, f.terms, deferredReads);
         fetchTimed(fetched, f.cycle);
         wheel.scheduleAt(fetched.ready, makeEvent(f.slot, kFetchDone), f.seq);
     }

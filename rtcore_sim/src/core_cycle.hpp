@@ -86,7 +86,7 @@ struct alignas(64) Core {
 
     // This core's share of the batch: its warps (indices into the batch) in order.
     std::vector<std::uint32_t> warps;
-    std::vector<std::uint32_t> warpRemaining;  // per entry of `warps`: rays not yet returned
+    std::vector<std::uint32_t> warpRemaining;                 // per entry of `warps`: rays not yet returned
     std::uint32_t rayCount = 0, submitted = 0, admitted = 0;  // positions in the core's ray sequence
     std::uint32_t delivered = 0;                              // rays returned
 
@@ -111,7 +111,7 @@ struct alignas(64) Core {
     DeferredReads deferredReads;
     std::vector<DeferredFetch> deferredFetches;
     std::uint64_t deferredReady = kNever;  // the earliest answer to deferredReads (once answered)
-    std::exception_ptr error;  // a side callback threw in a host-parallel epoch
+    std::exception_ptr error;              // a side callback threw in a host-parallel epoch
     std::uint64_t errorCycle = 0;
 
     Core(const RtCoreConfig& cfg, const ModelScene& s, const MemoryLayout& l, BatchState& b, SharedL2* l2);

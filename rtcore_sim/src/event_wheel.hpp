@@ -102,7 +102,9 @@ private:
         std::uint64_t cycle, entry;
     };
     struct Later {
-        bool operator()(const Far& a, const Far& b) const { return a.cycle != b.cycle ? a.cycle > b.cycle : a.entry > b.entry; }
+        bool operator()(const Far& a, const Far& b) const {
+            return a.cycle != b.cycle ? a.cycle > b.cycle : a.entry > b.entry;
+        }
     };
     // Entries of a bucket stay sorted by sequence number: new events append,
     // a deferred one is inserted at its place.
@@ -111,8 +113,7 @@ private:
         std::vector<std::uint64_t>& bucket = buckets_[b];
         if (bucket.empty() || bucket.back() < entry) [[likely]]
             bucket.push_back(entry);
-        else
-            bucket.insert(std::upper_bound(bucket.begin(), bucket.end(), entry), entry);
+        else bucket.insert(std::upper_bound(bucket.begin(), bucket.end(), entry), entry);
         bits_[b >> 6] |= std::uint64_t(1) << (b & 63);
         ++inWheel_;
     }

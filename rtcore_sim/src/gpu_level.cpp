@@ -87,8 +87,9 @@ void RtCore::Impl::simulate(bool parallel) {
     constexpr std::uint64_t kNever = Core::kNever;
     const std::size_t n = cores.size();
     const bool deferring = parallel && l2;
-    const std::uint64_t length =
-        !parallel ? 1 : deferring ? cores[0]->port.minReadLatency(config.cache.lineBytes) : kNever;
+    const std::uint64_t length = !parallel   ? 1
+                                 : deferring ? cores[0]->port.minReadLatency(config.cache.lineBytes)
+                                             : kNever;
     for (auto& core : cores) {
         core->visit = now;
         core->lastVisit = now;
@@ -221,19 +222,20 @@ void RtCore::Impl::mergeRayTypes() {
             w = RayTypeWork{};
         }
     }
-    mergeByCycle(cursor, [&](std::size_t k, std::size_t i) { return cores[k]->activity[i].cycle; },
-                 [&](std::size_t k) { return cores[k]->activity.size(); },
-                 [&](std::size_t k, std::size_t i) {
-                     const Activity& a = cores[k]->activity[i];
-                     RayTypeStats& r = batch.rayTypes[a.type];
-                     if (a.delta > 0) {
-                         if (r.inFlight == 0) r.activeSince = a.cycle;
-                         r.inFlight += static_cast<std::uint64_t>(a.delta);
-                     } else {
-                         r.inFlight -= static_cast<std::uint64_t>(-std::int64_t(a.delta));
-                         if (r.inFlight == 0) r.activeCycles += a.cycle - r.activeSince;
-                     }
-                 });
+    mergeByCycle(
+        cursor, [&](std::size_t k, std::size_t i) { return cores[k]->activity[i].cycle; },
+        [&](std::size_t k) { return cores[k]->activity.size(); },
+        [&](std::size_t k, std::size_t i) {
+            const Activity& a = cores[k]->activity[i];
+            RayTypeStats& r = batch.rayTypes[a.type];
+            if (a.delta > 0) {
+                if (r.inFlight == 0) r.activeSince = a.cycle;
+                r.inFlight += static_cast<std::uint64_t>(a.delta);
+            } else {
+                r.inFlight -= static_cast<std::uint64_t>(-std::int64_t(a.delta));
+                if (r.inFlight == 0) r.activeCycles += a.cycle - r.activeSince;
+            }
+        });
     for (auto& core : cores) core->activity.clear();
 }
 
@@ -247,8 +249,8 @@ void RtCore::Impl::run(std::span<const SimRay> rays, ProgrammableSide& programma
     if (rays.size() > UINT32_MAX / 2) throw std::invalid_argument("RtCore::run: batch too large");
     for (const SimRay& r : rays)
         if (r.rayType >= kMaxRayTypes)
-            throw std::invalid_argument("RtCore::run: rayType " + std::to_string(r.rayType) + " >= " +
-                                        std::to_string(kMaxRayTypes));
+            throw std::invalid_argument("RtCore::run: rayType " + std::to_string(r.rayType) +
+                                        " >= " + std::to_string(kMaxRayTypes));
     if (scene.generation() != layoutGeneration) {
         if (layoutGeneration != ~std::uint64_t(0)) {
             for (auto& core : cores) core->cache.invalidate();

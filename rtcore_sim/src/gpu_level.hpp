@@ -31,7 +31,7 @@ struct RtCore::Impl {
     std::unique_ptr<SharedL2> l2;  // l2 mode cache only
     std::vector<std::unique_ptr<Core>> cores;
     std::vector<std::size_t> cursor;  // scratch: per core, a position in its log (mergeByCycle)
-    struct alignas(64) L2Group {  // one host thread's share of answering L2 reads (answerL2Reads)
+    struct alignas(64) L2Group {      // one host thread's share of answering L2 reads (answerL2Reads)
         L2Counters counters;
         std::uint64_t stamp = 0;
         std::vector<std::uint64_t> ready;  // per core: the earliest answer to its reads

@@ -1,6 +1,5 @@
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -9,7 +8,6 @@ namespace rtlab::rtcore_sim {
 namespace {
 
 constexpr std::size_t kMaxMismatchExamples = 8;
-
 
 // The model's programmable side for one trace call: every candidate goes to
 // the tracer's CandidateFilter (culling, opacity, any-hit, intersection
@@ -116,9 +114,9 @@ nlohmann::json RtCoreBackend::statsJson() const {
     return j;
 }
 
-void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::TraceArgs& args,
-                          const tracer::RayDesc* rays, void* const* payloads, const bool* active, std::size_t count,
-                          std::uint32_t depth, tracer::CommittedHit* out, tracer::TraceCounters& counters) {
+void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
+                          void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
+                          tracer::CommittedHit* out, tracer::TraceCounters& counters) {
     if (tTracing == this)
         throw tracer::PipelineError("TraceRay called from an any-hit or intersection shader (not allowed by DXR)");
     const std::lock_guard lock(mutex_);
@@ -208,7 +206,8 @@ void RtCoreBackend::verifyBatch(const tracer::TraceEngine& engine, const tracer:
         if (!sameHit(model, embree, hitOnly)) {
             ++verifyStats_.mismatches;
             if (verifyStats_.examples.size() < kMaxMismatchExamples)
-                verifyStats_.examples.push_back(HitMismatch{args.rayContribution & 0xf, depth, rays[lane], model, embree});
+                verifyStats_.examples.push_back(
+                    HitMismatch{args.rayContribution & 0xf, depth, rays[lane], model, embree});
         } else if (!hitOnly) {
             if (!bitIdenticalHit(model, embree)) ++verifyStats_.notBitIdentical;
             if (model.hit)

@@ -39,7 +39,8 @@ std::vector<const SchedulerPolicyEntry*> schedulerPolicies() {
 
 void registerSchedulerPolicy(const SchedulerPolicyEntry& entry) {
     if (entry.name.empty()) throw std::invalid_argument("registerSchedulerPolicy: empty policy name");
-    if (!entry.create) throw std::invalid_argument("registerSchedulerPolicy: policy \"" + entry.name + "\" has no factory");
+    if (!entry.create)
+        throw std::invalid_argument("registerSchedulerPolicy: policy \"" + entry.name + "\" has no factory");
     const std::lock_guard<std::mutex> lock(registryMutex());
     for (const SchedulerPolicyEntry* p : registry())
         if (p->name == entry.name)

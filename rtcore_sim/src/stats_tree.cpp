@@ -66,10 +66,11 @@ nlohmann::json coreTreeJson(const CoreSnapshot& snap, const RtCoreConfig& config
                                     {"completionQueue", stats.completionQueue}};
     out["rays"] = std::move(raysJson);
 
-    out["submission"] = {{"warpWidth", config.core.warpWidth},
-                         {"warps", stats.warps},
-                         {"blockedCycles", {{"inputQueueFull", stats.inputQueueFull}}},
-                         {"inputQueue", {{"capacity", config.core.inputQueueRays}, {"occupancy", snap.inputQueueOcc.toJson()}}}};
+    out["submission"] = {
+        {"warpWidth", config.core.warpWidth},
+        {"warps", stats.warps},
+        {"blockedCycles", {{"inputQueueFull", stats.inputQueueFull}}},
+        {"inputQueue", {{"capacity", config.core.inputQueueRays}, {"occupancy", snap.inputQueueOcc.toJson()}}}};
     out["raySlots"] = {{"count", config.core.raySlots},
                        {"occupancy", snap.slotOcc.toJson()},
                        {"utilization", rate(snap.slotOcc.mean(), double(config.core.raySlots))},
@@ -97,9 +98,8 @@ nlohmann::json coreTreeJson(const CoreSnapshot& snap, const RtCoreConfig& config
     json transform = unitJson(snap.transform, config.transform.units);
     transform["transforms"] = stats.transforms;
     out["transformUnits"] = std::move(transform);
-    out["shader"] = {{"anyHitCalls", stats.anyHitCalls},
-                     {"intersectionCalls", stats.intersectionCalls},
-                     {"cycles", stats.shader}};
+    out["shader"] = {
+        {"anyHitCalls", stats.anyHitCalls}, {"intersectionCalls", stats.intersectionCalls}, {"cycles", stats.shader}};
     out["stack"] = {{"shortStackEntries", config.stack.shortStackEntries},
                     {"pushes", stats.pushes},
                     {"pops", stats.pops},
@@ -150,12 +150,13 @@ nlohmann::json coreTreeJson(const CoreSnapshot& snap, const RtCoreConfig& config
                        {"stackRefill", stats.stackRefill},
                        {"completionQueueFull", stats.completionBlocked},
                        {"completionQueue", stats.completionQueue}}}};
-    out["simd"] = {{"warps", stats.warpsCompleted},
-                   {"warpSteps", stats.warpSteps},
-                   {"raySteps", stats.raySteps},
-                   {"activeRaysPerWarpStep", stats.activeRaysPerWarpStep.toJson()},
-                   {"efficiency", rate(double(stats.raySteps), double(stats.warpLanes))},
-                   {"laneFill", rate(double(stats.raysCompleted), double(stats.warpsCompleted) * config.core.warpWidth)}};
+    out["simd"] = {
+        {"warps", stats.warpsCompleted},
+        {"warpSteps", stats.warpSteps},
+        {"raySteps", stats.raySteps},
+        {"activeRaysPerWarpStep", stats.activeRaysPerWarpStep.toJson()},
+        {"efficiency", rate(double(stats.raySteps), double(stats.warpLanes))},
+        {"laneFill", rate(double(stats.raysCompleted), double(stats.warpsCompleted) * config.core.warpWidth)}};
     return out;
 }
 
@@ -190,7 +191,8 @@ nlohmann::json RtCore::Impl::statsJson() const {
     }
     out["rayTypes"] = std::move(types);
 
-    out["gpu"] = {{"cores", n}, {"dispatch", toString(config.gpu.dispatch)}, {"rayOrder", toString(config.gpu.rayOrder)}};
+    out["gpu"] = {
+        {"cores", n}, {"dispatch", toString(config.gpu.dispatch)}, {"rayOrder", toString(config.gpu.rayOrder)}};
     json perCore = json::array();
     for (std::uint32_t k = 0; k < n; ++k) perCore.push_back(coreTreeJson(snaps[k], config, 1, cycles, batches));
     out["cores"] = std::move(perCore);
@@ -202,7 +204,8 @@ nlohmann::json RtCore::Impl::statsJson() const {
     dram["channels"] = config.dram.channels;
     dram["peakBytesPerCycle"] = std::uint64_t(config.dram.channels) * config.dram.bytesPerCycle;
     if (l2) {
-        const std::uint64_t bankBusy = std::accumulate(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end(), std::uint64_t(0));
+        const std::uint64_t bankBusy =
+            std::accumulate(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end(), std::uint64_t(0));
         const std::uint64_t bankMax = *std::max_element(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end());
         l2j["sizeBytes"] = config.l2.sizeBytes;
         l2j["banks"] = config.l2.banks;

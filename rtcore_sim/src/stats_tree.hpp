@@ -42,16 +42,20 @@ struct Activity {
 // Raw counters of one core; the GPU's aggregate is their sum over the cores.
 
 #define RTCORE_SIM_CORE_COUNTERS(X)                                                                                  \
-    X(warps) X(raysSubmitted) X(raysCompleted) X(inputQueue) X(scheduler) X(fetch) X(l2) X(dram) X(boxUnitWait)    \
-    X(boxUnit) X(triangleUnitWait) X(triangleUnit) X(transformUnitWait) X(transformUnit) X(shader) X(stackRefill)    \
-    X(completionBlocked) X(completionQueue) X(fetchBeyondHit) X(inputQueueFull) X(noFreeRaySlot)                     \
-    X(completionQueueFull) X(issued) X(issueCycles) X(nodes) X(boxes) X(leaves) X(triangleTestCount)                 \
-    X(proceduralTestCount) X(transforms) X(fetches) X(fetchBytes) X(anyHitCalls) X(intersectionCalls) X(pushes)      \
-    X(pops) X(spilledEntries) X(spillWrites) X(refills) X(refilledEntries) X(warpsCompleted) X(warpSteps)            \
-    X(warpLanes) X(raySteps)
-#define RTCORE_SIM_CORE_HISTOGRAMS(X)                                                                                \
-    X(latency) X(steps) X(nodeVisits) X(leafVisits) X(boxTests) X(triangleTests) X(proceduralTests)                  \
-    X(instanceTransitions) X(maxStackDepth) X(activeRaysPerWarpStep)
+    X(warps)                                                                                                         \
+    X(raysSubmitted)                                                                                                 \
+    X(raysCompleted) X(inputQueue) X(scheduler) X(fetch) X(l2) X(dram) X(boxUnitWait) X(boxUnit) X(triangleUnitWait) \
+        X(triangleUnit) X(transformUnitWait) X(transformUnit) X(shader) X(stackRefill) X(completionBlocked)          \
+            X(completionQueue) X(fetchBeyondHit) X(inputQueueFull) X(noFreeRaySlot) X(completionQueueFull) X(issued) \
+                X(issueCycles) X(nodes) X(boxes) X(leaves) X(triangleTestCount) X(proceduralTestCount) X(transforms) \
+                    X(fetches) X(fetchBytes) X(anyHitCalls) X(intersectionCalls) X(pushes) X(pops) X(spilledEntries) \
+                        X(spillWrites) X(refills) X(refilledEntries) X(warpsCompleted) X(warpSteps) X(warpLanes)     \
+                            X(raySteps)
+#define RTCORE_SIM_CORE_HISTOGRAMS(X)                                                                  \
+    X(latency)                                                                                         \
+    X(steps)                                                                                           \
+    X(nodeVisits) X(leafVisits) X(boxTests) X(triangleTests) X(proceduralTests) X(instanceTransitions) \
+        X(maxStackDepth) X(activeRaysPerWarpStep)
 
 struct CoreStats {
     // Ray latency breakdown (ray-cycles; the parts sum to the latencies): inputQueue, scheduler, fetch, l2, dram,
@@ -123,8 +127,7 @@ struct CoreSnapshot {
             nlohmann::json& mine = policyStats[key];
             if (key != "treeletBytes" && value.is_number_integer() && mine.is_number_integer())
                 mine = mine.get<std::uint64_t>() + value.get<std::uint64_t>();
-            else if (mine.is_null())
-                mine = value;
+            else if (mine.is_null()) mine = value;
         }
     }
 };

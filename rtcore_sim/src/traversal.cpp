@@ -44,7 +44,8 @@ inline bool slabTest(const Aabb& box, const vec3& origin, const vec3& invDirecti
 
 vec3 reciprocalDirection(const vec3& direction) { return vec3(1.f) / direction; }
 
-std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax) {
+std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin,
+                                  float tMax) {
     float tEntry;
     if (!slabTest(box, origin, invDirection, tMin, tMax, tEntry)) return std::nullopt;
     return tEntry;
@@ -75,9 +76,10 @@ void RayTraversal::begin(const ModelScene& scene, const SimRay& ray) {
     counters_ = TraversalCounters{};
     // Padding of TLAS boxes: the instances' magnitudes, and the origin's as
     // an instance transform may amplify the rounding of the object-space ray.
-    world_ = SpaceRay{ray.ray.origin, ray.ray.direction, reciprocalDirection(ray.ray.direction),
-                      tracer::conservativeBoxPadding(scene.tlasMagnitude(), 3.f * scene.tlasConditioning() *
-                                                                                tracer::maxAbsCoordinate(ray.ray.origin))};
+    world_ =
+        SpaceRay{ray.ray.origin, ray.ray.direction, reciprocalDirection(ray.ray.direction),
+                 tracer::conservativeBoxPadding(
+                     scene.tlasMagnitude(), 3.f * scene.tlasConditioning() * tracer::maxAbsCoordinate(ray.ray.origin))};
     object_ = world_;
     blas_ = nullptr;
     instanceIndex_ = 0;
@@ -121,12 +123,13 @@ void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo
         mesh_ = inst.mesh;
         info.mesh = mesh_;
         ++counters_.instanceTransitions;
-        const tracer::ObjectSpaceRay objectRay = tracer::toObjectSpace(inst.objectFromWorld, world_.origin, world_.direction);
+        const tracer::ObjectSpaceRay objectRay =
+            tracer::toObjectSpace(inst.objectFromWorld, world_.origin, world_.direction);
         object_.origin = objectRay.origin;
         object_.direction = objectRay.direction;
         object_.invDirection = reciprocalDirection(object_.direction);
-        object_.padding = blas_ ? tracer::conservativeBoxPadding(blas_->magnitude, tracer::maxAbsCoordinate(object_.origin))
-                                : 0.f;
+        object_.padding =
+            blas_ ? tracer::conservativeBoxPadding(blas_->magnitude, tracer::maxAbsCoordinate(object_.origin)) : 0.f;
         if (!blas_ || blas_->bvh.empty()) return selectNext(info);
         current_ = StackEntry{blas_->bvh.root.bits, current.tEntry, EntryKind::BlasRef};
         return;
@@ -182,7 +185,8 @@ void RayTraversal::step(ProgrammableSide& side, std::uint32_t rayIndex, StepInfo
             if ((ray_.ray.mask & scene_->instances()[index].mask) != 0) entered[enteredCount++] = index;
         }
         if (enteredCount == 0) return selectNext(info);
-        for (std::uint32_t k = enteredCount; k-- > 1;) push(StackEntry{entered[k], current.tEntry, EntryKind::Instance});
+        for (std::uint32_t k = enteredCount; k-- > 1;)
+            push(StackEntry{entered[k], current.tEntry, EntryKind::Instance});
         info.pushes = enteredCount - 1;
         current_ = StackEntry{entered[0], current.tEntry, EntryKind::Instance};
         return;
@@ -203,7 +207,8 @@ void RayTraversal::blasLeaf(const BvhLeaf& leaf, ProgrammableSide& side, std::ui
             ++info.primitiveTests;
             ++counters_.proceduralTests;
             float tEntry;
-            if (!slabTest(blas.proceduralBox(r), object_.origin, object_.invDirection, ray_.ray.tMin, tClosest_, tEntry))
+            if (!slabTest(blas.proceduralBox(r), object_.origin, object_.invDirection, ray_.ray.tMin, tClosest_,
+                          tEntry))
                 continue;
             const ProceduralVerdict v =
                 side.procedural(rayIndex, ProceduralCandidate{instanceIndex_, ref.geometry, ref.primitive, tClosest_});
@@ -246,8 +251,8 @@ void RayTraversal::blasLeaf(const BvhLeaf& leaf, ProgrammableSide& side, std::ui
         }
         if (v.commit) {
             tClosest_ = h->t;
-            hit_ = ModelHit{true, h->t, instanceIndex_, ref.geometry, ref.primitive, 1.f - h->b1 - h->b2, h->b1, h->b2,
-                            false};
+            hit_ = ModelHit{true,  h->t,  instanceIndex_, ref.geometry, ref.primitive, 1.f - h->b1 - h->b2,
+                            h->b1, h->b2, false};
         }
         if (v.endSearch) return endSearch();
     }

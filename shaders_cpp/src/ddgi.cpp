@@ -13,16 +13,16 @@ namespace rtlab::shaders {
 namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
-constexpr float kMaxCoordinate = 1e12f;    // bounds are clamped to +-this
-constexpr float kMaxQueryCoordinate = 1e15f;  // query positions are clamped to +-this
+constexpr float kMaxCoordinate = 1e12f;        // bounds are clamped to +-this
+constexpr float kMaxQueryCoordinate = 1e15f;   // query positions are clamped to +-this
 constexpr float kMaxRayDistanceLimit = 1e18f;  // so that d^2 stays finite in float
 constexpr int kMaxProbesPerAxis = 64;
 constexpr int kMaxTexels = 64;
 constexpr std::uint32_t kMaxRaysPerProbe = 65536;
 // The paper's query constants.
-constexpr float kBackfaceFloor = 0.2f;      // smooth back-face weight's additive floor
-constexpr float kMinProbeWeight = 1e-6f;    // before the crush
-constexpr float kCrushThreshold = 0.2f;     // weights below are crushed by w^3 / t^2
+constexpr float kBackfaceFloor = 0.2f;    // smooth back-face weight's additive floor
+constexpr float kMinProbeWeight = 1e-6f;  // before the crush
+constexpr float kCrushThreshold = 0.2f;   // weights below are crushed by w^3 / t^2
 
 [[noreturn]] void reject(const std::string& what) { throw std::invalid_argument("DdgiSettings: " + what); }
 
@@ -179,7 +179,8 @@ DdgiVolume::DdgiVolume(const Aabb& sceneBounds, const DdgiSettings& settings) : 
     viewBias_ = settings_.viewBias.value_or(0.18f * minSpacing);
     maxRayDistance_ = settings_.maxRayDistance.value_or(std::fmin(1.5f * glm::length(spacing_), kMaxRayDistanceLimit));
 
-    const std::size_t ti = static_cast<std::size_t>(irradianceTileSize()) * static_cast<std::size_t>(irradianceTileSize());
+    const std::size_t ti =
+        static_cast<std::size_t>(irradianceTileSize()) * static_cast<std::size_t>(irradianceTileSize());
     const std::size_t td = static_cast<std::size_t>(distanceTileSize()) * static_cast<std::size_t>(distanceTileSize());
     irradiance_.resize(ti * probeCount_);
     distance_.resize(td * probeCount_);
@@ -263,7 +264,8 @@ vec3 DdgiVolume::rayDirection(std::uint32_t /*probe*/, std::uint32_t ray, std::u
 }
 
 const vec3* DdgiVolume::irradianceTile(std::uint32_t probe) const {
-    const std::size_t t = static_cast<std::size_t>(irradianceTileSize()) * static_cast<std::size_t>(irradianceTileSize());
+    const std::size_t t =
+        static_cast<std::size_t>(irradianceTileSize()) * static_cast<std::size_t>(irradianceTileSize());
     return irradiance_.data() + t * std::min(probe, probeCount_ - 1);
 }
 
@@ -365,7 +367,8 @@ void DdgiVolume::update(std::span<const DdgiRayResult> results, std::uint32_t fr
             const Sample& s = samples[r];
             if (!s.valid || std::isinf(s.hitDistance)) continue;
             if (s.backface && s.hitDistance < closestBack) closestBack = s.hitDistance, backRay = static_cast<int>(r);
-            if (!s.backface && s.hitDistance < closestFront) closestFront = s.hitDistance, frontRay = static_cast<int>(r);
+            if (!s.backface && s.hitDistance < closestFront)
+                closestFront = s.hitDistance, frontRay = static_cast<int>(r);
             if (!surfaceNear) {
                 const vec3 hit = origin + rayDirs_[r] * s.hitDistance;
                 surfaceNear = glm::all(glm::greaterThanEqual(hit, influence.lo)) &&
@@ -393,7 +396,8 @@ void DdgiVolume::update(std::span<const DdgiRayResult> results, std::uint32_t fr
                     vec3 value(static_cast<float>(kPiD * sr / sw), static_cast<float>(kPiD * sg / sw),
                                static_cast<float>(kPiD * sb / sw));
                     if (invGamma != 1.f)
-                        value = vec3(std::pow(value.x, invGamma), std::pow(value.y, invGamma), std::pow(value.z, invGamma));
+                        value =
+                            vec3(std::pow(value.x, invGamma), std::pow(value.y, invGamma), std::pow(value.z, invGamma));
                     vec3& texel = irr[ddgiTileIndex(i + 1, j + 1, nIrr)];
                     texel = history ? texel * h + value * (1.f - h) : value;
                 }

@@ -23,13 +23,15 @@ std::size_t lightCount(const SceneFacts& f) { return f.areaLights + f.pointLight
 // Step: what each pass needs, and whether the scene has it.
 PlannedPass planGBuffer(const SceneFacts& f, const PlanOptions&) {
     return {Pass::GBuffer, true,
-            f.instances ? plural(f.instances, "instance") + " visible to primary rays" : "no geometry: primary rays all miss"};
+            f.instances ? plural(f.instances, "instance") + " visible to primary rays"
+                        : "no geometry: primary rays all miss"};
 }
 
 PlannedPass planAlphaMask(const SceneFacts& f, const PlanOptions&) {
     return {Pass::AlphaMask, f.maskedMaterials > 0,
-            f.maskedMaterials ? plural(f.maskedMaterials, "alpha-masked material") + ": any-hit alpha test on every ray type"
-                              : "no alpha-masked material: every ray is FORCE_OPAQUE, no any-hit shader"};
+            f.maskedMaterials
+                ? plural(f.maskedMaterials, "alpha-masked material") + ": any-hit alpha test on every ray type"
+                : "no alpha-masked material: every ray is FORCE_OPAQUE, no any-hit shader"};
 }
 
 PlannedPass planShadows(const SceneFacts& f, const PlanOptions&) {
@@ -83,8 +85,8 @@ PlannedPass planVolumes(const SceneFacts& f, const PlanOptions&) {
 // The path tracer is a ray workload for studies (the incoherent mix of
 // multi-bounce paths), not part of the real-time frame: only on request.
 PlannedPass planPathTrace(const SceneFacts& f, const PlanOptions& options) {
-    const bool asked = std::find(options.requested.begin(), options.requested.end(), Pass::PathTrace) !=
-                       options.requested.end();
+    const bool asked =
+        std::find(options.requested.begin(), options.requested.end(), Pass::PathTrace) != options.requested.end();
     if (!asked) return {Pass::PathTrace, false, "a ray workload for studies: only with --effects pathtrace"};
     return {Pass::PathTrace, f.instances > 0,
             f.instances ? "asked for: diffuse + glossy paths with next-event estimation, " +
@@ -100,20 +102,17 @@ constexpr std::array<EffectRow, kPassCount> kTable = {{
      planGBuffer, detail::runGBufferPass},
     {Pass::AlphaMask, "alpha", true, "", "(none: any-hit shaders on every ray type)", planAlphaMask, nullptr},
     {Pass::Shadows, "shadows", true, "shadow",
-     "direct.light<i>, shadow.light<i>.V / .penumbra per area light; direct.point or direct.pointPicked",
-     planShadows, detail::runShadowPass},
+     "direct.light<i>, shadow.light<i>.V / .penumbra per area light; direct.point or direct.pointPicked", planShadows,
+     detail::runShadowPass},
     {Pass::Reflections, "reflections", true, "reflection", "reflection, reflection.brdf, reflection.hitT",
      planReflections, detail::runReflectionPass},
-    {Pass::Translucency, "translucency", true, "svgf", "translucency", planTranslucency,
-     detail::runTranslucencyPass},
-    {Pass::AmbientOcclusion, "ao", true, "ao", "ao.V, ao.hitT", planAmbientOcclusion,
-     detail::runAmbientOcclusionPass},
+    {Pass::Translucency, "translucency", true, "svgf", "translucency", planTranslucency, detail::runTranslucencyPass},
+    {Pass::AmbientOcclusion, "ao", true, "ao", "ao.V, ao.hitT", planAmbientOcclusion, detail::runAmbientOcclusionPass},
     {Pass::GlobalIllumination, "gi", true, "svgf", "gi (irradiance, albedo demodulated)", planGlobalIllumination,
      detail::runDiffuseGiPass},
     {Pass::Volumes, "volumes", true, "svgf", "volume.inscatter, volume.transmittance", planVolumes,
      detail::runVolumePass},
-    {Pass::PathTrace, "pathtrace", true, "", "pathtrace (the whole estimate)", planPathTrace,
-     detail::runPathTracePass},
+    {Pass::PathTrace, "pathtrace", true, "", "pathtrace (the whole estimate)", planPathTrace, detail::runPathTracePass},
 }};
 
 bool keep(const EffectRow& row, EffectFilter filter) {

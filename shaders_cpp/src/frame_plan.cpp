@@ -50,15 +50,16 @@ FramePlan planFrame(const ecs::SceneSnapshot& scene, const PlanOptions& options)
     plan.reflectionMaxRoughness = options.reflectionMaxRoughness;
     plan.facts = sceneFacts(scene, options.reflectionMaxRoughness);
     // Step: each row's check: does the scene give the pass its inputs?
-    for (const EffectRow& row : effectTable()) plan.passes[static_cast<std::size_t>(row.pass)] = row.plan(plan.facts, options);
+    for (const EffectRow& row : effectTable())
+        plan.passes[static_cast<std::size_t>(row.pass)] = row.plan(plan.facts, options);
 
     // Step: --effects narrows the plan, never forces a pass without its inputs.
     if (!options.requested.empty()) {
         for (std::size_t i = 0; i < kPassCount; ++i) {
             const Pass p = static_cast<Pass>(i);
             if (p == Pass::GBuffer) continue;
-            const bool asked = std::find(options.requested.begin(), options.requested.end(), p) !=
-                               options.requested.end();
+            const bool asked =
+                std::find(options.requested.begin(), options.requested.end(), p) != options.requested.end();
             PlannedPass& pp = plan.passes[i];
             if (asked && !pp.planned)
                 plan.notes.push_back(std::string(passName(p)) + " requested but not planned: " + pp.reason);

@@ -46,11 +46,12 @@ void FrameHistory::record(const ecs::SceneSnapshot& scene) {
 
 void RenderSettings::validate() const {
     if (width < 1 || height < 1 || spp < 1 || maxTranslucencyDepth < 1 || pathMaxDepth < 0)
-        throw std::invalid_argument("RenderSettings: width, height, spp and maxTranslucencyDepth must be >= 1 and "
-                                    "pathMaxDepth >= 0 (got " + std::to_string(width) + "x" + std::to_string(height) +
-                                    ", spp " + std::to_string(spp) + ", maxTranslucencyDepth " +
-                                    std::to_string(maxTranslucencyDepth) + ", pathMaxDepth " +
-                                    std::to_string(pathMaxDepth) + ")");
+        throw std::invalid_argument(
+            "RenderSettings: width, height, spp and maxTranslucencyDepth must be >= 1 and "
+            "pathMaxDepth >= 0 (got " +
+            std::to_string(width) + "x" + std::to_string(height) + ", spp " + std::to_string(spp) +
+            ", maxTranslucencyDepth " + std::to_string(maxTranslucencyDepth) + ", pathMaxDepth " +
+            std::to_string(pathMaxDepth) + ")");
 }
 
 std::string_view rayTypeName(std::uint32_t rayType) {
@@ -143,7 +144,8 @@ void composeBeauty(Image& frame) {
 }
 
 std::vector<vec3> effectContribution(const Image& frame, const std::string& effect) {
-    static const std::array<std::string, 6> kEffects = {"volumes", "shadows", "reflections", "ao", "gi", "translucency"};
+    static const std::array<std::string, 6> kEffects = {"volumes", "shadows", "reflections",
+                                                        "ao",      "gi",      "translucency"};
     const auto which = std::find(kEffects.begin(), kEffects.end(), effect);
     if (which == kEffects.end()) throw std::invalid_argument("effectContribution: unknown effect '" + effect + "'");
     const std::size_t e = static_cast<std::size_t>(which - kEffects.begin());
@@ -153,7 +155,10 @@ std::vector<vec3> effectContribution(const Image& frame, const std::string& effe
     std::vector<vec3> out(n, vec3(0.f));
     parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
         for (std::size_t p = begin; p < end; ++p) {
-            if (e == 0) { out[p] = ComposeLayers::at(c.inscatter, p); continue; }
+            if (e == 0) {
+                out[p] = ComposeLayers::at(c.inscatter, p);
+                continue;
+            }
             if (!c.geometry(p)) continue;
             switch (e) {
                 case 1: out[p] = c.direct(p); break;

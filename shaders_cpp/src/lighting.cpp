@@ -209,8 +209,8 @@ LightSample sampleAreaLight(const ecs::LightSnapshot& l, const vec3& p, vec2 u) 
     const float sinTheta = std::sqrt(std::max(0.f, oneMinusCos * (2.f - oneMinusCos)));
     const float phi = 2.f * kPi * u.y;
     const Frame frame = makeFrame(d / dist);
-    s.direction = glm::normalize(
-        toWorld(frame, vec3(sinTheta * std::cos(phi), sinTheta * std::sin(phi), 1.f - oneMinusCos)));
+    s.direction =
+        glm::normalize(toWorld(frame, vec3(sinTheta * std::cos(phi), sinTheta * std::sin(phi), 1.f - oneMinusCos)));
     // Distance to the sphere along the sampled direction (nearest root; the centre for r = 0).
     const float b = glm::dot(d, s.direction);
     const float disc = b * b - (dist2 - r * r);
@@ -472,7 +472,8 @@ vec3 unshadowedAreaLight(const ecs::LightSnapshot& light, const ShadingPoint& sp
     if (cosineIntegral && !specular) return sum;
     const int side = std::max(1, static_cast<int>(std::sqrt(static_cast<float>(samples))));
     const vec2 jitter(sampleUniform(key, dimension), sampleUniform(key, dimension + 1));
-    if (cosineIntegral && light.light.type == ecs::LightType::Rect) return sum + sampledRectSpecular(light, sp, side, jitter);
+    if (cosineIntegral && light.light.type == ecs::LightType::Rect)
+        return sum + sampledRectSpecular(light, sp, side, jitter);
     vec3 sampled(0.f);
     for (int j = 0; j < side; ++j)
         for (int i = 0; i < side; ++i) {

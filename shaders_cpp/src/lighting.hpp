@@ -23,9 +23,9 @@ struct ShadingPoint {
     vec3 albedo{0.f};
     float roughness = 1.f;
     float metalness = 0.f;
-    float transmission = 0.f;  // scales the diffuse lobe by (1 - transmission)
-    float errorScale = 0.f;    // for ray offsets (rayOriginLeaving)
-    Frame frame;               // shading frame around `normal` (set by finishShadingPoint)
+    float transmission = 0.f;     // scales the diffuse lobe by (1 - transmission)
+    float errorScale = 0.f;       // for ray offsets (rayOriginLeaving)
+    Frame frame;                  // shading frame around `normal` (set by finishShadingPoint)
     vec3 woLocal{0.f, 0.f, 1.f};  // wo in that frame
 };
 // Sets the cached frame and local wo once the fields above are filled.
@@ -62,10 +62,10 @@ float specularLobePdf(const ShadingPoint& sp, const vec3& wi);
 
 // A point sampled on a light, seen from a surface point.
 struct LightSample {
-    vec3 direction{0.f};  // unit, from the surface to the light
-    float distance = 0.f; // to the sampled point (kInfinity for directional)
+    vec3 direction{0.f};        // unit, from the surface to the light
+    float distance = 0.f;       // to the sampled point (kInfinity for directional)
     vec3 radianceOverPdf{0.f};  // Le / pdf (solid angle) for area lights, I / d^2 for point lights
-    float pdf = 0.f;      // per solid angle for area lights; 0 for point/spot/directional (a delta)
+    float pdf = 0.f;            // per solid angle for area lights; 0 for point/spot/directional (a delta)
     bool valid = false;
 };
 // The shadow ray from surface point p (geometric normal ng) to the light

@@ -23,14 +23,11 @@ float srgb8ToLinear(std::uint8_t v) { return srgbToLinear(v / 255.f); }
 }  // namespace
 
 PinholeCamera::PinholeCamera(const ecs::CameraSnapshot& camera, int width, int height)
-    : origin_(vec3(camera.worldFromCamera[3])),
-      rotation_(mat3(camera.worldFromCamera)),
-      cameraFromWorld_(glm::inverse(camera.worldFromCamera)),
-      tanHalf_(std::tan(0.5f * camera.camera.yfov)),
+    : origin_(vec3(camera.worldFromCamera[3])), rotation_(mat3(camera.worldFromCamera)),
+      cameraFromWorld_(glm::inverse(camera.worldFromCamera)), tanHalf_(std::tan(0.5f * camera.camera.yfov)),
       aspect_(camera.camera.aspectRatio > 0.f ? camera.camera.aspectRatio
                                               : static_cast<float>(width) / static_cast<float>(height)),
-      width_(static_cast<float>(width)),
-      height_(static_cast<float>(height)) {}
+      width_(static_cast<float>(width)), height_(static_cast<float>(height)) {}
 
 CameraRay PinholeCamera::ray(float px, float py) const {
     const float sx = (2.f * px / width_ - 1.f) * tanHalf_ * aspect_;

@@ -13,7 +13,8 @@ namespace {
 // Closest-hit of radiance-like rays: the surface at the hit.
 void surfaceClosestHit(const RenderContext& ctx, const tracer::HitContext& hc, HitPayload& p,
                        const tracer::HitAttributes& attr) {
-    const SurfacePoint sp = surfacePoint(ctx.scene, ctx.accel.instanceFacts(hc.instanceIndex).normalFromObject, hc, attr);
+    const SurfacePoint sp =
+        surfacePoint(ctx.scene, ctx.accel.instanceFacts(hc.instanceIndex).normalFromObject, hc, attr);
     const ecs::Geometry& g = (*ctx.scene.meshes)[hc.instance->mesh].geometries[hc.geometryIndex];
     p.hit = true;
     p.t = hc.rayTCurrent;
@@ -47,8 +48,8 @@ GPixelBuffer::GPixelBuffer(std::size_t count)
 
 RenderContext::RenderContext(const tracer::AccelManager& accel_, const ecs::SceneSnapshot& scene_,
                              const FramePlan& plan_, const RenderSettings& settings_)
-    : accel(accel_), scene(scene_), plan(plan_), settings(settings_), width(settings_.width),
-      height(settings_.height), gbuffer(std::size_t(settings_.width) * std::size_t(settings_.height)) {
+    : accel(accel_), scene(scene_), plan(plan_), settings(settings_), width(settings_.width), height(settings_.height),
+      gbuffer(std::size_t(settings_.width) * std::size_t(settings_.height)) {
     if (plan.has(Pass::Volumes)) media = mediaOf(scene);
     // Step: the shader table — one record per (geometry slot, ray type).
     RtPipeline::Desc desc;
@@ -66,15 +67,13 @@ RenderContext::RenderContext(const tracer::AccelManager& accel_, const ecs::Scen
         const ecs::Material& m = material(g.material);
         const SurfacePoint sp = surfacePoint(scene, accel.instanceFacts(hc.instanceIndex).normalFromObject, hc, attr);
         return baseColorAt(m, *scene.textures, sp.uv).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
-                                                                         : tracer::AnyHitResult::Accept;
+                                                                        : tracer::AnyHitResult::Accept;
     };
     desc.hitGroups = tracer::buildMaterialShaderTable<HitPayload>(
         accel, scene, kRayTypeCount, [&](const ecs::Material& m, const ecs::Geometry&, std::uint32_t rayType) {
             RtPipeline::HitGroup group;
-            if (rayType == kRayShadow || rayType == kRayOcclusion)
-                group.closestHit = distanceOnly;
-            else
-                group.closestHit = closest;
+            if (rayType == kRayShadow || rayType == kRayOcclusion) group.closestHit = distanceOnly;
+            else group.closestHit = closest;
             // Any-hit only where the plan has the alpha pass and the material is masked.
             if (alpha && m.alphaMode == ecs::AlphaMode::Mask) group.anyHit = alphaTest;
             return group;
@@ -102,8 +101,8 @@ const ecs::Material& RenderContext::material(std::uint32_t id) const {
 }
 
 vec3 rayOriginLeaving(const vec3& position, const vec3& geometricNormal, const vec3& direction, float errorScale) {
-    return offsetRayOriginByError(position, glm::dot(direction, geometricNormal) >= 0.f ? geometricNormal : -geometricNormal,
-                                  errorScale);
+    return offsetRayOriginByError(
+        position, glm::dot(direction, geometricNormal) >= 0.f ? geometricNormal : -geometricNormal, errorScale);
 }
 
 vec3 cosineDirectionAbove(const vec3& n, const vec3& ng, vec2 u) {

@@ -18,23 +18,28 @@ namespace rtlab::shaders::detail {
 // Random-number streams. SampleKey::bounce carries the stream, so no two uses
 // in a frame share random numbers; dimensions restart at 0 in each stream.
 namespace stream {
-inline constexpr std::uint32_t kAreaLight = 0x100;         // + area-light index: light point (0, 1), unshadowed jitter (2, 3)
-inline constexpr std::uint32_t kPointLightPick = 0x200;    // importance pick among point lights (0); + 1 + j: point light j when every one is traced
+inline constexpr std::uint32_t kAreaLight = 0x100;  // + area-light index: light point (0, 1), unshadowed jitter (2, 3)
+inline constexpr std::uint32_t kPointLightPick =
+    0x200;  // importance pick among point lights (0); + 1 + j: point light j when every one is traced
 inline constexpr std::uint32_t kAmbientOcclusion = 0x300;  // direction (0, 1)
 inline constexpr std::uint32_t kGiBounce = 0x400;          // direction (0, 1)
-inline constexpr std::uint32_t kGiHit = 0x410;             // light pick and point at the GI hit (0, 1, 2), glossy lobe (3, 4)
-inline constexpr std::uint32_t kReflection = 0x500;        // visible normal (0, 1)
-inline constexpr std::uint32_t kReflectionHit = 0x510;     // at the reflection hit: specular-lobe direction (1, 2), light l's point (3 + 2l, 4 + 2l)
-inline constexpr std::uint32_t kTranslucency = 0x600;      // + event depth: Fresnel choice (0)
-inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;   // light at the opaque end (0, 1, 2), glossy lobe (3, 4)
-inline constexpr std::uint32_t kVolumeScatter = 0x700;     // distance, light pick, light point (0 .. 3)
-inline constexpr std::uint32_t kDdgiHit = 0x800;           // light at a probe ray's hit (0, 1, 2), glossy lobe (3, 4)
-inline constexpr std::uint32_t kPathBounce = 0x900;        // + path vertex: lobe choice (0), direction (1, 2)
-inline constexpr std::uint32_t kPathHit = 0xa00;           // + path vertex: light pick and point there (0, 1, 2), glossy lobe (3, 4)
+inline constexpr std::uint32_t kGiHit = 0x410;       // light pick and point at the GI hit (0, 1, 2), glossy lobe (3, 4)
+inline constexpr std::uint32_t kReflection = 0x500;  // visible normal (0, 1)
+inline constexpr std::uint32_t kReflectionHit =
+    0x510;  // at the reflection hit: specular-lobe direction (1, 2), light l's point (3 + 2l, 4 + 2l)
+inline constexpr std::uint32_t kTranslucency = 0x600;     // + event depth: Fresnel choice (0)
+inline constexpr std::uint32_t kTranslucencyHit = 0x6ff;  // light at the opaque end (0, 1, 2), glossy lobe (3, 4)
+inline constexpr std::uint32_t kVolumeScatter = 0x700;    // distance, light pick, light point (0 .. 3)
+inline constexpr std::uint32_t kDdgiHit = 0x800;          // light at a probe ray's hit (0, 1, 2), glossy lobe (3, 4)
+inline constexpr std::uint32_t kPathBounce = 0x900;       // + path vertex: lobe choice (0), direction (1, 2)
+inline constexpr std::uint32_t kPathHit =
+    0xa00;  // + path vertex: light pick and point there (0, 1, 2), glossy lobe (3, 4)
 // Fog transmittance along a ray of stream s: kTransmittance + 4 s + segment (dimensions 0 .. 255);
 // at hits: 0 the light's shadow ray, 1 the ray to the hit, 2 the lobe sample's shadow ray.
 inline constexpr std::uint32_t kTransmittance = 0x10000;
-constexpr std::uint32_t transmittance(std::uint32_t s, std::uint32_t segment = 0) { return kTransmittance + 4 * s + segment; }
+constexpr std::uint32_t transmittance(std::uint32_t s, std::uint32_t segment = 0) {
+    return kTransmittance + 4 * s + segment;
+}
 }  // namespace stream
 
 // What closest-hit reports: the surface at the committed hit (radiance-like
@@ -45,18 +50,18 @@ struct HitPayload {
     float t = 0.f;
     std::uint32_t instance = 0;
     std::uint32_t mesh = 0;
-    std::uint32_t entity = 0;    // entity index of the instance
-    std::uint32_t geometry = 0;  // geometry index in the mesh
-    std::uint32_t primitive = 0; // triangle index in the geometry
-    vec2 barycentrics{0.f};      // of the hit in that triangle (DXR: weights of vertices 1 and 2)
+    std::uint32_t entity = 0;     // entity index of the instance
+    std::uint32_t geometry = 0;   // geometry index in the mesh
+    std::uint32_t primitive = 0;  // triangle index in the geometry
+    vec2 barycentrics{0.f};       // of the hit in that triangle (DXR: weights of vertices 1 and 2)
     vec3 position{0.f};
-    vec3 geometricNormal{0.f};   // unit, facing the incoming ray
-    vec3 shadingNormal{0.f};     // unit, on the geometric normal's side
-    bool frontFace = true;       // the ray hit the side the geometric normal points to
+    vec3 geometricNormal{0.f};  // unit, facing the incoming ray
+    vec3 shadingNormal{0.f};    // unit, on the geometric normal's side
+    bool frontFace = true;      // the ray hit the side the geometric normal points to
     vec2 uv{0.f};
     std::uint32_t material = 0;
-    vec3 albedo{0.f};            // base colour at the hit (texture applied)
-    float errorScale = 0.f;      // max |coordinate| of the ray origin and the hit (offsetRayOriginByError)
+    vec3 albedo{0.f};        // base colour at the hit (texture applied)
+    float errorScale = 0.f;  // max |coordinate| of the ray origin and the hit (offsetRayOriginByError)
 };
 
 using RtPipeline = tracer::Pipeline<HitPayload>;
@@ -64,8 +69,8 @@ using RtPipeline = tracer::Pipeline<HitPayload>;
 // One pixel of the G-buffer.
 struct GPixel {
     bool hit = false;
-    float depth = 0.f;          // linear view z (distance along the camera's forward axis)
-    float t = 0.f;              // primary hit distance
+    float depth = 0.f;  // linear view z (distance along the camera's forward axis)
+    float t = 0.f;      // primary hit distance
     vec3 position{0.f};
     vec3 viewDir{0.f};          // unit, from the surface toward the camera
     vec3 normal{0.f};           // shading normal, facing the viewer
@@ -74,14 +79,14 @@ struct GPixel {
     vec3 emissive{0.f};
     float roughness = 1.f;
     float metalness = 0.f;
-    float transmission = 0.f;   // the material's transmission (0 opaque, 1 clear glass)
-    bool frontFace = true;      // the primary ray hit the side the geometric normal points to (entering)
+    float transmission = 0.f;  // the material's transmission (0 opaque, 1 clear glass)
+    bool frontFace = true;     // the primary ray hit the side the geometric normal points to (entering)
     std::uint32_t material = 0;
     std::uint32_t mesh = 0;
     std::uint32_t instance = 0;
-    vec2 motion{0.f};           // pixels: previous position - current position
-    float pixelWorld = 0.f;     // world-space width of the pixel at the hit (t x angle between neighbour rays)
-    float errorScale = 0.f;     // max |coordinate| of the camera and the hit (offsetRayOriginByError)
+    vec2 motion{0.f};        // pixels: previous position - current position
+    float pixelWorld = 0.f;  // world-space width of the pixel at the hit (t x angle between neighbour rays)
+    float errorScale = 0.f;  // max |coordinate| of the camera and the hit (offsetRayOriginByError)
 };
 
 // The G-buffer's pixels, default-constructed in parallel: a frame's largest
@@ -138,9 +143,9 @@ public:
     // sample at the primary hit, whose errors a spatial filter then averages.
     vec2 screenStratified2D(std::size_t pixel, std::uint32_t sample, std::uint32_t streamId) const {
         const std::size_t w = static_cast<std::size_t>(width > 0 ? width : 1);
-        return sampleScreenStratified2D(static_cast<std::uint32_t>(pixel % w), static_cast<std::uint32_t>(pixel / w), sample,
-                                        static_cast<std::uint32_t>(settings.spp),
-                                        key(pixel, sample, streamId), 0);
+        return sampleScreenStratified2D(static_cast<std::uint32_t>(pixel % w), static_cast<std::uint32_t>(pixel / w),
+                                        sample, static_cast<std::uint32_t>(settings.spp), key(pixel, sample, streamId),
+                                        0);
     }
 
 private:

@@ -103,10 +103,10 @@ void fillBorder(std::span<T> tile, int n) {
     const std::size_t w = static_cast<std::size_t>(n) + 2;
     auto at = [&](int x, int y) -> T& { return tile[static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x)]; };
     for (int k = 1; k <= n; ++k) {
-        at(k, 0) = at(n + 1 - k, 1);          // top edge
-        at(k, n + 1) = at(n + 1 - k, n);      // bottom edge
-        at(0, k) = at(1, n + 1 - k);          // left edge
-        at(n + 1, k) = at(n, n + 1 - k);      // right edge
+        at(k, 0) = at(n + 1 - k, 1);      // top edge
+        at(k, n + 1) = at(n + 1 - k, n);  // bottom edge
+        at(0, k) = at(1, n + 1 - k);      // left edge
+        at(n + 1, k) = at(n, n + 1 - k);  // right edge
     }
     at(0, 0) = at(n, n);
     at(n + 1, 0) = at(1, n);
@@ -306,7 +306,7 @@ vec2 specularBrdfIntegral(float NdotV, float roughness) {
 // -------------------------------------------------------------- geometry --
 
 vec3 offsetRayOrigin(vec3 p, vec3 ng) {
-    constexpr float kOrigin = 1.f / 32.f;        // below this |p|, use a float offset
+    constexpr float kOrigin = 1.f / 32.f;         // below this |p|, use a float offset
     constexpr float kFloatScale = 1.f / 65536.f;  // float offset per unit normal
     constexpr float kIntScale = 256.f;            // ULPs per unit normal
     const vec3 n = safeNormalize(ng, vec3(0.f));

@@ -49,7 +49,8 @@ const std::vector<Metric>& metrics() {
              for (const json& f : s["frames"]) {
                  if (!f.contains("rays") || !f["rays"].is_object()) return std::nullopt;
                  for (const auto& [type, counts] : f["rays"].items())
-                     if (counts.contains("traced") && counts["traced"].is_number()) sum += counts["traced"].get<double>();
+                     if (counts.contains("traced") && counts["traced"].is_number())
+                         sum += counts["traced"].get<double>();
              }
              return sum;
          }},

@@ -135,8 +135,7 @@ int work(const SweepOptions& options, const MpiSession& mpi) {
                 startPoint(options.executable, renderArguments(study, p, scratch.string(), threads), index, scratch);
             pid_t pid = -1;
             int exitCode = 1;
-            while (waitAny(pid, exitCode) && pid != running.pid) {
-            }
+            while (waitAny(pid, exitCode) && pid != running.pid) {}
             outcome = collectPoint(running, exitCode);
         } else {
             outcome.message = "rank " + std::to_string(mpi.rank) + " has no point " + text +

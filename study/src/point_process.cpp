@@ -29,7 +29,8 @@ std::string lastLine(const std::string& text) {
     std::size_t end = text.find_last_not_of("\r\n \t");
     if (end == std::string::npos) return {};
     const std::size_t begin = text.find_last_of('\n', end);
-    std::string line = text.substr(begin == std::string::npos ? 0 : begin + 1, end + 1 - (begin == std::string::npos ? 0 : begin + 1));
+    std::string line =
+        text.substr(begin == std::string::npos ? 0 : begin + 1, end + 1 - (begin == std::string::npos ? 0 : begin + 1));
     const std::size_t cr = line.find_last_of('\r');  // progress lines of a terminal
     return cr == std::string::npos ? line : line.substr(cr + 1);
 }

@@ -11,10 +11,10 @@
 namespace rtlab::study::detail {
 
 struct PointOutcome {
-    int exitCode = 1;          // the render's exit code; 128 + signal when killed
+    int exitCode = 1;  // the render's exit code; 128 + signal when killed
     double wallSeconds = 0.0;
-    std::string statsText;     // SCRATCH/stats.json when the render succeeded
-    std::string message;       // the last non-empty line of the render's output
+    std::string statsText;  // SCRATCH/stats.json when the render succeeded
+    std::string message;    // the last non-empty line of the render's output
 };
 
 struct RunningPoint {

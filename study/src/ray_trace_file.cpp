@@ -147,8 +147,8 @@ void RayTraceWriter::finish(const RayTraceInfo& info) {
     h.flags = info.anyHitShaders ? RayTraceHeader::kAnyHitShaders : 0;
     h.instanceCount = info.instanceCount;
     h.uniqueTriangles = info.uniqueTriangles;
-    const bool ok = std::fseek(file_, 0, SEEK_SET) == 0 && std::fwrite(&h, sizeof h, 1, file_) == 1 &&
-                    std::fflush(file_) == 0;
+    const bool ok =
+        std::fseek(file_, 0, SEEK_SET) == 0 && std::fwrite(&h, sizeof h, 1, file_) == 1 && std::fflush(file_) == 0;
     const bool closed = std::fclose(file_) == 0;
     file_ = nullptr;
     std::error_code ec;
@@ -179,8 +179,8 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
     if (std::memcmp(h.magic, kRayTraceMagic, sizeof h.magic) != 0)
         throw InputError(where, "not a ray-trace file (bad magic; docs/ray-trace-format.md)");
     if (h.version != kRayTraceVersion)
-        throw InputError(where, "ray-trace format version " + std::to_string(h.version) + ", this rtlab reads version " +
-                                    std::to_string(kRayTraceVersion));
+        throw InputError(where, "ray-trace format version " + std::to_string(h.version) +
+                                    ", this rtlab reads version " + std::to_string(kRayTraceVersion));
     if (h.headerBytes != sizeof(RayTraceHeader)) throw InputError(where, "corrupt header (header size)");
     const std::uint64_t expected = h.batchCount * sizeof(BatchRecord) + h.rayCount * sizeof(RayRecord);
     if (h.bodyBytes != expected || h.batchCount > (std::uint64_t(1) << 40) || h.rayCount > (std::uint64_t(1) << 40) ||
@@ -198,16 +198,19 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
     if (!in) throw InputError(where, "read failed");
     Fnv64 sum;
     sum.add(f.storage_.data(), h.bodyBytes);
-    if (sum.value() != h.bodyChecksum) throw InputError(where, "corrupt: the body's checksum does not match the header");
+    if (sum.value() != h.bodyChecksum)
+        throw InputError(where, "corrupt: the body's checksum does not match the header");
     const auto* bytes = reinterpret_cast<const unsigned char*>(f.storage_.data());
     std::uint64_t offset = 0, lanes = 0, rays = 0;
     f.batches_.reserve(h.batchCount);
     for (std::uint64_t b = 0; b < h.batchCount; ++b) {
         const std::string batchName = "batch " + std::to_string(b);
-        if (offset + sizeof(BatchRecord) > h.bodyBytes) throw InputError(where, "corrupt: " + batchName + " runs past the end");
+        if (offset + sizeof(BatchRecord) > h.bodyBytes)
+            throw InputError(where, "corrupt: " + batchName + " runs past the end");
         const auto* record = reinterpret_cast<const BatchRecord*>(bytes + offset);
         if (record->tag != kBatchTag) throw InputError(where, "corrupt: " + batchName + " has no batch tag");
-        if (record->rays > record->lanes) throw InputError(where, "corrupt: " + batchName + " has more rays than lanes");
+        if (record->rays > record->lanes)
+            throw InputError(where, "corrupt: " + batchName + " has more rays than lanes");
         offset += sizeof(BatchRecord);
         if (offset + std::uint64_t(record->rays) * sizeof(RayRecord) > h.bodyBytes)
             throw InputError(where, "corrupt: " + batchName + " runs past the end");

@@ -44,8 +44,8 @@ struct BatchOutcome {
 // `keepLanes` the call is rebuilt lane for lane (the model forms its warps
 // from the call as submitted); otherwise the recorded rays are packed densely
 // (Embree's hits do not depend on the lane a ray sits in, its packets do).
-void replayBatch(const tracer::TraceEngine& engine, tracer::TraversalBackend& backend,
-                 const RayTraceFile::Batch& batch, std::uint64_t index, bool keepLanes, BatchOutcome& o) {
+void replayBatch(const tracer::TraceEngine& engine, tracer::TraversalBackend& backend, const RayTraceFile::Batch& batch,
+                 std::uint64_t index, bool keepLanes, BatchOutcome& o) {
     const std::size_t n = keepLanes ? batch.record->lanes : batch.rays.size();
     std::vector<tracer::RayDesc> rays(n);
     std::unique_ptr<bool[]> active(new bool[n]());
@@ -96,8 +96,8 @@ void checkReplayable(const RayTraceFile& file, std::uint64_t fingerprint) {
                          "with --effects that leave out alpha");
 }
 
-ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel,
-                        tracer::TraversalBackend* backend, std::uint32_t rayTypeMask) {
+ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel, tracer::TraversalBackend* backend,
+                        std::uint32_t rayTypeMask) {
     const RayTraceInfo info = file.info();
     const NoShaderTable shaders(info.hitGroupCount);
     const tracer::TraceEngine engine(accel, shaders, info.rayTypeCount);
@@ -108,7 +108,8 @@ ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& ac
     const Stopwatch clock;
     if (backend) {
         // Step: order-dependent back ends get the batches in recorded order.
-        for (std::size_t b = 0; b < batches.size(); ++b) replayBatch(engine, *backend, batches[b], b, true, outcomes[b]);
+        for (std::size_t b = 0; b < batches.size(); ++b)
+            replayBatch(engine, *backend, batches[b], b, true, outcomes[b]);
     } else {
         // Step: Embree: batches in parallel, outcomes reduced in order below.
         // Ray type 0 (rtlab's primary rays) as coherent packets, the rest

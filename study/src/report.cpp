@@ -27,7 +27,8 @@ std::string base64(const std::string& bytes) {
     out.reserve((bytes.size() + 2) / 3 * 4);
     std::size_t i = 0;
     for (; i + 2 < bytes.size(); i += 3) {
-        const unsigned v = (unsigned char)bytes[i] << 16 | (unsigned char)bytes[i + 1] << 8 | (unsigned char)bytes[i + 2];
+        const unsigned v =
+            (unsigned char)bytes[i] << 16 | (unsigned char)bytes[i + 1] << 8 | (unsigned char)bytes[i + 2];
         out += table[v >> 18 & 63];
         out += table[v >> 12 & 63];
         out += table[v >> 6 & 63];
@@ -52,11 +53,11 @@ std::string htmlEscape(const std::string& text) {
     std::string out;
     for (char c : text) {
         switch (c) {
-        case '&': out += "&amp;"; break;
-        case '<': out += "&lt;"; break;
-        case '>': out += "&gt;"; break;
-        case '"': out += "&quot;"; break;
-        default: out += c;
+            case '&': out += "&amp;"; break;
+            case '<': out += "&lt;"; break;
+            case '>': out += "&gt;"; break;
+            case '"': out += "&quot;"; break;
+            default: out += c;
         }
     }
     return out;
@@ -154,7 +155,8 @@ Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vec
     if (!numeric) {
         plot.caption += "; x is the category index:";
         for (std::size_t i = 0; i < valueOrder.size(); ++i)
-            plot.caption += std::string(i ? "," : "") + " " + std::to_string(i + 1) + " = " + formatValue(valueOrder[i]);
+            plot.caption +=
+                std::string(i ? "," : "") + " " + std::to_string(i + 1) + " = " + formatValue(valueOrder[i]);
     }
     plot.caption += "; lines:";
     for (std::size_t i = 0; i < seriesOrder.size(); ++i) plot.caption += (i ? "; " : " ") + seriesOrder[i];
@@ -188,10 +190,11 @@ ReportSummary writeReport(const fs::path& dir) {
       << htmlEscape(studyFile) << "</title>\n<style>" << kStyle << "</style></head><body>\n";
     h << "<h1>rtlab study: " << htmlEscape(studyFile) << "</h1>\n";
     h << "<p>" << rows.size() << " of " << points.size() << " point(s) complete"
-      << (rows.size() < points.size() ? " (rerun the sweep command below to finish the rest)" : "")
-      << "; " << study.workloads.size() << " workload(s) x "
+      << (rows.size() < points.size() ? " (rerun the sweep command below to finish the rest)" : "") << "; "
+      << study.workloads.size() << " workload(s) x "
       << (study.workloads.empty() ? 0 : points.size() / study.workloads.size())
-      << " configuration(s). Study fingerprint <code>" << htmlEscape(record.value("fingerprint", "")) << "</code>.</p>\n";
+      << " configuration(s). Study fingerprint <code>" << htmlEscape(record.value("fingerprint", ""))
+      << "</code>.</p>\n";
 
     // Step: the parameter space.
     h << "<h2>Parameter space</h2>\n<table><tr><th class=\"l\">what</th><th class=\"l\">values</th></tr>\n";
@@ -211,8 +214,10 @@ ReportSummary writeReport(const fs::path& dir) {
         h << "</td></tr>\n";
     }
     for (const Override& o : study.base)
-        h << "<tr><td class=\"l\">base (every point)</td><td class=\"l\">" << htmlEscape(o.assignment()) << "</td></tr>\n";
-    h << "<tr><td class=\"l\">render</td><td class=\"l\">" << htmlEscape(studyRenderJson(study.render).dump()) << "</td></tr>\n";
+        h << "<tr><td class=\"l\">base (every point)</td><td class=\"l\">" << htmlEscape(o.assignment())
+          << "</td></tr>\n";
+    h << "<tr><td class=\"l\">render</td><td class=\"l\">" << htmlEscape(studyRenderJson(study.render).dump())
+      << "</td></tr>\n";
     h << "</table>\n";
 
     // Step: one plot per swept parameter and plotted metric that has values.
@@ -245,7 +250,8 @@ ReportSummary writeReport(const fs::path& dir) {
     // Step: every point.
     h << "<h2>Points</h2>\n<table><tr><th class=\"l\">id</th><th class=\"l\">workload</th>";
     for (const std::string& p : parameters) h << "<th>" << htmlEscape(p) << "</th>";
-    for (const MetricInfo& m : metricList()) h << "<th title=\"" << htmlEscape(m.description) << "\">" << htmlEscape(m.name) << "</th>";
+    for (const MetricInfo& m : metricList())
+        h << "<th title=\"" << htmlEscape(m.description) << "\">" << htmlEscape(m.name) << "</th>";
     h << "</tr>\n";
     for (const json& row : rows) {
         const json overrides = row.value("overrides", json::object());
@@ -268,8 +274,7 @@ ReportSummary writeReport(const fs::path& dir) {
         h << "<p>The RT-core configuration every point starts from (defaults, render.rtcoreConfig, base); each "
              "point then applies its own overrides.</p>\n<pre>"
           << htmlEscape(record["baseConfig"].dump(2)) << "</pre>\n";
-    else
-        h << "<p>Back end " << htmlEscape(study.render.backend) << ": no RT-core configuration.</p>\n";
+    else h << "<p>Back end " << htmlEscape(study.render.backend) << ": no RT-core configuration.</p>\n";
 
     // Step: how to reproduce it.
     const std::string out = dir.string();

@@ -110,8 +110,7 @@ ResultStore::ResultStore(const fs::path& dir, const Study& study, const std::str
         for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
             // What a sweep killed before writing study.json leaves: an empty points/ and the lock.
             const std::string name = e.path().filename().string();
-            if (name == ".lock" || (name == "points" && fs::is_directory(e.path()) && fs::is_empty(e.path())))
-                continue;
+            if (name == ".lock" || (name == "points" && fs::is_directory(e.path()) && fs::is_empty(e.path()))) continue;
             throw InputError(where, "exists, is not empty and holds no sweep (no study.json): choose another --out");
         }
     fs::create_directories(dir / "points", ec);

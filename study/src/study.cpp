@@ -84,7 +84,8 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
         if (w.contains("rays")) {
             workload.rays = stringField(w, "rays", "", where, path + ".rays");
             if (workload.rays.empty())
-                throw InputError(where, path + ".rays: empty (a .rays file or directory from rtlab render --record-rays)");
+                throw InputError(where,
+                                 path + ".rays: empty (a .rays file or directory from rtlab render --record-rays)");
             std::error_code ec;
             if (!std::filesystem::exists(workload.rays, ec))
                 throw InputError(where, path + ".rays: " + workload.rays + ": no such file or directory");
@@ -224,11 +225,13 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
             study.list.push_back(parseOverrideObject(l[i], where, path));
         }
     }
-    const bool overrides = !study.base.empty() || !study.grid.empty() || !study.list.empty() ||
-                           !study.render.rtcoreConfig.empty();
+    const bool overrides =
+        !study.base.empty() || !study.grid.empty() || !study.list.empty() || !study.render.rtcoreConfig.empty();
     if (overrides && study.render.backend != "rtcore")
-        throw InputError(where, "render.backend: RT-core parameters (base, grid, list, rtcoreConfig) need "
-                                "\"rtcore\" (got \"" + study.render.backend + "\")");
+        throw InputError(where,
+                         "render.backend: RT-core parameters (base, grid, list, rtcoreConfig) need "
+                         "\"rtcore\" (got \"" +
+                             study.render.backend + "\")");
 
     // Step: every point's whole configuration, checked now rather than mid-sweep.
     if (checkPoints && study.render.backend == "rtcore")
@@ -347,8 +350,9 @@ std::vector<std::string> renderArguments(const Study& study, const Point& point,
 std::string shellCommand(const std::vector<std::string>& arguments) {
     std::string line;
     for (const std::string& arg : arguments) {
-        const bool plain = !arg.empty() && arg.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
-                                                                 "0123456789-_./:=,+@%") == std::string::npos;
+        const bool plain = !arg.empty() && arg.find_first_not_of(
+                                               "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                               "0123456789-_./:=,+@%") == std::string::npos;
         if (!line.empty()) line += ' ';
         if (plain) {
             line += arg;

@@ -15,10 +15,8 @@ Coordinator::Coordinator(const SweepOptions& options, const Study& study)
     : options_(options), study_(study), points_(expandPoints(study)) {
     store_ = std::make_unique<ResultStore>(options.outDir, study, options.studyFile.string());
     for (const Point& p : points_) {
-        if (store_->isDone(p))
-            ++skipped_;
-        else
-            queue_.push_back(p.index);
+        if (store_->isDone(p)) ++skipped_;
+        else queue_.push_back(p.index);
     }
     toRun_ = queue_.size();
 }
@@ -104,9 +102,8 @@ int runLocal(const SweepOptions& options) {
         while (static_cast<int>(running.size()) < jobs && coordinator.next(index)) {
             const Point& p = coordinator.points()[index];
             const std::filesystem::path scratch = coordinator.store().scratchDir() / p.id;
-            detail::RunningPoint r =
-                detail::startPoint(options.executable, renderArguments(study, p, scratch.string(), threads), index,
-                                   scratch);
+            detail::RunningPoint r = detail::startPoint(
+                options.executable, renderArguments(study, p, scratch.string(), threads), index, scratch);
             running.emplace(r.pid, std::move(r));
         }
         if (running.empty()) break;
@@ -153,9 +150,10 @@ int runSweep(const SweepOptions& options) {
 #ifdef RTLAB_STUDY_HAS_MPI
         return detail::runMpiSweep(options);
 #else
-        throw InputError("sweep", "started by an MPI launcher with several processes, but this rtlab was "
-                                        "built without MPI (install libopenmpi-dev and rebuild); run it once, "
-                                        "with --jobs N");
+        throw InputError("sweep",
+                         "started by an MPI launcher with several processes, but this rtlab was "
+                         "built without MPI (install libopenmpi-dev and rebuild); run it once, "
+                         "with --jobs N");
 #endif
     }
     return runLocal(options);

@@ -56,7 +56,7 @@ inline nlohmann::json statsWithoutTiming(const fs::path& dir) {
 // (named after `name`); the caller asserts on what came out.
 struct ThreadCountRuns {
     CliRun one, two;
-    CliRun compare;  // `rtlab compare` of the two runs' `frame`
+    CliRun compare;                     // `rtlab compare` of the two runs' `frame`
     nlohmann::json statsOne, statsTwo;  // stats.json without timing (statsWithoutTiming)
     bool rendered() const { return one.exitCode == 0 && two.exitCode == 0; }
     bool framesIdentical() const {

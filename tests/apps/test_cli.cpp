@@ -118,11 +118,12 @@ TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
 
 TEST(Cli, InfoOnThirdPartyGltf) {
     if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
-    const CliRun engine = runCli("info --scene " + (kAssimp / "2CylinderEngine-glTF-Binary/2CylinderEngine.glb").string());
+    const CliRun engine =
+        runCli("info --scene " + (kAssimp / "2CylinderEngine-glTF-Binary/2CylinderEngine.glb").string());
     ASSERT_EQ(engine.exitCode, 0) << engine.out;
     EXPECT_NE(engine.out.find("triangles:"), std::string::npos);
-    const CliRun morph = runCli("info --scene " +
-                            (kAssimp / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf").string());
+    const CliRun morph = runCli(
+        "info --scene " + (kAssimp / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf").string());
     ASSERT_EQ(morph.exitCode, 0) << morph.out;
     EXPECT_EQ(morph.out.find("animations: 0"), std::string::npos) << morph.out;
     const CliRun skin = runCli("info --scene " + (kAssimp / "simple_skin/simple_skin.gltf").string());
@@ -132,11 +133,12 @@ TEST(Cli, InfoOnThirdPartyGltf) {
 
 TEST(Cli, MalformedThirdPartyGltfExitsTwo) {
     if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
-    for (const char* file : {"IndexOutOfRange/IndexOutOfRange.gltf", "BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
-                             "MissingBin/BoxTextured.gltf", "RecursiveNodes/RecursiveNodes.gltf",
-                             "wrongTypes/badArray.gltf"}) {
+    for (const char* file :
+         {"IndexOutOfRange/IndexOutOfRange.gltf", "BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
+          "MissingBin/BoxTextured.gltf", "RecursiveNodes/RecursiveNodes.gltf", "wrongTypes/badArray.gltf"}) {
         const fs::path out = freshDir("malformed");
-        const CliRun r = runCli("render --width 16 --height 16 --scene " + (kAssimp / file).string() + " --out " + out.string());
+        const CliRun r =
+            runCli("render --width 16 --height 16 --scene " + (kAssimp / file).string() + " --out " + out.string());
         EXPECT_EQ(r.exitCode, 2) << file << "\n" << r.out;
         EXPECT_NE(r.out.find(fs::path(file).filename().string()), std::string::npos) << r.out;
         EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << file;
@@ -146,8 +148,9 @@ TEST(Cli, MalformedThirdPartyGltfExitsTwo) {
 TEST(Cli, RenderThirdPartyGltf) {
     if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
     const fs::path out = freshDir("engine");
-    const CliRun r = runCli("render --width 64 --height 48 --scene " +
-                        (kAssimp / "2CylinderEngine-glTF-Binary/2CylinderEngine.glb").string() + " --out " + out.string());
+    const CliRun r =
+        runCli("render --width 64 --height 48 --scene " +
+               (kAssimp / "2CylinderEngine-glTF-Binary/2CylinderEngine.glb").string() + " --out " + out.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
     std::ifstream in(out / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
@@ -186,7 +189,8 @@ TEST(Cli, EveryAssimpGltfRendersOrExitsTwoWithOneLine) {
     for (const fs::path& f : files) {
         const std::string rel = fs::relative(f, kAssimp).string();
         const fs::path out = freshDir("assimp");
-        const CliRun r = runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
+        const CliRun r =
+            runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
         const auto expected = exitTwo.find(rel);
         if (expected == exitTwo.end()) {
             EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
@@ -215,7 +219,8 @@ TEST(Cli, PointsOrLinesOnlyGltfRendersAnEmptyFrameWithOneWarning) {
                             " --out " + out.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
     std::size_t warnings = 0;
-    for (std::size_t at = r.out.find("rtlab: warning:"); at != std::string::npos; at = r.out.find("rtlab: warning:", at + 1))
+    for (std::size_t at = r.out.find("rtlab: warning:"); at != std::string::npos;
+         at = r.out.find("rtlab: warning:", at + 1))
         ++warnings;
     EXPECT_EQ(warnings, 1u) << r.out;
     EXPECT_NE(r.out.find("Mesh_PrimitiveMode_00.gltf: skipped 1 points and 0 lines"), std::string::npos) << r.out;
@@ -327,7 +332,8 @@ TEST(Cli, PlanPrintsThePassesAndWhy) {
     const CliRun cornell = runCli("plan --scene builtin:cornell");
     ASSERT_EQ(cornell.exitCode, 0) << cornell.out;
     EXPECT_NE(cornell.out.find("[x] shadows: 1 area light"), std::string::npos) << cornell.out;
-    EXPECT_NE(cornell.out.find("[ ] reflections: no opaque material with roughness <= 0.3"), std::string::npos) << cornell.out;
+    EXPECT_NE(cornell.out.find("[ ] reflections: no opaque material with roughness <= 0.3"), std::string::npos)
+        << cornell.out;
     const CliRun showcase = runCli("plan --scene builtin:showcase --json");
     ASSERT_EQ(showcase.exitCode, 0) << showcase.out;
     const nlohmann::json j = nlohmann::json::parse(showcase.out);
@@ -341,12 +347,14 @@ TEST(Cli, PlanPrintsThePassesAndWhy) {
 
 TEST(Cli, ShowcaseEffectsAndDdgiRender) {
     const fs::path out = freshDir("effects");
-    const CliRun r = runCli("render --scene builtin:showcase --denoise none --gi ddgi --frames 2 --width 64 --height 36 --out " +
-                            out.string());
+    const CliRun r =
+        runCli("render --scene builtin:showcase --denoise none --gi ddgi --frames 2 --width 64 --height 36 --out " +
+               out.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
     EXPECT_TRUE(fs::exists(out / "frame_0001_ddgi.exr"));
     const rtlab::Image img = rtlab::readExr(out / "frame_0001.exr");
-    for (const char* layer : {"R", "shadow.light0.V", "reflection.R", "ao.V", "gi.R", "translucency.R", "volume.inscatter.R"})
+    for (const char* layer :
+         {"R", "shadow.light0.V", "reflection.R", "ao.V", "gi.R", "translucency.R", "volume.inscatter.R"})
         EXPECT_TRUE(img.hasChannel(layer)) << layer;
     std::ifstream in(out / "stats.json");
     const nlohmann::json stats = nlohmann::json::parse(in);
@@ -406,9 +414,10 @@ TEST(Cli, DenoisedBeautyIsCloserToTheReference) {
 
 TEST(Cli, ConvergeMeasuresRawAndDenoisedAgainstACachedReference) {
     const fs::path out = freshDir("converge"), cache = freshDir("converge_cache");
-    const std::string args = "converge --scene builtin:cornell --effect ao --width 48 --height 32 --reference-spp 64 "
-                             "--max-spp 8 --denoise-max-spp 2 --frames 2 --out " + out.string() + " --cache " +
-                             cache.string();
+    const std::string args =
+        "converge --scene builtin:cornell --effect ao --width 48 --height 32 --reference-spp 64 "
+        "--max-spp 8 --denoise-max-spp 2 --frames 2 --out " +
+        out.string() + " --cache " + cache.string();
     const CliRun first = runCli(args);
     ASSERT_EQ(first.exitCode, 0) << first.out;
     for (const char* f : {"converge.json", "converge.csv", "converge.png", "reference.png", "raw_1spp.png",
@@ -455,11 +464,12 @@ TEST(Cli, ConvergeMeasuresRawAndDenoisedAgainstACachedReference) {
 TEST(Cli, ConvergeRejectsBadInputWithExitTwo) {
     const fs::path out = freshDir("converge_bad");
     for (const std::string& args : std::vector<std::string>{
-             "converge --scene builtin:cornell --effect sparkles", "converge --scene builtin:cornell --effect reflections",
-          "converge --scene " + (kAssimp / "IndexOutOfRange/IndexOutOfRange.gltf").string() + " --effect ao",
-          std::string("converge --scene builtin:cornell")}) {
-        const CliRun r = runCli(args + " --width 16 --height 16 --reference-spp 4 --out " + out.string() +
-                                " --cache " + out.string());
+             "converge --scene builtin:cornell --effect sparkles",
+             "converge --scene builtin:cornell --effect reflections",
+             "converge --scene " + (kAssimp / "IndexOutOfRange/IndexOutOfRange.gltf").string() + " --effect ao",
+             std::string("converge --scene builtin:cornell")}) {
+        const CliRun r = runCli(args + " --width 16 --height 16 --reference-spp 4 --out " + out.string() + " --cache " +
+                                out.string());
         EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.out;
         EXPECT_FALSE(fs::exists(out / "converge.json")) << args;
     }
@@ -469,9 +479,10 @@ TEST(Cli, ConvergeAcceptsSampleCountsThatAreNotPowersOfTwo) {
     // The denoisers run on the raw sample counts up to --denoise-max-spp
     // (raw: 1, 2, 4, 6; denoised: 1, 2), and a bad scene leaves no directories.
     const fs::path out = freshDir("converge_odd"), cache = freshDir("converge_odd_cache");
-    const CliRun r = runCli("converge --scene builtin:cornell --effect ao --width 24 --height 16 --reference-spp 8 "
-                            "--max-spp 6 --denoise-max-spp 3 --frames 3 --out " + out.string() + " --cache " +
-                            cache.string());
+    const CliRun r = runCli(
+        "converge --scene builtin:cornell --effect ao --width 24 --height 16 --reference-spp 8 "
+        "--max-spp 6 --denoise-max-spp 3 --frames 3 --out " +
+        out.string() + " --cache " + cache.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
     std::ifstream in(out / "converge.json");
     const nlohmann::json j = nlohmann::json::parse(in);

@@ -25,7 +25,8 @@ TEST(CliFrameOptions, ConvergeRendersTheFrameRenderRenders) {
     const std::vector<vec3> depth8 = renderedTranslucency(dir / "render8", 8);
     ASSERT_NE(depth2, depth8) << "the showcase's glass must need more than 2 events, or this test shows nothing";
 
-    const CliRun c = runCli("converge" + kSize + " --effect translucency --max-translucency-depth 2 "
+    const CliRun c = runCli("converge" + kSize +
+                            " --effect translucency --max-translucency-depth 2 "
                             "--reference-spp 2 --max-spp 1 --denoise-max-spp 1 --frames 1 --cache " +
                             (dir / "cache").string() + " --out " + (dir / "converge").string());
     ASSERT_EQ(c.exitCode, 0) << c.out;

@@ -6,9 +6,10 @@
 using namespace rtlab::test;
 
 TEST(CliPathTrace, StatsCountRaysPerPathVertexAndThreadCountsAgree) {
-    const ThreadCountRuns r = renderWithOneAndTwoThreads(
-        "pathtrace", "render --scene 'builtin:terrain?triangles=4000' --effects pathtrace --max-depth 2 "
-                     "--width 32 --height 24 --spp 2");
+    const ThreadCountRuns r =
+        renderWithOneAndTwoThreads("pathtrace",
+                                   "render --scene 'builtin:terrain?triangles=4000' --effects pathtrace --max-depth 2 "
+                                   "--width 32 --height 24 --spp 2");
     ASSERT_TRUE(r.rendered()) << r.one.out << r.two.out;
     EXPECT_TRUE(r.framesIdentical()) << r.compare.out;
     EXPECT_EQ(r.statsOne, r.statsTwo);
@@ -32,7 +33,8 @@ TEST(CliPathTrace, StatsCountRaysPerPathVertexAndThreadCountsAgree) {
 
 TEST(CliPathTrace, RtCoreTracesTheSameHitsAndImageAsEmbree) {
     const fs::path a = freshDir("pathtrace_embree"), b = freshDir("pathtrace_rtcore");
-    const std::string common = "render --scene builtin:cornell --effects pathtrace --max-depth 3 --width 24 --height 24";
+    const std::string common =
+        "render --scene builtin:cornell --effects pathtrace --max-depth 3 --width 24 --height 24";
     const CliRun embree = runCli(common + " --out " + a.string());
     ASSERT_EQ(embree.exitCode, 0) << embree.out;
     const CliRun rtcore = runCli(common + " --backend rtcore --verify --out " + b.string());

@@ -25,22 +25,26 @@ nlohmann::json statsOf(const fs::path& dir) {
 }
 
 const std::string kScene = "'builtin:terrain?triangles=3000&seed=2'";
-const std::string kRender = "render --scene " + kScene + " --effects shadows,ao,pathtrace --max-depth 2 --width 32 --height 24 --frames 2";
+const std::string kRender =
+    "render --scene " + kScene + " --effects shadows,ao,pathtrace --max-depth 2 --width 32 --height 24 --frames 2";
 
 }  // namespace
 
 TEST(CliRayReplay, RecordingChangesNoPixelAndIsTheSameOnOneAndTwoThreads) {
     const fs::path plain = freshDir("rec_plain"), r1 = freshDir("rec_t1"), r2 = freshDir("rec_t2");
     ASSERT_EQ(runCli(kRender + " --out " + plain.string()).exitCode, 0);
-    const CliRun one = runCli(kRender + " --threads 1 --record-rays " + (r1 / "rays").string() + " --out " + r1.string());
+    const CliRun one =
+        runCli(kRender + " --threads 1 --record-rays " + (r1 / "rays").string() + " --out " + r1.string());
     ASSERT_EQ(one.exitCode, 0) << one.out;
-    const CliRun two = runCli(kRender + " --threads 2 --record-rays " + (r2 / "rays").string() + " --out " + r2.string());
+    const CliRun two =
+        runCli(kRender + " --threads 2 --record-rays " + (r2 / "rays").string() + " --out " + r2.string());
     ASSERT_EQ(two.exitCode, 0) << two.out;
     for (const char* frame : {"frame_0000", "frame_0001"}) {
         const CliRun c = runCli("compare " + (plain / (std::string(frame) + ".exr")).string() + " " +
                                 (r1 / (std::string(frame) + ".exr")).string());
         EXPECT_NE(c.out.find("identical: true"), std::string::npos) << frame << c.out;
-        const fs::path a = r1 / "rays" / (std::string(frame) + ".rays"), b = r2 / "rays" / (std::string(frame) + ".rays");
+        const fs::path a = r1 / "rays" / (std::string(frame) + ".rays"),
+                       b = r2 / "rays" / (std::string(frame) + ".rays");
         ASSERT_TRUE(fs::exists(a)) << a;
         EXPECT_EQ(bytesOf(a), bytesOf(b)) << frame;
         EXPECT_FALSE(fs::exists(a.string() + ".tmp"));
@@ -61,11 +65,12 @@ TEST(CliRayReplay, ReplayOnTheModelGivesTheRendersCyclesAndStatsExactly) {
     const fs::path dir = freshDir("rec_rtcore");
     const std::string config =
         " --backend rtcore --rtcore-set cache.sizeBytes=4096 --rtcore-set gpu.cores=2 --rtcore-set l2.mode=cache";
-    const CliRun render = runCli(kRender + config + " --record-rays " + (dir / "rays").string() + " --out " + dir.string());
+    const CliRun render =
+        runCli(kRender + config + " --record-rays " + (dir / "rays").string() + " --out " + dir.string());
     ASSERT_EQ(render.exitCode, 0) << render.out;
     const fs::path out = dir / "replay";
-    const CliRun replay = runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + config +
-                                 " --out " + out.string());
+    const CliRun replay =
+        runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + config + " --out " + out.string());
     ASSERT_EQ(replay.exitCode, 0) << replay.out;
     const nlohmann::json rendered = statsOf(dir), replayed = statsOf(out);
     EXPECT_EQ(rendered["rtcore"]["config"], replayed["rtcore"]["config"]);
@@ -95,7 +100,8 @@ TEST(CliRayReplay, ReplayOnTheModelGivesTheRendersCyclesAndStatsExactly) {
     EXPECT_EQ(b["rays"]["pathBounce"]["traced"], rendered["frames"][0]["rays"]["pathBounce"]["traced"]);
     EXPECT_EQ(b["rtcore"]["frame"]["rays"], b["rays"]["pathBounce"]["traced"]);
     EXPECT_GT(b["rtcoreModelBytes"].get<long long>(), 0);
-    EXPECT_EQ(runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + " --ray-types glitter").exitCode, 2);
+    EXPECT_EQ(
+        runCli("replay --scene " + kScene + " --rays " + (dir / "rays").string() + " --ray-types glitter").exitCode, 2);
 }
 
 TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
@@ -105,12 +111,10 @@ TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
                   .exitCode,
               0);
     const fs::path file = dir / "rays" / "frame_0000.rays";
-    const auto oneLine = [](const CliRun& r) {
-        return std::count(r.out.begin(), r.out.end(), '\n') == 1;
-    };
+    const auto oneLine = [](const CliRun& r) { return std::count(r.out.begin(), r.out.end(), '\n') == 1; };
     // Another scene: the fingerprint differs.
-    const CliRun foreign = runCli("replay --scene builtin:showcase --rays " + file.string() + " --out " +
-                                  (dir / "o1").string());
+    const CliRun foreign =
+        runCli("replay --scene builtin:showcase --rays " + file.string() + " --out " + (dir / "o1").string());
     EXPECT_EQ(foreign.exitCode, 2) << foreign.out;
     EXPECT_NE(foreign.out.find("fingerprint"), std::string::npos) << foreign.out;
     EXPECT_TRUE(oneLine(foreign)) << foreign.out;
@@ -121,7 +125,8 @@ TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
         std::ofstream out(truncated, std::ios::binary);
         out.write(bytes.data(), std::streamsize(bytes.size() - 100));
     }
-    const CliRun cut = runCli("replay --scene builtin:cornell --rays " + truncated.string() + " --out " + (dir / "o2").string());
+    const CliRun cut =
+        runCli("replay --scene builtin:cornell --rays " + truncated.string() + " --out " + (dir / "o2").string());
     EXPECT_EQ(cut.exitCode, 2) << cut.out;
     EXPECT_NE(cut.out.find(truncated.string()), std::string::npos) << cut.out;
     EXPECT_TRUE(oneLine(cut)) << cut.out;
@@ -130,13 +135,15 @@ TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
     EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + (dir / "nothing.rays").string()).exitCode, 2);
     fs::create_directories(dir / "empty");
     EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + (dir / "empty").string()).exitCode, 2);
-    EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + file.string() + " --rtcore-set cache.ways=2").exitCode, 2);
+    EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + file.string() + " --rtcore-set cache.ways=2").exitCode,
+              2);
     // A recorded hit turned into a miss (checksum made consistent): replay finds a differing hit, exit 1.
     std::size_t offset = sizeof(rtlab::study::RayTraceHeader) + sizeof(rtlab::study::BatchRecord);
     auto* header = reinterpret_cast<rtlab::study::RayTraceHeader*>(bytes.data());
     bool altered = false;
     for (std::uint64_t b = 0; b < header->batchCount && !altered; ++b) {
-        auto* batch = reinterpret_cast<rtlab::study::BatchRecord*>(bytes.data() + offset - sizeof(rtlab::study::BatchRecord));
+        auto* batch =
+            reinterpret_cast<rtlab::study::BatchRecord*>(bytes.data() + offset - sizeof(rtlab::study::BatchRecord));
         auto* rays = reinterpret_cast<rtlab::study::RayRecord*>(bytes.data() + offset);
         for (std::uint32_t i = 0; i < batch->rays && !altered; ++i)
             if (rays[i].flags & rtlab::study::RayRecord::kHit) {
@@ -154,7 +161,8 @@ TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
         std::ofstream out(changed, std::ios::binary);
         out.write(bytes.data(), std::streamsize(bytes.size()));
     }
-    const CliRun differ = runCli("replay --scene builtin:cornell --rays " + changed.string() + " --out " + (dir / "o3").string());
+    const CliRun differ =
+        runCli("replay --scene builtin:cornell --rays " + changed.string() + " --out " + (dir / "o3").string());
     EXPECT_EQ(differ.exitCode, 1) << differ.out;
     EXPECT_NE(differ.out.find(" 1 hit(s) differ"), std::string::npos) << differ.out;
     EXPECT_EQ(statsOf(dir / "o3")["frames"][0]["differingHits"], 1);

@@ -29,7 +29,8 @@ TEST(CliScalableScenes, ParameterErrorsExitTwoWithOneLineNamingTheParameter) {
         {"builtin:hairball?seed=99999999999", "parameter 'seed' has value '99999999999'"},
         {"builtin:showcase?seed=1", "unknown parameter 'seed' (builtin:showcase takes no parameters)"},
         {"builtin:cornell?triangles=1000", "unknown parameter 'triangles' (builtin:cornell takes no parameters)"},
-        {"builtin:nope?triangles=1000", "unknown builtin scene (available: showcase, cornell, terrain, forest, hairball)"},
+        {"builtin:nope?triangles=1000",
+         "unknown builtin scene (available: showcase, cornell, terrain, forest, hairball)"},
     };
     for (const Case& c : cases)
         for (const std::string command : {"info", "plan", "render --width 8 --height 8 --out /tmp/rtlab_cli_never"}) {
@@ -76,8 +77,8 @@ TEST(CliScalableScenes, GbufferFramesAreBitIdenticalOnOneAndTwoThreads) {
     for (const std::string scene :
          {"builtin:terrain?triangles=4000&seed=3", "builtin:forest?instances=60", "builtin:hairball?triangles=3000"}) {
         SCOPED_TRACE(scene);
-        const ThreadCountRuns r =
-            renderWithOneAndTwoThreads("scalable", "render --scene '" + scene + "' --effects gbuffer --width 32 --height 24");
+        const ThreadCountRuns r = renderWithOneAndTwoThreads(
+            "scalable", "render --scene '" + scene + "' --effects gbuffer --width 32 --height 24");
         ASSERT_TRUE(r.rendered()) << r.one.out << r.two.out;
         EXPECT_TRUE(r.framesIdentical()) << r.compare.out;
         EXPECT_EQ(r.statsOne, r.statsTwo);
@@ -91,8 +92,10 @@ TEST(CliScalableScenes, GbufferFramesAreBitIdenticalOnOneAndTwoThreads) {
 // (measured). Cluster bytes lie between one and four triangles per cluster.
 TEST(CliScalableScenes, StatsReportAccelerationStructureBytesPerTriangle) {
     const fs::path dir = freshDir("accel_memory");
-    const CliRun r = runCli("render --scene 'builtin:terrain?triangles=4000' --backend rtcore --effects gbuffer "
-                            "--denoise none --width 16 --height 12 --out " + dir.string());
+    const CliRun r = runCli(
+        "render --scene 'builtin:terrain?triangles=4000' --backend rtcore --effects gbuffer "
+        "--denoise none --width 16 --height 12 --out " +
+        dir.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
     std::ifstream in(dir / "stats.json");
     const nlohmann::json frame = nlohmann::json::parse(in)["frames"][0];

@@ -91,13 +91,13 @@ pid_t startSweep(const fs::path& study, const fs::path& out, const fs::path& log
 // test asserts on; asserts nothing itself.
 struct KillAndResumeRun {
     bool started = false;
-    bool killedBySignal = false;            // the sweep was still running when killed
-    std::string firstLog;                   // its stdout + stderr
-    std::size_t kept = 0;                   // complete points right after the kill
-    std::size_t keptLater = 0;              // ... 1.5 s later (nothing of the killed sweep lives on)
+    bool killedBySignal = false;                       // the sweep was still running when killed
+    std::string firstLog;                              // its stdout + stderr
+    std::size_t kept = 0;                              // complete points right after the kill
+    std::size_t keptLater = 0;                         // ... 1.5 s later (nothing of the killed sweep lives on)
     std::map<std::string, std::string> before, after;  // point -> result.json text, before / after the rerun
-    CliRun again, once;                     // the rerun, the uninterrupted run
-    std::vector<json> resumed, fresh;       // their rows without timing
+    CliRun again, once;                                // the rerun, the uninterrupted run
+    std::vector<json> resumed, fresh;                  // their rows without timing
 };
 
 KillAndResumeRun killAndResume(const std::string& name, int sig) {
@@ -246,7 +246,8 @@ TEST(Sweep, MpiThreeRanksGiveTheSameRowsAsOneProcess) {
     launcher += std::string(" -x ASAN_OPTIONS=") + (asanOptions && *asanOptions ? std::string(asanOptions) + ":" : "") +
                 "detect_leaks=0";
 #endif
-    const std::string cmd = launcher + " " + RTLAB_CLI + " sweep " + study.string() + " --out " + mpi.string() + " 2>&1";
+    const std::string cmd =
+        launcher + " " + RTLAB_CLI + " sweep " + study.string() + " --out " + mpi.string() + " 2>&1";
     std::string output;
     FILE* pipe = popen(cmd.c_str(), "r");
     ASSERT_NE(pipe, nullptr);
@@ -289,7 +290,8 @@ TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
         {R"({"workloads": ["builtin:cornell"], "render": {"widht": 3}})", "render.widht: unknown key"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.sizeBytes": [3000]}})", "cache.sizeBytes"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.nope": [1]}})", "cache.nope"},
-        {R"({"workloads": [{"rays": "a.rtrays", "scene": "builtin:cornell"}]})", "workloads[0].rays: a.rtrays: no such file or directory"},
+        {R"({"workloads": [{"rays": "a.rtrays", "scene": "builtin:cornell"}]})",
+         "workloads[0].rays: a.rtrays: no such file or directory"},
         {R"({"render": {}})", "workloads: missing"},
         {R"({"workloads": ["builtin:cornell"], "render": {"backend": "embree"}, "grid": {"cache.ways": [2]}})",
          "render.backend"},
@@ -309,7 +311,8 @@ TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
 }
 
 TEST(Sweep, PointWithBadSceneStopsWithExitTwoNamingThePoint) {
-    const fs::path study = writeStudy("badscene", R"({"workloads": ["builtin:nope"], "render": {"width": 16, "height": 16}})");
+    const fs::path study =
+        writeStudy("badscene", R"({"workloads": ["builtin:nope"], "render": {"width": 16, "height": 16}})");
     const fs::path out = freshDir("sweep_badscene");
     const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
     EXPECT_EQ(r.exitCode, 2) << r.out;
@@ -343,7 +346,8 @@ TEST(Report, WritesSelfContainedHtmlWithPlotsTableConfigAndCommands) {
 }
 
 TEST(Sweep, OnATerminalOneProgressLineWithEta) {
-    if (std::system("command -v script >/dev/null 2>&1") != 0) GTEST_SKIP() << "no script(1) to give the sweep a terminal";
+    if (std::system("command -v script >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "no script(1) to give the sweep a terminal";
     const fs::path study = writeStudy("tty", kIssueStudy);
     const fs::path out = freshDir("sweep_tty");
     // script(1) runs the sweep on a pseudo-terminal and copies what it wrote.
@@ -369,11 +373,13 @@ TEST(Sweep, OnATerminalOneProgressLineWithEta) {
 // the same configuration.
 TEST(Sweep, RecordedRaysAreReplayedAtEveryPoint) {
     const fs::path dir = freshDir("sweep_rays");
-    const CliRun record = runCli("render --scene builtin:cornell --effects gbuffer,shadows,ao --width 32 --height 32 "
-                                 "--record-rays " + (dir / "rays").string() + " --out " + (dir / "render").string());
+    const CliRun record = runCli(
+        "render --scene builtin:cornell --effects gbuffer,shadows,ao --width 32 --height 32 "
+        "--record-rays " +
+        (dir / "rays").string() + " --out " + (dir / "render").string());
     ASSERT_EQ(record.exitCode, 0) << record.out;
-    const fs::path study = writeStudy("rays", R"({"workloads": [{"scene": "builtin:cornell", "rays": ")" +
-                                                  (dir / "rays").string() + R"("}],
+    const fs::path study = writeStudy(
+        "rays", R"({"workloads": [{"scene": "builtin:cornell", "rays": ")" + (dir / "rays").string() + R"("}],
       "render": {"backend": "rtcore"},
       "grid": {"cache.sizeBytes": [1024, 32768]}})");
     const fs::path out = dir / "sweep";
@@ -381,16 +387,19 @@ TEST(Sweep, RecordedRaysAreReplayedAtEveryPoint) {
     ASSERT_EQ(sweep.exitCode, 0) << sweep.out;
     const std::vector<json> rs = rows(out);
     ASSERT_EQ(rs.size(), 2u);
-    const CliRun replay = runCli("replay --scene builtin:cornell --rays " + (dir / "rays").string() +
-                                 " --backend rtcore --rtcore-set cache.sizeBytes=1024 --out " + (dir / "replay").string());
+    const CliRun replay =
+        runCli("replay --scene builtin:cornell --rays " + (dir / "rays").string() +
+               " --backend rtcore --rtcore-set cache.sizeBytes=1024 --out " + (dir / "replay").string());
     ASSERT_EQ(replay.exitCode, 0) << replay.out;
     std::ifstream in(dir / "replay" / "stats.json");
     const json replayed = json::parse(in);
-    EXPECT_EQ(rs[0]["metrics"]["cycles"].get<double>(), replayed["frames"][0]["rtcore"]["frame"]["cycles"].get<double>());
+    EXPECT_EQ(rs[0]["metrics"]["cycles"].get<double>(),
+              replayed["frames"][0]["rtcore"]["frame"]["cycles"].get<double>());
     EXPECT_NE(rs[0]["metrics"]["cycles"], rs[1]["metrics"]["cycles"]);  // the cache size matters
     EXPECT_NE(rs[0]["workload"].get<std::string>().find("[rays "), std::string::npos) << rs[0].dump();
     // A ray-trace workload whose file is missing is a bad study (exit 2 naming the key).
-    const fs::path missing = writeStudy("rays_missing", R"({"workloads": [{"scene": "builtin:cornell", "rays": "nowhere.rays"}]})");
+    const fs::path missing =
+        writeStudy("rays_missing", R"({"workloads": [{"scene": "builtin:cornell", "rays": "nowhere.rays"}]})");
     const CliRun bad = runCli("sweep " + missing.string() + " --out " + (dir / "bad").string());
     EXPECT_EQ(bad.exitCode, 2) << bad.out;
     EXPECT_NE(bad.out.find("workloads[0].rays"), std::string::npos) << bad.out;

@@ -8,7 +8,6 @@
 
 #include <gtest/gtest.h>
 
-
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -139,8 +138,7 @@ struct Direct {
     static Perceived perceive(const std::vector<vec3>& srgb, int w, int h, double ppd) {
         const std::size_t n = srgb.size();
         const auto wt = white();
-        std::array<std::vector<double>, 3> opp{std::vector<double>(n), std::vector<double>(n),
-                                               std::vector<double>(n)};
+        std::array<std::vector<double>, 3> opp{std::vector<double>(n), std::vector<double>(n), std::vector<double>(n)};
         std::vector<double> lum(n);
         for (std::size_t i = 0; i < n; ++i) {
             const auto v = xyz({srgbToLinear(srgb[i].x), srgbToLinear(srgb[i].y), srgbToLinear(srgb[i].z)});
@@ -211,8 +209,8 @@ struct Direct {
         std::vector<double> errors;
         for (std::size_t i = 0; i < test.size(); ++i) {
             const double p = std::pow(hyab(t.lab[i], r.lab[i]), 0.7);
-            const double dEc = p < 0.4 * cmax ? 0.95 / (0.4 * cmax) * p
-                                               : 0.95 + (p - 0.4 * cmax) / (cmax - 0.4 * cmax) * 0.05;
+            const double dEc =
+                p < 0.4 * cmax ? 0.95 / (0.4 * cmax) * p : 0.95 + (p - 0.4 * cmax) / (cmax - 0.4 * cmax) * 0.05;
             const double dEf = std::pow(
                 std::max(std::abs(t.edge[i] - r.edge[i]), std::abs(t.point[i] - r.point[i])) / std::sqrt(2.0), 0.5);
             errors.push_back(std::pow(dEc, 1 - dEf));

@@ -32,8 +32,7 @@ class ImageFiles : public ::testing::Test {
 protected:
     void SetUp() override {
         const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir = fs::temp_directory_path() /
-              ("rtlab_test_image_" + std::to_string(::getpid()) + "_" + info->name());
+        dir = fs::temp_directory_path() / ("rtlab_test_image_" + std::to_string(::getpid()) + "_" + info->name());
         fs::remove_all(dir);
         fs::create_directories(dir);
     }
@@ -173,8 +172,8 @@ TEST_F(ImageFiles, ExrBytesAndPixelsDoNotDependOnTheThreadCount) {
 TEST_F(ImageFiles, ExrHalfRoundTripWithinHalfPrecision) {
     Image image(4, 3);
     float* r = image.addChannel("R");
-    const float values[12] = {0.1f,   0.5f,    1.f,    3.14159f, -2.71828f, 100.25f,
-                              1000.3f, 0.001f, 60000.f, 0.f,     -0.75f,    7.7f};
+    const float values[12] = {0.1f,    0.5f,   1.f,     3.14159f, -2.71828f, 100.25f,
+                              1000.3f, 0.001f, 60000.f, 0.f,      -0.75f,    7.7f};
     std::copy(std::begin(values), std::end(values), r);
     const fs::path path = dir / "half.exr";
     writeExr(path, image, ExrPixelType::Half);
@@ -264,8 +263,8 @@ TEST_F(ImageFiles, ExrReadTruncatedFails) {
     ASSERT_NO_THROW(readExr(full));
 
     // Cut inside the header, the offset table and the pixel data.
-    for (std::size_t length : {std::size_t{4}, std::size_t{20}, std::size_t{100}, std::size_t{300},
-                               bytes.size() / 2, bytes.size() - 100, bytes.size() - 1}) {
+    for (std::size_t length : {std::size_t{4}, std::size_t{20}, std::size_t{100}, std::size_t{300}, bytes.size() / 2,
+                               bytes.size() - 100, bytes.size() - 1}) {
         const fs::path cut = dir / "cut.exr";
         writeBytes(cut, std::vector<unsigned char>(bytes.begin(), bytes.begin() + static_cast<long>(length)));
         expectInputError([&] { readExr(cut); }, {"cut.exr"});
@@ -280,8 +279,14 @@ TEST_F(ImageFiles, PngIsSrgbEncoded) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     const float inf = std::numeric_limits<float>::infinity();
     Image image(4, 2);
-    image.addRgbLayer("", {{0.5f, 0.f, 1.f}, {2.f, nan, inf}, {-1.f, 0.0031308f, 0.18f}, {0.25f, 0.25f, 0.25f},
-                           {0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}});
+    image.addRgbLayer("", {{0.5f, 0.f, 1.f},
+                           {2.f, nan, inf},
+                           {-1.f, 0.0031308f, 0.18f},
+                           {0.25f, 0.25f, 0.25f},
+                           {0.5f, 0.5f, 0.5f},
+                           {0.5f, 0.5f, 0.5f},
+                           {0.5f, 0.5f, 0.5f},
+                           {0.5f, 0.5f, 0.5f}});
     const fs::path path = dir / "preview.png";
     writePng(path, image);
 
@@ -293,8 +298,8 @@ TEST_F(ImageFiles, PngIsSrgbEncoded) {
 
     // Decoded values.
     int width = 0, height = 0, components = 0;
-    unsigned char* pixels = stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &width, &height,
-                                                  &components, 3);
+    unsigned char* pixels =
+        stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &width, &height, &components, 3);
     ASSERT_NE(pixels, nullptr) << stbi_failure_reason();
     const std::vector<unsigned char> rgb(pixels, pixels + width * height * 3);
     stbi_image_free(pixels);
@@ -308,9 +313,9 @@ TEST_F(ImageFiles, PngIsSrgbEncoded) {
     EXPECT_EQ(rgb[4], 0);
     EXPECT_EQ(rgb[5], 0);
     EXPECT_EQ(rgb[6], 0);
-    EXPECT_EQ(rgb[7], 10);   // 0.0031308 * 12.92 * 255 = 10.3
-    EXPECT_EQ(rgb[8], 118);  // 1.055 * 0.18^(1/2.4) - 0.055 = 0.4614
-    EXPECT_EQ(rgb[9], 137);  // 0.25 -> 0.5371
+    EXPECT_EQ(rgb[7], 10);    // 0.0031308 * 12.92 * 255 = 10.3
+    EXPECT_EQ(rgb[8], 118);   // 1.055 * 0.18^(1/2.4) - 0.055 = 0.4614
+    EXPECT_EQ(rgb[9], 137);   // 0.25 -> 0.5371
     EXPECT_EQ(rgb[23], 188);  // last pixel, bottom row
 }
 
@@ -322,8 +327,8 @@ TEST_F(ImageFiles, PngExposureAndLayer) {
 
     const std::vector<unsigned char> bytes = readBytes(dir / "albedo.png");
     int width = 0, height = 0, components = 0;
-    unsigned char* pixels = stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &width, &height,
-                                                  &components, 3);
+    unsigned char* pixels =
+        stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &width, &height, &components, 3);
     ASSERT_NE(pixels, nullptr);
     EXPECT_EQ(pixels[0], 188);
     EXPECT_EQ(pixels[1], 137);

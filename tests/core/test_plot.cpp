@@ -212,7 +212,8 @@ TEST(PlotRender, LinesJoinConsecutivePointsUnlessMarkersOnlyOrBroken) {
     const Image withMarkers = renderLogLogPlot(markers, PlotOptions{});
     EXPECT_NE(pixelAt(withMarkers, middle.x, middle.y), plotSeriesColour(0));
 
-    ASSERT_EQ(computePlotFrame(broken, PlotOptions{}).plotArea.left, computePlotFrame(lines, PlotOptions{}).plotArea.left);
+    ASSERT_EQ(computePlotFrame(broken, PlotOptions{}).plotArea.left,
+              computePlotFrame(lines, PlotOptions{}).plotArea.left);
     const Image withGap = renderLogLogPlot(broken, PlotOptions{}, &report);
     EXPECT_NE(pixelAt(withGap, middle.x, middle.y), plotSeriesColour(0));
     EXPECT_EQ(report.pointsSkipped, 1u);
@@ -375,8 +376,7 @@ TEST_F(PlotFiles, EmptyPlotsStillWriteAxes) {
         const PlotFrame frame = computePlotFrame(cases[c], smallOptions());
         EXPECT_LT(frame.xDecadeMin, frame.xDecadeMax);
         EXPECT_LT(frame.yDecadeMin, frame.yDecadeMax);
-        const std::size_t i =
-            (static_cast<std::size_t>(frame.plotArea.bottom) * png.width + frame.plotArea.left) * 3;
+        const std::size_t i = (static_cast<std::size_t>(frame.plotArea.bottom) * png.width + frame.plotArea.left) * 3;
         EXPECT_LT(png.rgb[i], 100) << c;
     }
 }

@@ -58,8 +58,8 @@ TEST(ScreenStratified, LiteralBuildingBlocks) {
     EXPECT_EQ(mortonIndex(3, 3), 15u);
     EXPECT_EQ(mortonIndex(5, 2), 0b011001u);  // x 101, y 010 -> y2 x2 y1 x1 y0 x0 = 0 1 1 0 0 1
     // Sobol' points 0..3: (0, 0), (1/2, 1/2), (1/4, 3/4), (3/4, 1/4).
-    const std::uint32_t expected[4][2] = {{0u, 0u}, {0x80000000u, 0x80000000u}, {0x40000000u, 0xC0000000u},
-                                          {0xC0000000u, 0x40000000u}};
+    const std::uint32_t expected[4][2] = {
+        {0u, 0u}, {0x80000000u, 0x80000000u}, {0x40000000u, 0xC0000000u}, {0xC0000000u, 0x40000000u}};
     for (std::uint32_t i = 0; i < 4; ++i) {
         std::uint32_t a = 1, b = 1;
         sobol2(i, a, b);
@@ -136,10 +136,9 @@ TEST(ScreenStratified, StatelessAndScrambledPerFrameSeedBounceAndDimension) {
     const vec2 c = sampleScreenStratified2D(13, 7, 2, 4, other, 0);
     EXPECT_EQ(a, c);
     // Frame, seed, bounce (stream) and dimension each change the scramble.
-    for (const vec2 d : {sampleScreenStratified2D(13, 7, 2, 4, keyOf(4), 0),
-                             sampleScreenStratified2D(13, 7, 2, 4, keyOf(3, 6), 0),
-                             sampleScreenStratified2D(13, 7, 2, 4, keyOf(3, 5, 4), 0),
-                             sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 3)})
+    for (const vec2 d :
+         {sampleScreenStratified2D(13, 7, 2, 4, keyOf(4), 0), sampleScreenStratified2D(13, 7, 2, 4, keyOf(3, 6), 0),
+          sampleScreenStratified2D(13, 7, 2, 4, keyOf(3, 5, 4), 0), sampleScreenStratified2D(13, 7, 2, 4, keyOf(3), 3)})
         EXPECT_NE(d, a);
 }
 

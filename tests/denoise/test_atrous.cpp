@@ -99,7 +99,8 @@ std::pair<float, float> impulseAcrossAndAlongASlope(bool depthFromPlane, float e
     GuideBuffers g(w, h);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x)
-            g.depth[static_cast<std::size_t>(y) * w + x] = 1.f + 0.2f * y + (edgeAtRow >= 0.f && y >= edgeAtRow ? 5.f : 0.f);
+            g.depth[static_cast<std::size_t>(y) * w + x] =
+                1.f + 0.2f * y + (edgeAtRow >= 0.f && y >= edgeAtRow ? 5.f : 0.f);
     std::vector<vec3> color(g.pixelCount(), vec3(0.f));
     color[static_cast<std::size_t>(cy) * w + cx] = vec3(1.f);
     AtrousParams p;
@@ -179,11 +180,13 @@ TEST(DenoiseAtrous, LuminanceStepWithLowVarianceSurvives) {
     const GuideBuffers g = flatGuides(w, h);
     const std::vector<vec3> color = halves(w, h, 0.2f, 0.8f);
     // Variance 1e-4: sigma_l * sqrt(var) = 0.04, |dl| = 0.6 -> weight e^-15.
-    const auto [el, er] = halfErrors(w, h, runAtrous(g, color, std::vector<float>(color.size(), 1e-4f)).color, 0.2f, 0.8f);
+    const auto [el, er] =
+        halfErrors(w, h, runAtrous(g, color, std::vector<float>(color.size(), 1e-4f)).color, 0.2f, 0.8f);
     EXPECT_LT(el, 1e-4f);
     EXPECT_LT(er, 1e-4f);
     // The same step with variance 1 is taken for noise and blurred.
-    const auto [bl, br] = halfErrors(w, h, runAtrous(g, color, std::vector<float>(color.size(), 1.f)).color, 0.2f, 0.8f);
+    const auto [bl, br] =
+        halfErrors(w, h, runAtrous(g, color, std::vector<float>(color.size(), 1.f)).color, 0.2f, 0.8f);
     EXPECT_GT(std::fmax(bl, br), 0.1f);
 }
 
@@ -243,8 +246,11 @@ TEST(DenoiseAtrous, SkyPixelsPassThroughAndDoNotBleed) {
         p.sigmaN = sigmaN;
         const Filtered f = runAtrous(g, color, std::vector<float>(color.size(), 1.f), p);
         for (std::size_t i = 0; i < color.size(); ++i) {
-            if (g.isSky(i)) { EXPECT_EQ(f.color[i], color[i]); }
-            else { EXPECT_NEAR(f.color[i].r, 0.2f, 1e-6f) << sigmaN; }
+            if (g.isSky(i)) {
+                EXPECT_EQ(f.color[i], color[i]);
+            } else {
+                EXPECT_NEAR(f.color[i].r, 0.2f, 1e-6f) << sigmaN;
+            }
         }
     }
 }

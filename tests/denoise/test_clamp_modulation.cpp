@@ -36,7 +36,9 @@ TEST(DenoiseFireflyClamp, RemovesASingleHugeSample) {
         clampFireflies(w, h, img, out, p);
         EXPECT_EQ(out[3 * w + 4], vec3(1.f)) << radius;
         for (std::size_t i = 0; i < img.size(); ++i)
-            if (i != static_cast<std::size_t>(3 * w + 4)) { EXPECT_EQ(out[i], vec3(1.f)) << i; }
+            if (i != static_cast<std::size_t>(3 * w + 4)) {
+                EXPECT_EQ(out[i], vec3(1.f)) << i;
+            }
     }
 }
 
@@ -79,8 +81,8 @@ TEST(DenoiseHistoryClamp, MinMaxAndMeanSigma) {
     HistoryClampParams minmax;
     minmax.mode = HistoryClampMode::MinMax;
     std::vector<vec3> history(25, vec3(5.f));  // stale bright history (ghost)
-    history[0] = vec3(0.41f);                    // inside the bounds: untouched
-    length[24] = 0.f;                            // no history: left alone
+    history[0] = vec3(0.41f);                  // inside the bounds: untouched
+    length[24] = 0.f;                          // no history: left alone
     clampHistory(w, h, current, history, length, minmax);
     EXPECT_EQ(history[0], vec3(0.41f));
     EXPECT_FLOAT_EQ(history[12].r, 0.42f);  // 3x3 max

@@ -32,8 +32,8 @@ TEST(DenoiseFootprint, ShadowPenumbraOverPixelWidth) {
     // A uniform 0.5-unit penumbra seen at 0.05 units per pixel: 10 pixels everywhere.
     const int w = 16, h = 12;
     const std::size_t n = std::size_t(w) * h;
-    const std::vector<float> fp = shadowFootprint(w, h, std::vector<float>(n, 0.5f), std::vector<float>(n, 0.05f),
-                                                  allGeometry(n));
+    const std::vector<float> fp =
+        shadowFootprint(w, h, std::vector<float>(n, 0.5f), std::vector<float>(n, 0.05f), allGeometry(n));
     for (const float v : fp) EXPECT_NEAR(v, 10.f, 1e-4f);
 }
 
@@ -58,8 +58,8 @@ TEST(DenoiseFootprint, ClampedToTheRangeAndZeroOnSky) {
     FootprintParams p;
     p.smoothRadius = 0;
     // 1e9 world / 1e-9 pixel: capped; a tiny penumbra: raised to minPx.
-    const std::vector<float> fp =
-        shadowFootprint(w, h, std::vector<float>{1e9f, 1e-6f, 0.f, 5.f}, std::vector<float>{1e-9f, 1.f, 1.f, 1.f}, mesh, p, 0);
+    const std::vector<float> fp = shadowFootprint(w, h, std::vector<float>{1e9f, 1e-6f, 0.f, 5.f},
+                                                  std::vector<float>{1e-9f, 1.f, 1.f, 1.f}, mesh, p, 0);
     EXPECT_EQ(fp[0], p.maxPx);
     EXPECT_EQ(fp[1], p.minPx);
     EXPECT_EQ(fp[2], 0.f);
@@ -72,8 +72,8 @@ TEST(DenoiseFootprint, ReflectionFromRoughnessAndHitDistance) {
     p.smoothRadius = 0;
     // roughness 0 (mirror): 0; 0.5 at hitT 4 and 0.1 per pixel: 2 * 0.25 * 4 / 0.1 = 20; a miss: maxPx.
     const std::vector<float> fp =
-        reflectionFootprint(w, h, std::vector<float>{0.f, 0.5f, 0.5f, 0.1f}, std::vector<float>{3.f, 4.f, 0.f, 1.f}, std::vector<float>(4, 0.1f),
-                            allGeometry(4), p);
+        reflectionFootprint(w, h, std::vector<float>{0.f, 0.5f, 0.5f, 0.1f}, std::vector<float>{3.f, 4.f, 0.f, 1.f},
+                            std::vector<float>(4, 0.1f), allGeometry(4), p);
     EXPECT_EQ(fp[0], 0.f);
     EXPECT_NEAR(fp[1], 20.f, 1e-4f);
     EXPECT_EQ(fp[2], p.maxPx);
@@ -131,8 +131,9 @@ TEST(DenoiseFootprint, SurfacePixelWidthIsTheAreaEquivalentWidthOnTheSlope) {
     // pixel: 1 / cos = sqrt(2)); 80 degrees along y; grazing (capped at
     // 100x); a NaN gradient (as facing); pixel widths 0, -1, +inf, NaN pass through.
     const std::vector<float> pixelWorld = {0.1f, 0.1f, 0.2f, 0.1f, 0.1f, 0.f, -1.f, inf, nan};
-    const std::vector<vec2> grad = {vec2(0.f), vec2(0.06f, 0.08f), vec2(0.f, 0.2f * std::tan(1.3962634f)),
-                                    vec2(1e9f, 0.f), vec2(nan, 0.f), vec2(1.f), vec2(1.f), vec2(1.f), vec2(1.f)};
+    const std::vector<vec2> grad = {vec2(0.f),       vec2(0.06f, 0.08f), vec2(0.f, 0.2f * std::tan(1.3962634f)),
+                                    vec2(1e9f, 0.f), vec2(nan, 0.f),     vec2(1.f),
+                                    vec2(1.f),       vec2(1.f),          vec2(1.f)};
     const std::vector<float> s = surfacePixelWorld(pixelWorld, grad);
     ASSERT_EQ(s.size(), pixelWorld.size());
     EXPECT_EQ(s[0], 0.1f);
@@ -163,9 +164,9 @@ TEST(DenoiseFootprint, AoFromOccluderDistance) {
     p.smoothRadius = 0;
     const std::vector<float> fp = aoFootprint(3, 1, std::vector<float>{0.05f, 0.5f, 100.f}, std::vector<float>(3, 0.f),
                                               std::vector<float>(3, 0.1f), allGeometry(3), p);
-    EXPECT_EQ(fp[0], p.minPx);         // contact: 0.5 px -> the smallest kernel
+    EXPECT_EQ(fp[0], p.minPx);  // contact: 0.5 px -> the smallest kernel
     EXPECT_NEAR(fp[1], 5.f, 1e-4f);
-    EXPECT_EQ(fp[2], p.maxPx);         // open
+    EXPECT_EQ(fp[2], p.maxPx);  // open
 }
 
 TEST(DenoiseFootprint, AoUnoccludedPixelsTakeTheirOccludedNeighboursScale) {
@@ -177,9 +178,9 @@ TEST(DenoiseFootprint, AoUnoccludedPixelsTakeTheirOccludedNeighboursScale) {
     const std::vector<float> hitT = {0.05f, 0.5f, 0.05f, 0.5f, 0.5f, 0.5f, 0.5f};
     const std::vector<float> visibility = {0.f, 1.f, 0.f, 1.f, 1.f, 1.f, 1.f};
     const std::vector<float> fp = aoFootprint(7, 1, hitT, visibility, std::vector<float>(7, 0.1f), allGeometry(7), p);
-    EXPECT_EQ(fp[1], p.minPx);           // the crease's scale, not the open's
-    EXPECT_EQ(fp[3], p.minPx);           // one occluded neighbour in the window
-    EXPECT_NEAR(fp[5], 5.f, 1e-5f);      // no occluder within the window: the AO radius
+    EXPECT_EQ(fp[1], p.minPx);       // the crease's scale, not the open's
+    EXPECT_EQ(fp[3], p.minPx);       // one occluded neighbour in the window
+    EXPECT_NEAR(fp[5], 5.f, 1e-5f);  // no occluder within the window: the AO radius
 }
 
 TEST(DenoiseFootprint, NonFiniteInputGivesFiniteFootprints) {
@@ -348,5 +349,6 @@ TEST(DenoiseStacks, ResultsDoNotDependOnTheThreadCount) {
     };
     const Image one = run(1), two = run(2);
     for (const std::string& c : one.channelNames())
-        for (std::size_t i = 0; i < one.pixelCount(); ++i) ASSERT_EQ(one.channel(c)[i], two.channel(c)[i]) << c << " " << i;
+        for (std::size_t i = 0; i < one.pixelCount(); ++i)
+            ASSERT_EQ(one.channel(c)[i], two.channel(c)[i]) << c << " " << i;
 }

@@ -79,7 +79,8 @@ TEST(DenoiseReprojection, HalfPixelMotionIsABilinearGather) {
     const std::size_t i = idx(g, 2, 2);
     ASSERT_TRUE(r.valid[i]);
     for (int k = 0; k < 4; ++k) EXPECT_FLOAT_EQ(r.taps[i].weight[k], 0.25f);
-    EXPECT_FLOAT_EQ(out[i], 0.25f * (prev[idx(g, 2, 2)] + prev[idx(g, 3, 2)] + prev[idx(g, 2, 3)] + prev[idx(g, 3, 3)]));
+    EXPECT_FLOAT_EQ(out[i],
+                    0.25f * (prev[idx(g, 2, 2)] + prev[idx(g, 3, 2)] + prev[idx(g, 2, 3)] + prev[idx(g, 3, 3)]));
     // Right column: the previous centre x = 5.9 is on screen, the right taps
     // are not -> renormalised over the left two.
     const std::size_t e = idx(g, 5, 2);

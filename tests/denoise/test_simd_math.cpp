@@ -22,7 +22,10 @@ TEST(DenoiseSimdMath, ExpNegMatchesStdExp) {
     for (float e = 0.f; e < 90.f; e += 0.01f) {
         const dsimd::vfloat<4> v = dsimd::expNeg<4>(dsimd::splat<4>(e));
         const float want = std::exp(-e);
-        if (e >= 87.f) { EXPECT_EQ(v[0], 0.f) << e; continue; }
+        if (e >= 87.f) {
+            EXPECT_EQ(v[0], 0.f) << e;
+            continue;
+        }
         if (want < 1e-37f) continue;  // denormal range: only finiteness matters
         // e * log2(e) is rounded to a float: relative error ~ 6e-8 * e.
         EXPECT_NEAR(v[0] / want, 1.f, 2e-7f * (1.f + e)) << e;
@@ -36,8 +39,8 @@ template <class ExpNeg>
     const dsimd::vfloat<4> v = expNeg(dsimd::vfloat<4>{-3.f, std::nanf(""), inf, 3e38f});
     const float zero = expNeg(dsimd::splat<4>(0.f))[0];
     if (v[0] == 1.f && v[1] == 0.f && v[2] == 0.f && v[3] == 0.f && zero == 1.f) return ::testing::AssertionSuccess();
-    return ::testing::AssertionFailure() << "exp(-e) of -3, NaN, inf, 3e38, 0: " << v[0] << ", " << v[1] << ", "
-                                         << v[2] << ", " << v[3] << ", " << zero << " (want 1, 0, 0, 0, 1)";
+    return ::testing::AssertionFailure() << "exp(-e) of -3, NaN, inf, 3e38, 0: " << v[0] << ", " << v[1] << ", " << v[2]
+                                         << ", " << v[3] << ", " << zero << " (want 1, 0, 0, 0, 1)";
 }
 
 TEST(DenoiseSimdMath, ExpNegOfSpecialValues) {

@@ -160,8 +160,12 @@ TEST(DenoiseSvgf, FilteringReducesNoiseAndKeepsTheBoxEdge) {
     // The box (0.3) next to the floor (0.8): both keep their values (measured
     // worst deviations 0.008 and 0.005; a blurred edge would be off by ~0.25).
     for (std::size_t i = 0; i < g.pixelCount(); ++i) {
-        if (g.meshId[i] == 1) { EXPECT_NEAR(out[i].r, 0.3f, 0.02f) << i; }
-        if (g.meshId[i] == 0) { EXPECT_NEAR(out[i].r, 0.8f, 0.02f) << i; }
+        if (g.meshId[i] == 1) {
+            EXPECT_NEAR(out[i].r, 0.3f, 0.02f) << i;
+        }
+        if (g.meshId[i] == 0) {
+            EXPECT_NEAR(out[i].r, 0.8f, 0.02f) << i;
+        }
     }
 }
 

@@ -78,7 +78,9 @@ TEST(DenoiseTemporal, AlphaIsMaxOfFloorAndOneOverHistory) {
         step(g, f == 1 ? nullptr : &g, color, state);
         EXPECT_NEAR(state.color[5].r, expected[f - 1], 1e-6) << "frame " << f;
         EXPECT_NEAR(state.moments[5].x, expected[f - 1], 1e-6) << "frame " << f;
-        if (f <= 5) { EXPECT_NEAR(state.moments[5].y, expectedM2[f - 1], 1e-5) << "frame " << f; }
+        if (f <= 5) {
+            EXPECT_NEAR(state.moments[5].y, expectedM2[f - 1], 1e-5) << "frame " << f;
+        }
     }
 }
 
@@ -124,8 +126,8 @@ TEST(DenoiseVariance, TemporalEstimateMatchesTheNoiseVariance) {
         HistoryBuffers state;
         const int frames = a > 0.1f ? 60 : 600;
         for (int f = 0; f < frames; ++f)
-            step(g, f == 0 ? nullptr : &g, noisyGrey(g.pixelCount(), 1.f, 1.f, static_cast<std::uint32_t>(f)),
-                 state, p);
+            step(g, f == 0 ? nullptr : &g, noisyGrey(g.pixelCount(), 1.f, 1.f, static_cast<std::uint32_t>(f)), state,
+                 p);
         std::vector<float> var(g.pixelCount());
         estimateVariance(g, state, {}, var);  // history >= 4 everywhere: the temporal estimate
         double mean = 0;

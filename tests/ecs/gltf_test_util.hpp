@@ -38,8 +38,8 @@ class ScratchDirTest : public ::testing::Test {
 protected:
     void SetUp() override {
         const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = std::filesystem::temp_directory_path() /
-               ("rtlab_gltf_" + std::to_string(::getpid()) + "_" + info->name());
+        dir_ =
+            std::filesystem::temp_directory_path() / ("rtlab_gltf_" + std::to_string(::getpid()) + "_" + info->name());
         std::filesystem::create_directories(dir_);
     }
     void TearDown() override {
@@ -100,7 +100,8 @@ public:
     // A buffer of `bytes` bytes after buffer 0, without data: an
     // EXT_meshopt_compression fallback buffer. Returns its index.
     int addFallbackBuffer(std::size_t bytes) {
-        extraBuffers_.push_back({{"byteLength", bytes}, {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}});
+        extraBuffers_.push_back(
+            {{"byteLength", bytes}, {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}});
         return static_cast<int>(extraBuffers_.size());
     }
     int addAccessor(int view, int componentType, std::size_t count, const char* type) {

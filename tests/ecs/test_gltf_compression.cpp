@@ -148,10 +148,12 @@ GltfBuilder meshoptFile(const TestMesh& m, MeshoptOptions options = {}) {
     auto view = [&](std::vector<unsigned char> encoded, std::size_t count, std::size_t stride, const char* mode,
                     const char* filter, bool attributes) {
         const std::size_t offset = b.appendBytes(encoded.data(), encoded.size());
-        Json ext = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", encoded.size()},
-                    {"byteStride", stride}, {"count", count}, {"mode", mode}};
+        Json ext = {{"buffer", 0},          {"byteOffset", offset}, {"byteLength", encoded.size()},
+                    {"byteStride", stride}, {"count", count},       {"mode", mode}};
         if (filter) ext["filter"] = filter;
-        Json v = {{"buffer", fallback}, {"byteOffset", fallbackOffset}, {"byteLength", count * stride},
+        Json v = {{"buffer", fallback},
+                  {"byteOffset", fallbackOffset},
+                  {"byteLength", count * stride},
                   {"extensions", {{"EXT_meshopt_compression", ext}}}};
         if (attributes) v["byteStride"] = stride;
         fallbackOffset += (count * stride + 3) / 4 * 4;

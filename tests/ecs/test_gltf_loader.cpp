@@ -27,11 +27,10 @@ using test::GltfBuilder;
 using test::kModels;
 using test::loadError;
 
-#define SKIP_WITHOUT_ASSIMP_MODELS()                                                                  \
-    do {                                                                                              \
-        if (!fs::is_directory(kModels))                                                               \
-            GTEST_SKIP() << kModels.string()                                                          \
-                         << " is missing: scripts/install-deps.sh installs assimp-testmodels";        \
+#define SKIP_WITHOUT_ASSIMP_MODELS()                                                                               \
+    do {                                                                                                           \
+        if (!fs::is_directory(kModels))                                                                            \
+            GTEST_SKIP() << kModels.string() << " is missing: scripts/install-deps.sh installs assimp-testmodels"; \
     } while (0)
 
 std::size_t totalTriangles(const World& world) {
@@ -131,8 +130,7 @@ TEST(GltfLoaderAssimpModels, SimpleSkinIsSkinnedAndRefits) {
 
     world.update(0.f);
     const FrameUpdate second = world.update(1.f);
-    EXPECT_NE(std::find(second.refitMeshes.begin(), second.refitMeshes.end(), skinnedMesh),
-              second.refitMeshes.end());
+    EXPECT_NE(std::find(second.refitMeshes.begin(), second.refitMeshes.end(), skinnedMesh), second.refitMeshes.end());
     EXPECT_TRUE(second.rebuiltMeshes.empty());
 }
 
@@ -247,7 +245,6 @@ TEST(GltfLoaderAssimpModels, PrimitiveModeFiles) {
 
 class GltfLoaderFiles : public test::ScratchDirTest {
 protected:
-
     // One triangle-mesh primitive with the given mode and optional indices, in one node.
     fs::path writeSingle(const std::string& name, const std::vector<vec3>& pos, int mode, int indexAccessor,
                          GltfBuilder& b) {
@@ -360,8 +357,8 @@ TEST_F(GltfLoaderFiles, MixedPrimitivesKeepTrianglesAndCountTheRest) {
 
 TEST_F(GltfLoaderFiles, SkippedPrimitivesAreStillValidated) {
     GltfBuilder b;
-    const fs::path p = writeSingle("badlines.gltf", {{0, 0, 0}, {1, 0, 0}}, 1,
-                                   b.indices(std::vector<std::uint16_t>{0, 2}), b);
+    const fs::path p =
+        writeSingle("badlines.gltf", {{0, 0, 0}, {1, 0, 0}}, 1, b.indices(std::vector<std::uint16_t>{0, 2}), b);
     const std::string err = loadError(p);
     EXPECT_NE(err.find("badlines.gltf"), std::string::npos) << err;
     EXPECT_NE(err.find("index 2 at position 1 is out of range"), std::string::npos) << err;
@@ -542,12 +539,14 @@ TEST_F(GltfLoaderFiles, MaterialsCamerasAndLights) {
                                  "KHR_materials_volume", "KHR_materials_emissive_strength"};
     b.doc()["extensions"] = {
         {"KHR_lights_punctual",
-         {{"lights", Json::array({{{"type", "spot"}, {"color", {1, 0.5, 0.25}}, {"intensity", 10},
+         {{"lights", Json::array({{{"type", "spot"},
+                                   {"color", {1, 0.5, 0.25}},
+                                   {"intensity", 10},
                                    {"spot", {{"innerConeAngle", 0.2}, {"outerConeAngle", 0.4}}}}})}}}};
     b.doc()["materials"] = Json::array(
         {{{"name", "glass"},
-          {"pbrMetallicRoughness", {{"baseColorFactor", {2.0, 0.5, 0.5, 1.0}}, {"metallicFactor", 0.0},
-                                    {"roughnessFactor", 0.1}}},
+          {"pbrMetallicRoughness",
+           {{"baseColorFactor", {2.0, 0.5, 0.5, 1.0}}, {"metallicFactor", 0.0}, {"roughnessFactor", 0.1}}},
           {"emissiveFactor", {0.5, 0, 0}},
           {"alphaMode", "MASK"},
           {"alphaCutoff", 0.3},
@@ -606,9 +605,9 @@ TEST_F(GltfLoaderFiles, AnimationValidation) {
     const int in = b.addAccessor(b.addView(times.data(), 8), 5126, 2, "SCALAR");
     const int out = b.addAccessor(b.addView(values.data(), 24), 5126, 2, "VEC3");
     b.node({{"name", "animated"}});
-    b.doc()["animations"] = Json::array(
-        {{{"channels", Json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}}})},
-          {"samplers", Json::array({{{"input", in}, {"output", out}, {"interpolation", "LINEAR"}}})}}});
+    b.doc()["animations"] =
+        Json::array({{{"channels", Json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}}})},
+                      {"samplers", Json::array({{{"input", in}, {"output", out}, {"interpolation", "LINEAR"}}})}}});
     {
         World world;
         const auto roots = load::loadGltf(world, b.write(file("anim.gltf")));

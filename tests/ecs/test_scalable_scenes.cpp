@@ -90,7 +90,8 @@ TEST(ScalableScenes, ParameterErrorsNameTheParameterAndWhatIsAccepted) {
     EXPECT_EQ(loadError("builtin:terrain?triangles="),
               "builtin:terrain?triangles=: parameter 'triangles' has value '', expected an integer from 1000 to "
               "10000000");
-    EXPECT_EQ(loadError("builtin:terrain?"), "builtin:terrain?: expected key=value, got '' (accepted: triangles, seed)");
+    EXPECT_EQ(loadError("builtin:terrain?"),
+              "builtin:terrain?: expected key=value, got '' (accepted: triangles, seed)");
     EXPECT_EQ(loadError("builtin:terrain?seed=1&&triangles=2000"),
               "builtin:terrain?seed=1&&triangles=2000: expected key=value, got '' (accepted: triangles, seed)");
     EXPECT_EQ(loadError("builtin:forest?instances=1000001"),
@@ -226,12 +227,12 @@ TEST(ScalableScenes, HairballIsThinSliversInsideTheUnitBall) {
 }
 
 TEST(ScalableScenes, SameSeedSameGeometryOnAnyThreadCountOtherSeedOther) {
-    for (const std::string scene : {"builtin:terrain?triangles=20000", "builtin:forest?instances=100",
-                                    "builtin:hairball?triangles=20000"}) {
+    for (const std::string scene :
+         {"builtin:terrain?triangles=20000", "builtin:forest?instances=100", "builtin:hairball?triangles=20000"}) {
         const std::uint32_t h = loadedHash(scene + "&seed=11", 1);
         EXPECT_EQ(h, loadedHash(scene + "&seed=11", 2)) << scene;
         EXPECT_EQ(h, loadedHash("builtin:" + scene.substr(8, scene.find('?') - 8) + "?seed=11&" +
-                                    scene.substr(scene.find('?') + 1)))
+                                scene.substr(scene.find('?') + 1)))
             << scene << ": parameter order does not matter";
         EXPECT_NE(h, loadedHash(scene + "&seed=12")) << scene;
         EXPECT_EQ(loadedHash(scene), loadedHash(scene + "&seed=0")) << scene << ": the default seed is 0";

@@ -62,6 +62,8 @@ struct SparseBytes {
     }
 };
 
+// The files' bytes, hand-aligned: clang-format leaves them as they are.
+// clang-format off
 const SparseBytes kValidVdb{19983, {
     {0, "2042445600000000e00000000a000000000000000162343833303531662d383164312d346262612d393939382d3134653638"
            "3662666262336100000000020000000800000076656c6f6369747910000000547265655f76656333735f355f345f33000000"
@@ -142,7 +144,7 @@ const SparseBytes kNanVdb{10047, {
     {9950, "03030000000000000303"},
     {10017, "803e0000003f0000003f0000403f0000003f0000403f0000403f0000c07f"},
 }};
-
+// clang-format on
 
 // A fresh folder per test (tests run as separate processes, possibly in
 // parallel), removed afterwards.
@@ -150,8 +152,8 @@ class TempDir {
 public:
     TempDir() {
         const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        path_ = fs::temp_directory_path() /
-                ("rtlab_" + std::string(info->test_suite_name()) + "_" + info->name() + "_" + std::to_string(::getpid()));
+        path_ = fs::temp_directory_path() / ("rtlab_" + std::string(info->test_suite_name()) + "_" + info->name() +
+                                             "_" + std::to_string(::getpid()));
         fs::remove_all(path_);
         fs::create_directories(path_);
     }
@@ -238,7 +240,8 @@ TEST(ProceduralFog, ZeroOutsideBoundsAndBoundedByPeak) {
         ASSERT_TRUE(std::isfinite(d));
         ASSERT_GE(d, 0.f);
         ASSERT_LE(d, fog->maxDensity());
-        const bool inside = glm::all(glm::greaterThanEqual(p, kFogBox.lo)) && glm::all(glm::lessThanEqual(p, kFogBox.hi));
+        const bool inside =
+            glm::all(glm::greaterThanEqual(p, kFogBox.lo)) && glm::all(glm::lessThanEqual(p, kFogBox.hi));
         if (!inside) {
             ASSERT_EQ(d, 0.f) << "outside the box at " << p.x << ", " << p.y << ", " << p.z;
         }
@@ -604,7 +607,8 @@ TEST(SceneJson, MalformedFilesThrowInputErrorNamingTheFile) {
          "volumes[0]: procedural fog: bounds / voxel size need more than"},
         {"negative seed", R"({"volumes": [{"procedural": "fog", "bounds": [[0, 0, 0], [1, 1, 1]], "seed": -3}]})",
          "volumes[0].seed: expected an integer"},
-        {"albedo above one", R"({"volumes": [{"procedural": "fog", "bounds": [[0, 0, 0], [1, 1, 1]], "albedo": [1, 2, 1]}]})",
+        {"albedo above one",
+         R"({"volumes": [{"procedural": "fog", "bounds": [[0, 0, 0], [1, 1, 1]], "albedo": [1, 2, 1]}]})",
          "volumes[0].albedo[1]: must be in [0, 1]"},
         {"camera looking at itself", R"({"camera": {"position": [1, 1, 1], "lookAt": [1, 1, 1]}})",
          "camera.lookAt: lookAt must differ from the position"},
@@ -637,12 +641,12 @@ TEST(SceneJson, ErrorsOfReferencedFilesNameThoseFiles) {
     const fs::path vdb = dir.write("garbage.vdb", "not a vdb at all");
     const fs::path gltf = dir.write("broken.gltf", "{ \"asset\": ");
     World world;
-    std::string msg = inputErrorOf([&] {
-        load::loadSceneJson(world, dir.write("a.json", R"({"volumes": [{"file": "garbage.vdb"}]})"));
-    });
+    std::string msg = inputErrorOf(
+        [&] { load::loadSceneJson(world, dir.write("a.json", R"({"volumes": [{"file": "garbage.vdb"}]})")); });
     EXPECT_EQ(msg.rfind(vdb.string() + ": ", 0), 0u) << msg;
     World world2;
-    msg = inputErrorOf([&] { load::loadSceneJson(world2, dir.write("b.json", R"({"gltf": [{"file": "broken.gltf"}]})")); });
+    msg = inputErrorOf(
+        [&] { load::loadSceneJson(world2, dir.write("b.json", R"({"gltf": [{"file": "broken.gltf"}]})")); });
     EXPECT_NE(msg.find(gltf.string()), std::string::npos) << msg;
     // The scene file itself missing.
     World world3;

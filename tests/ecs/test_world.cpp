@@ -50,7 +50,7 @@ TEST(EntityPool, StaleHandleIsDetectedAfterRecycling) {
     world.emplace(a, LocalTransform{vec3(1.f)});
     world.destroy(a);
     const Entity b = world.create("b");
-    EXPECT_EQ(a.index, b.index);  // index recycled...
+    EXPECT_EQ(a.index, b.index);            // index recycled...
     EXPECT_NE(a.generation, b.generation);  // ...with a new generation
     EXPECT_FALSE(world.alive(a));
     EXPECT_TRUE(world.alive(b));
@@ -79,7 +79,8 @@ TEST(ComponentStore, RemovalKeepsStoragePacked) {
 TEST(World, EachVisitsOnlyEntitiesWithAllComponents) {
     ThreeThings s;
     int withTransform = 0;
-    s.world.each<MeshInstance, LocalTransform>([&](Entity, const MeshInstance&, const LocalTransform&) { ++withTransform; });
+    s.world.each<MeshInstance, LocalTransform>(
+        [&](Entity, const MeshInstance&, const LocalTransform&) { ++withTransform; });
     EXPECT_EQ(withTransform, 2);  // morpher has no LocalTransform
     EXPECT_EQ(s.world.count<MeshInstance>(), 3u);
 }

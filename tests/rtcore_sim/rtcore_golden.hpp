@@ -29,9 +29,9 @@ inline nlohmann::json singleCoreView(nlohmann::json s) {
 }
 
 struct GoldenRun {
-    std::uint64_t cycles = 0;      // the core's clock after the run
-    std::uint64_t rayDigest = 0;   // per-ray cycles, slot cycles, spills, refills, hit t
-    std::uint64_t statsDigest = 0; // singleCoreView(statsJson()).dump()
+    std::uint64_t cycles = 0;       // the core's clock after the run
+    std::uint64_t rayDigest = 0;    // per-ray cycles, slot cycles, spills, refills, hit t
+    std::uint64_t statsDigest = 0;  // singleCoreView(statsJson()).dump()
 };
 
 // Workload `which`: 0 showcase defaults, 1 showcase scarce, 2 showcase treelet + 8 KB cache,

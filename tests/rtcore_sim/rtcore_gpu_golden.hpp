@@ -105,8 +105,8 @@ inline GoldenRun gpuGoldenRun(RtCore& core, const std::vector<SimRay>& rays, Pro
     g.cycles = core.cycle();
     std::uint64_t h = 14695981039346656037ull;
     for (const SimRayResult& r : results) {
-        const std::uint32_t v[6] = {r.cycles, r.slotCycles, r.stackSpills, r.stackRefills, r.hit.hit ? 1u : 0u,
-                                    r.work.steps};
+        const std::uint32_t v[6] = {r.cycles,       r.slotCycles,        r.stackSpills,
+                                    r.stackRefills, r.hit.hit ? 1u : 0u, r.work.steps};
         h = fnv1a(h, v, sizeof v);
         h = fnv1a(h, &r.hit.t, sizeof r.hit.t);
     }

@@ -64,7 +64,8 @@ inline void makeOneTriangleScene(MicroScene& scene, const BvhParams& params) {
 }
 
 // Primary rays through the pixel centres of the scene's camera.
-inline std::vector<SimRay> primaryRays(const ecs::CameraSnapshot& camera, int width, int height, std::uint32_t rayType = 0) {
+inline std::vector<SimRay> primaryRays(const ecs::CameraSnapshot& camera, int width, int height,
+                                       std::uint32_t rayType = 0) {
     std::vector<SimRay> rays;
     rays.reserve(std::size_t(width) * height);
     const float aspect = camera.camera.aspectRatio > 0.f ? camera.camera.aspectRatio : float(width) / float(height);

@@ -133,7 +133,8 @@ TEST(RtCoreBvh, InvariantsHoldForEveryWidthLeafSizeAndQuality) {
     for (std::uint32_t width : {2u, 4u, 6u, 8u})
         for (std::uint32_t leafSize : {1u, 4u, 7u})
             for (BuildQuality quality : {BuildQuality::Low, BuildQuality::Medium, BuildQuality::High}) {
-                SCOPED_TRACE("width " + std::to_string(width) + " leaf " + std::to_string(leafSize) + " " + toString(quality));
+                SCOPED_TRACE("width " + std::to_string(width) + " leaf " + std::to_string(leafSize) + " " +
+                             toString(quality));
                 BvhParams params;
                 params.width = width;
                 params.maxLeafSize = leafSize;
@@ -242,7 +243,9 @@ struct DeformScene {
         world.emplace(b, ecs::LocalTransform{vec3(0.f, 0.f, -5.f)});
         world.emplace(b, ecs::MeshInstance{box});
     }
-    ModelUpdateStats step(ModelScene& model, float dt = 0.1f) { return model.update(ecs::makeSnapshot(world, world.update(dt))); }
+    ModelUpdateStats step(ModelScene& model, float dt = 0.1f) {
+        return model.update(ecs::makeSnapshot(world, world.update(dt)));
+    }
 };
 
 TEST(RtCoreBvh, RefitKeepsTopologyAndBoundsContainMovedVertices) {

@@ -53,7 +53,8 @@ TEST(RtCoreConfig, DefaultsAndDescriptionsCoverEveryField) {
 }
 
 TEST(RtCoreConfig, JsonOverlaysDefaultsAndRoundTrips) {
-    const json input = {{"bvh", {{"width", 8}, {"maxLeafSize", 2}, {"buildQuality", "high"}, {"sahTraversalCost", 1.5}}}};
+    const json input = {
+        {"bvh", {{"width", 8}, {"maxLeafSize", 2}, {"buildQuality", "high"}, {"sahTraversalCost", 1.5}}}};
     const RtCoreConfig config = RtCoreConfig::fromJson(input, "test.json");
     EXPECT_EQ(config.bvh.width, 8u);
     EXPECT_EQ(config.bvh.maxLeafSize, 2u);
@@ -76,7 +77,8 @@ TEST(RtCoreConfig, LoadsFilesAndNamesThemInErrors) {
     const std::filesystem::path broken = dir / "broken.json";
     std::ofstream(broken) << R"({"bvh": {"width": )";
     EXPECT_NE(inputErrorOf([&] { RtCoreConfig::loadFile(broken); }).find(broken.string()), std::string::npos);
-    EXPECT_NE(inputErrorOf([&] { RtCoreConfig::loadFile(dir / "missing.json"); }).find("missing.json"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { RtCoreConfig::loadFile(dir / "missing.json"); }).find("missing.json"),
+              std::string::npos);
     std::filesystem::remove_all(dir);
 }
 
@@ -93,15 +95,18 @@ TEST(RtCoreConfig, SetParsesSectionFieldValue) {
 }
 
 TEST(RtCoreConfig, UnknownKeysAreInputErrorsNamingTheKey) {
-    const std::string unknownField =
-        inputErrorOf([] { RtCoreConfig::fromJson(json{{"bvh", {{"widht", 4}}}}, "cfg.json"); });
+    const std::string unknownField = inputErrorOf([] {
+        RtCoreConfig::fromJson(json{{"bvh", {{"widht", 4}}}}, "cfg.json");
+    });
     EXPECT_NE(unknownField.find("cfg.json"), std::string::npos) << unknownField;
     EXPECT_NE(unknownField.find("bvh.widht"), std::string::npos) << unknownField;
     EXPECT_NE(unknownField.find("width"), std::string::npos) << unknownField;  // lists the known ones
 
-    const std::string unknownSection = inputErrorOf([] { RtCoreConfig::fromJson(json{{"cahce", json::object()}}, "cfg.json"); });
+    const std::string unknownSection = inputErrorOf([] {
+        RtCoreConfig::fromJson(json{{"cahce", json::object()}}, "cfg.json");
+    });
     EXPECT_NE(unknownSection.find("cahce"), std::string::npos) << unknownSection;
-    EXPECT_NE(unknownSection.find("bvh"), std::string::npos) << unknownSection;    // lists the known sections
+    EXPECT_NE(unknownSection.find("bvh"), std::string::npos) << unknownSection;  // lists the known sections
     EXPECT_NE(unknownSection.find("cache"), std::string::npos) << unknownSection;
 
     RtCoreConfig config;
@@ -112,12 +117,18 @@ TEST(RtCoreConfig, UnknownKeysAreInputErrorsNamingTheKey) {
     EXPECT_NE(inputErrorOf([&] { config.set("width=3"); }).find("section.field=value"), std::string::npos);
     EXPECT_NE(inputErrorOf([&] { config.set("bvh.width"); }).find("section.field=value"), std::string::npos);
     EXPECT_NE(inputErrorOf([&] { config.set("bvh.width="); }).find("missing value"), std::string::npos);
-    EXPECT_NE(inputErrorOf([] { RtCoreConfig::fromJson(json::array(), "cfg.json"); }).find("object"), std::string::npos);
-    EXPECT_NE(inputErrorOf([] { RtCoreConfig::fromJson(json{{"bvh", 4}}, "cfg.json"); }).find("bvh"), std::string::npos);
+    EXPECT_NE(inputErrorOf([] { RtCoreConfig::fromJson(json::array(), "cfg.json"); }).find("object"),
+              std::string::npos);
+    EXPECT_NE(inputErrorOf([] {
+                  RtCoreConfig::fromJson(json{{"bvh", 4}}, "cfg.json");
+              }).find("bvh"),
+              std::string::npos);
 }
 
 TEST(RtCoreConfig, OutOfRangeAndMistypedValuesAreInputErrorsNamingTheKey) {
-    const auto errorFor = [](const json& bvh) { return inputErrorOf([&] { RtCoreConfig::fromJson(json{{"bvh", bvh}}, "cfg.json"); }); };
+    const auto errorFor = [](const json& bvh) {
+        return inputErrorOf([&] { RtCoreConfig::fromJson(json{{"bvh", bvh}}, "cfg.json"); });
+    };
     const std::string width = errorFor({{"width", 5}});
     EXPECT_NE(width.find("bvh.width"), std::string::npos) << width;
     EXPECT_NE(width.find("2, 4, 6, 8"), std::string::npos) << width;
@@ -139,9 +150,8 @@ TEST(RtCoreConfig, OutOfRangeAndMistypedValuesAreInputErrorsNamingTheKey) {
 TEST(RtCoreConfig, EveryTimingSectionHasDescribedDefaultsAndChecksRanges) {
     const json dumped = RtCoreConfig{}.toJson();
     const json described = RtCoreConfig::describe();
-    for (const char* section :
-         {"bvh", "core", "scheduler", "traversal", "triangle", "transform", "shader", "stack", "cache", "memory", "gpu",
-          "l2", "dram"}) {
+    for (const char* section : {"bvh", "core", "scheduler", "traversal", "triangle", "transform", "shader", "stack",
+                                "cache", "memory", "gpu", "l2", "dram"}) {
         ASSERT_TRUE(dumped.contains(section)) << section;
         ASSERT_TRUE(described.contains(section)) << section;
         EXPECT_EQ(dumped[section].size(), described[section].size()) << section;

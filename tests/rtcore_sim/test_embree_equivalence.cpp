@@ -38,8 +38,9 @@ struct Comparison {
     std::uint64_t tiesTouching = 0;      // another geometry or instance at the same t (surfaces meeting)
     // Within rounding: the disagreement is smaller than float rounding of the
     // instance transform (see RoundingAllowance).
-    std::uint64_t boundaryGrazes = 0;  // a hit within rounding of its triangle's boundary, the other side did not take it
-    std::uint64_t grazingT = 0;        // same primitive, t beyond 1e-6 relative but within rounding at this angle
+    std::uint64_t boundaryGrazes =
+        0;                       // a hit within rounding of its triangle's boundary, the other side did not take it
+    std::uint64_t grazingT = 0;  // same primitive, t beyond 1e-6 relative but within rounding at this angle
     // Real mismatches: none of the above.
     std::uint64_t hitVersusMiss = 0;
     std::uint64_t tDiffers = 0;
@@ -51,10 +52,17 @@ struct Comparison {
     // Everything that is not a match by the letter of the 1e-6 rule.
     std::uint64_t strictDifferences() const { return ties() + withinRounding() + mismatches(); }
     void add(const Comparison& o) {
-        rays += o.rays; hits += o.hits; matches += o.matches;
-        tiesSharedEdge += o.tiesSharedEdge; tiesSharedVertex += o.tiesSharedVertex; tiesTouching += o.tiesTouching;
-        boundaryGrazes += o.boundaryGrazes; grazingT += o.grazingT;
-        hitVersusMiss += o.hitVersusMiss; tDiffers += o.tDiffers; otherPrimitive += o.otherPrimitive;
+        rays += o.rays;
+        hits += o.hits;
+        matches += o.matches;
+        tiesSharedEdge += o.tiesSharedEdge;
+        tiesSharedVertex += o.tiesSharedVertex;
+        tiesTouching += o.tiesTouching;
+        boundaryGrazes += o.boundaryGrazes;
+        grazingT += o.grazingT;
+        hitVersusMiss += o.hitVersusMiss;
+        tDiffers += o.tDiffers;
+        otherPrimitive += o.otherPrimitive;
     }
 };
 
@@ -77,8 +85,12 @@ EmbreeHit traceEmbree(const tracer::AccelManager& accel, const vec3& origin, con
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh{};
-    rh.ray.org_x = origin.x; rh.ray.org_y = origin.y; rh.ray.org_z = origin.z;
-    rh.ray.dir_x = direction.x; rh.ray.dir_y = direction.y; rh.ray.dir_z = direction.z;
+    rh.ray.org_x = origin.x;
+    rh.ray.org_y = origin.y;
+    rh.ray.org_z = origin.z;
+    rh.ray.dir_x = direction.x;
+    rh.ray.dir_y = direction.y;
+    rh.ray.dir_z = direction.z;
     rh.ray.tnear = 0.f;
     rh.ray.tfar = kInfinity;
     rh.ray.mask = 0xff;
@@ -113,16 +125,16 @@ int sharedVertices(const ecs::Geometry& g, std::uint32_t a, std::uint32_t b) {
     return shared;
 }
 
-
 // The world ray against one triangle in double precision, the instance
 // transform inverted in double: the reference both back ends approximate.
 struct ExactHit {
     bool valid = false;
     double t = 0.0;
-    double boundaryDistance = 0.0;  // signed object-space distance of the hit point to the triangle's boundary (< 0 outside)
-    double cosine = 0.0;            // |cos| of the angle between ray and triangle normal
-    double directionLength = 0.0;   // of the object-space direction
-    double allowance = 0.0;         // RoundingAllowance: object-space position uncertainty
+    double boundaryDistance =
+        0.0;              // signed object-space distance of the hit point to the triangle's boundary (< 0 outside)
+    double cosine = 0.0;  // |cos| of the angle between ray and triangle normal
+    double directionLength = 0.0;  // of the object-space direction
+    double allowance = 0.0;        // RoundingAllowance: object-space position uncertainty
 };
 
 // Float rounding of an instance transform moves the object-space ray by a
@@ -130,8 +142,8 @@ struct ExactHit {
 // allowance under which two back ends may legitimately disagree.
 constexpr double kRoundingAllowance = 1.0 / (1 << 20);
 
-ExactHit exactHit(const ecs::SceneSnapshot& snapshot, const ModelRay& ray, std::uint32_t instance, std::uint32_t geometry,
-                  std::uint32_t primitive) {
+ExactHit exactHit(const ecs::SceneSnapshot& snapshot, const ModelRay& ray, std::uint32_t instance,
+                  std::uint32_t geometry, std::uint32_t primitive) {
     const ecs::InstanceSnapshot& inst = snapshot.instances[instance];
     const ecs::Geometry& g = (*snapshot.meshes)[inst.mesh].geometries[geometry];
     const glm::dmat4 objectFromWorld = glm::inverse(glm::dmat4(inst.worldFromObject));
@@ -153,14 +165,16 @@ ExactHit exactHit(const ecs::SceneSnapshot& snapshot, const ModelRay& ray, std::
     e.boundaryDistance = kInfinity;
     for (int k = 0; k < 3; ++k) {
         const glm::dvec3 a = p[k], b = p[(k + 1) % 3];
-        e.boundaryDistance = std::min(e.boundaryDistance, glm::dot(glm::cross(b - a, hitPoint - a), unitNormal) / glm::length(b - a));
+        e.boundaryDistance =
+            std::min(e.boundaryDistance, glm::dot(glm::cross(b - a, hitPoint - a), unitNormal) / glm::length(b - a));
     }
     // Magnitudes the transform and the hit point computation round.
     const glm::dvec3 worldOrigin(ray.origin);
     const double worldMagnitude = std::max({std::abs(worldOrigin.x), std::abs(worldOrigin.y), std::abs(worldOrigin.z)});
     double linearNorm = 0.0;
     for (int r = 0; r < 3; ++r)
-        linearNorm = std::max(linearNorm, std::abs(objectFromWorld[0][r]) + std::abs(objectFromWorld[1][r]) + std::abs(objectFromWorld[2][r]));
+        linearNorm = std::max(linearNorm, std::abs(objectFromWorld[0][r]) + std::abs(objectFromWorld[1][r]) +
+                                              std::abs(objectFromWorld[2][r]));
     const glm::dvec3 translation(objectFromWorld[3]);
     const double magnitude = linearNorm * worldMagnitude +
                              std::max({std::abs(translation.x), std::abs(translation.y), std::abs(translation.z)}) +
@@ -228,8 +242,9 @@ Comparison compareFrame(const ecs::SceneSnapshot& snapshot, const tracer::AccelM
                     }
                 } else {
                     // Step: different primitives at different t — fine when the nearer one grazes its boundary.
-                    const ExactHit x = m.t < e.t ? exactHit(snapshot, ray, m.instanceIndex, m.geometryIndex, m.primitiveIndex)
-                                                 : exactHit(snapshot, ray, e.instance, e.geometry, e.primitive);
+                    const ExactHit x = m.t < e.t
+                                           ? exactHit(snapshot, ray, m.instanceIndex, m.geometryIndex, m.primitiveIndex)
+                                           : exactHit(snapshot, ray, e.instance, e.geometry, e.primitive);
                     if (nearBoundary(x)) {
                         ++c.boundaryGrazes;
                     } else {

@@ -27,8 +27,7 @@ using namespace rtlab::rtcore_sim;
 
 namespace {
 
-const std::filesystem::path kEngine =
-    "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
+const std::filesystem::path kEngine = "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
 
 struct Frame {
     shaders::PreviewResult preview;
@@ -151,7 +150,8 @@ TEST(RtCoreBackend, ConfigurationChangesCyclesNotImages) {
     const BothBackEnds a = renderBoth("builtin:showcase", 1, 64, 40, {}, false);
     const BothBackEnds b = renderBoth("builtin:showcase", 1, 64, 40, scarce, false);
     EXPECT_TRUE(compareImages(a.rtcore.preview.image, b.rtcore.preview.image).identical);
-    EXPECT_GT(b.rtcore.stats["frame"]["cycles"].get<std::uint64_t>(), a.rtcore.stats["frame"]["cycles"].get<std::uint64_t>());
+    EXPECT_GT(b.rtcore.stats["frame"]["cycles"].get<std::uint64_t>(),
+              a.rtcore.stats["frame"]["cycles"].get<std::uint64_t>());
     EXPECT_EQ(b.rtcore.stats["config"]["scheduler"]["policy"], "oldestFirst");
 }
 

@@ -18,7 +18,7 @@ namespace {
 
 // One comparison of timed against functional traversal.
 struct Comparison {
-    std::string label;            // width and policy
+    std::string label;  // width and policy
     std::size_t rays = 0;
     std::uint64_t functionalHits = 0;
     std::uint64_t differentHits = 0;

@@ -52,7 +52,8 @@ json runScene(const std::string& source, const RtCoreConfig& config, int width, 
         // Hits equal the functional traversal's, whatever the core.
         for (std::size_t i = 0; i < rays.size(); ++i) {
             TraversalCounters work;
-            EXPECT_TRUE(sameHit(results[i].hit, traceClosestHit(*scene.model, rays[i].ray, work))) << source << " " << i;
+            EXPECT_TRUE(sameHit(results[i].hit, traceClosestHit(*scene.model, rays[i].ray, work)))
+                << source << " " << i;
             EXPECT_TRUE(sameWork(results[i].work, work)) << source << " " << i;
         }
         *resultsOut = results;
@@ -105,8 +106,8 @@ void expectCoreLaws(const json& s, const RtCoreConfig& config, std::uint32_t cor
     EXPECT_LE(s["raySlots"]["utilization"].get<double>(), 1.0) << what;
     EXPECT_GE(cycles * cores, s["memory"]["busyCycles"].get<double>()) << what;
     EXPECT_GE(cycles * cores, s["scheduler"]["issued"].get<double>() / config.scheduler.issueWidth) << what;
-    EXPECT_GE(cycles * cores, s["traversalUnits"]["boxTests"].get<double>() /
-                                  (config.traversal.units * config.traversal.boxesPerCycle))
+    EXPECT_GE(cycles * cores,
+              s["traversalUnits"]["boxTests"].get<double>() / (config.traversal.units * config.traversal.boxesPerCycle))
         << what;
 }
 
@@ -209,7 +210,7 @@ TEST(RtCoreGpu, TwoCoresShareOneL2LineByHand) {
     config.dram.latency = 100;
     config.dram.bytesPerCycle = 16;
     const std::uint64_t T = config.cache.lineBytes / config.memory.bytesPerCycle;  // 2
-    const std::uint64_t Td = config.l2.lineBytes / config.dram.bytesPerCycle;     // 8
+    const std::uint64_t Td = config.l2.lineBytes / config.dram.bytesPerCycle;      // 8
     const std::uint64_t unitTail = config.transform.latency + config.triangle.latency;
     MicroScene scene;
     makeOneTriangleScene(scene, config.bvh);
@@ -258,7 +259,7 @@ TEST(RtCoreGpu, TwoCoresShareOneL2LineByHand) {
         const std::uint64_t start = gpu.cycle();
         gpu.resetStats();
         const auto r = runBatch(gpu, {simRay(kDownOntoTriangle), simRay(kDownOntoTriangle)});
-        EXPECT_EQ(r[0].cycles, 3 * config.cache.hitLatency + unitTail);                            // 24
+        EXPECT_EQ(r[0].cycles, 3 * config.cache.hitLatency + unitTail);                             // 24
         EXPECT_EQ(r[1].cycles, 3 * (T + config.l2.hitLatency + config.memory.latency) + unitTail);  // 168
         EXPECT_EQ(gpu.cycle(), start + r[1].cycles);
         const json s = gpu.statsJson();
@@ -330,7 +331,8 @@ TEST(RtCoreGpu, LawsHoldOnSeveralWorkloadsAndConfigurations) {
         {"8 cores cache", gpuConfig(8, L2Mode::Cache)},
         {"8 cores scarce", scarce},
         {"8 cores cache directionOrigin", reordered},
-        {"8 cores cache treeletPrefetch", [] {
+        {"8 cores cache treeletPrefetch",
+         [] {
              RtCoreConfig c = gpuConfig(8, L2Mode::Cache);
              c.scheduler.policy = "treeletPrefetch";
              return c;
@@ -529,8 +531,9 @@ TEST(RtCoreGpu, ConfigurationSectionsAndErrors) {
     EXPECT_EQ(defaults.gpu.cores, 1u);
     EXPECT_EQ(defaults.l2.mode, L2Mode::Ideal);
     const json described = RtCoreConfig::describe();
-    for (const char* key : {"gpu.cores", "gpu.dispatch", "l2.mode", "l2.sizeBytes", "l2.lineBytes", "l2.ways", "l2.banks",
-                            "l2.bankCycles", "l2.hitLatency", "dram.channels", "dram.bytesPerCycle", "dram.latency"}) {
+    for (const char* key :
+         {"gpu.cores", "gpu.dispatch", "l2.mode", "l2.sizeBytes", "l2.lineBytes", "l2.ways", "l2.banks",
+          "l2.bankCycles", "l2.hitLatency", "dram.channels", "dram.bytesPerCycle", "dram.latency"}) {
         const std::string k(key);
         const std::string section = k.substr(0, k.find('.')), field = k.substr(k.find('.') + 1);
         ASSERT_TRUE(described[section].contains(field)) << key;
@@ -548,11 +551,31 @@ TEST(RtCoreGpu, ConfigurationSectionsAndErrors) {
     EXPECT_EQ(c.gpu.dispatch, WarpDispatch::Contiguous);
     EXPECT_EQ(RtCoreConfig::fromJson(c.toJson(), "echo").toJson(), c.toJson());
 
-    EXPECT_NE(inputErrorOf([&] { RtCoreConfig x; x.set("gpu.cores=0"); }).find("gpu.cores"), std::string::npos);
-    EXPECT_NE(inputErrorOf([&] { RtCoreConfig x; x.set("gpu.dispatch=byTile"); }).find("gpu.dispatch"), std::string::npos);
-    EXPECT_NE(inputErrorOf([&] { RtCoreConfig x; x.set("l2.lineBytes=100"); }).find("l2.lineBytes"), std::string::npos);
-    EXPECT_NE(inputErrorOf([&] { RtCoreConfig x; x.set("dram.channels=65"); }).find("dram.channels"), std::string::npos);
-    EXPECT_NE(inputErrorOf([&] { RtCoreConfig x; x.set("l2.assoc=4"); }).find("l2.assoc: unknown key"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] {
+                  RtCoreConfig x;
+                  x.set("gpu.cores=0");
+              }).find("gpu.cores"),
+              std::string::npos);
+    EXPECT_NE(inputErrorOf([&] {
+                  RtCoreConfig x;
+                  x.set("gpu.dispatch=byTile");
+              }).find("gpu.dispatch"),
+              std::string::npos);
+    EXPECT_NE(inputErrorOf([&] {
+                  RtCoreConfig x;
+                  x.set("l2.lineBytes=100");
+              }).find("l2.lineBytes"),
+              std::string::npos);
+    EXPECT_NE(inputErrorOf([&] {
+                  RtCoreConfig x;
+                  x.set("dram.channels=65");
+              }).find("dram.channels"),
+              std::string::npos);
+    EXPECT_NE(inputErrorOf([&] {
+                  RtCoreConfig x;
+                  x.set("l2.assoc=4");
+              }).find("l2.assoc: unknown key"),
+              std::string::npos);
     EXPECT_NE(inputErrorOf([&] {
                   RtCoreConfig x;
                   x.l2.sizeBytes = 3 * 128 * 16 * 16;

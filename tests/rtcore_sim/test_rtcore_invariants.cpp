@@ -49,7 +49,8 @@ void expectInvariants(const json& s, const RtCoreConfig& config) {
     // Throughput bounds: boxes, tests, issues, memory bytes.
     EXPECT_GE(cycles, s["traversalUnits"]["boxTests"].get<double>() /
                           (config.traversal.units * config.traversal.boxesPerCycle));
-    EXPECT_GE(cycles, (s["triangleUnits"]["triangleTests"].get<double>() + s["triangleUnits"]["proceduralTests"].get<double>()) /
+    EXPECT_GE(cycles, (s["triangleUnits"]["triangleTests"].get<double>() +
+                       s["triangleUnits"]["proceduralTests"].get<double>()) /
                           (config.triangle.units * config.triangle.testsPerCycle));
     EXPECT_GE(cycles, s["scheduler"]["issued"].get<double>() / config.scheduler.issueWidth);
     EXPECT_GE(cycles, (s["memory"]["readBytes"].get<double>() + s["memory"]["writeBytes"].get<double>()) /
@@ -62,7 +63,8 @@ void expectInvariants(const json& s, const RtCoreConfig& config) {
     }
     EXPECT_LE(s["raySlots"]["utilization"].get<double>(), 1.0);
     EXPECT_LE(s["cache"]["hitRate"].get<double>(), 1.0);
-    EXPECT_EQ(s["cache"]["accesses"], s["cache"]["hits"].get<std::uint64_t>() + s["cache"]["misses"].get<std::uint64_t>());
+    EXPECT_EQ(s["cache"]["accesses"],
+              s["cache"]["hits"].get<std::uint64_t>() + s["cache"]["misses"].get<std::uint64_t>());
     EXPECT_LE(s["simd"]["efficiency"].get<double>(), 1.0);
     EXPECT_GT(s["simd"]["efficiency"].get<double>(), 0.0);
     // Queue occupancies stay within capacity; their histograms cover every cycle.
@@ -197,7 +199,8 @@ TEST(RtCoreInvariants, ConfigurationErrorsAndMismatchedScenes) {
     empty.world.addMaterial({});
     empty.build(BvhParams{});
     RtCore emptyCore(RtCoreConfig{}, *empty.model);
-    const auto results = runBatch(emptyCore, std::vector<SimRay>(3, simRay(makeModelRay(vec3(0.f), vec3(0.f, 0.f, -1.f)))));
+    const auto results =
+        runBatch(emptyCore, std::vector<SimRay>(3, simRay(makeModelRay(vec3(0.f), vec3(0.f, 0.f, -1.f)))));
     for (const auto& r : results) {
         EXPECT_FALSE(r.hit.hit);
         EXPECT_EQ(r.work.steps, 0u);

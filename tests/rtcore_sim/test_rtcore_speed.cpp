@@ -71,8 +71,12 @@ TEST(RtCoreSpeed, ShowcasePrimaryAndDiffuseRaysPerHostSecond) {
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         RTCRayHit rh{};
-        rh.ray.org_x = r.ray.origin.x; rh.ray.org_y = r.ray.origin.y; rh.ray.org_z = r.ray.origin.z;
-        rh.ray.dir_x = r.ray.direction.x; rh.ray.dir_y = r.ray.direction.y; rh.ray.dir_z = r.ray.direction.z;
+        rh.ray.org_x = r.ray.origin.x;
+        rh.ray.org_y = r.ray.origin.y;
+        rh.ray.org_z = r.ray.origin.z;
+        rh.ray.dir_x = r.ray.direction.x;
+        rh.ray.dir_y = r.ray.direction.y;
+        rh.ray.dir_z = r.ray.direction.z;
         rh.ray.tnear = r.ray.tMin;
         rh.ray.tfar = r.ray.tMax;
         rh.ray.mask = 0xff;
@@ -93,10 +97,10 @@ TEST(RtCoreSpeed, ShowcasePrimaryAndDiffuseRaysPerHostSecond) {
     std::cout << "[ rtcore   ] showcase 320x240 primary + diffuse bounce: " << rays.size() << " rays ("
               << bounces.size() << " bounces), model hits " << modelHits << ", Embree hits " << embreeHits << "\n"
               << "[ rtcore   ] host rays/s on one thread: timing model " << simulatedRate << ", functional "
-              << functionalRate << ", Embree rtcIntersect1 " << embreeRate << " (timing model / Embree = "
-              << simulatedRate / embreeRate << ")\n"
-              << "[ rtcore   ] simulated: " << stats["frame"]["cycles"] << " cycles, "
-              << stats["frame"]["raysPerCycle"] << " rays/cycle, cache hit rate " << stats["cache"]["hitRate"]
-              << ", box unit utilization " << stats["traversalUnits"]["utilization"] << ", mean latency "
-              << stats["rays"]["latency"]["mean"] << " cycles\n";
+              << functionalRate << ", Embree rtcIntersect1 " << embreeRate
+              << " (timing model / Embree = " << simulatedRate / embreeRate << ")\n"
+              << "[ rtcore   ] simulated: " << stats["frame"]["cycles"] << " cycles, " << stats["frame"]["raysPerCycle"]
+              << " rays/cycle, cache hit rate " << stats["cache"]["hitRate"] << ", box unit utilization "
+              << stats["traversalUnits"]["utilization"] << ", mean latency " << stats["rays"]["latency"]["mean"]
+              << " cycles\n";
 }

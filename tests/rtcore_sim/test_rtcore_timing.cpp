@@ -182,7 +182,7 @@ TEST(RtCoreTiming, FullInputQueueBlocksTheNextWarp) {
 
     const std::uint64_t L = 3 * config.cache.hitLatency + config.transform.latency + config.triangle.latency;
     const std::uint64_t W = config.core.warpWidth;
-    for (std::uint32_t k = 0; k < 4; ++k) EXPECT_EQ(results[k].cycles, (k + 1) * L) << k;           // submitted at s
+    for (std::uint32_t k = 0; k < 4; ++k) EXPECT_EQ(results[k].cycles, (k + 1) * L) << k;          // submitted at s
     for (std::uint32_t j = 0; j < 4; ++j) EXPECT_EQ(results[4 + j].cycles, (j + 2) * L - 1) << j;  // at s + 3L + 1
     EXPECT_EQ(core.cycle(), s + 8 * L);
     const auto stats = core.statsJson();
@@ -271,8 +271,8 @@ TEST(RtCoreTiming, AnyHitShaderRoundTripIsCharged) {
     std::vector<SimRayResult> results(1);
     core.run(rays, side, results);
     EXPECT_EQ(side.calls, 1u);
-    EXPECT_EQ(results[0].cycles,
-              3 * missCycles(config) + config.transform.latency + config.triangle.latency + config.shader.anyHitLatency);
+    EXPECT_EQ(results[0].cycles, 3 * missCycles(config) + config.transform.latency + config.triangle.latency +
+                                     config.shader.anyHitLatency);
     EXPECT_EQ(results[0].work.anyHitCalls, 1u);
     EXPECT_EQ(core.statsJson()["shader"]["anyHitCalls"], 1);
 }

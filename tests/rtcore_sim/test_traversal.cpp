@@ -43,8 +43,8 @@ TEST(RtCoreTraversal, LiteralOneTriangleThroughTheTwoLevelBvh) {
     // the ray meets it at world (0.5, 0.25, -2), t = 3, same barycentrics.
     ecs::World world;
     world.addMaterial({});
-    const ecs::MeshId mesh =
-        world.addMesh(ecs::load::makeMesh("tri", oneTriangleGeometry(vec3(0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 1.f, 0.f))));
+    const ecs::MeshId mesh = world.addMesh(
+        ecs::load::makeMesh("tri", oneTriangleGeometry(vec3(0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 1.f, 0.f))));
     const ecs::Entity e = world.create("tri");
     world.emplace(e, ecs::LocalTransform{vec3(0.f, 0.f, -2.f), quat(1, 0, 0, 0), vec3(2.f, 1.f, 1.f)});
     world.emplace(e, ecs::MeshInstance{mesh});
@@ -82,13 +82,13 @@ TEST(RtCoreTraversal, TriangleTestIntervalsFacesAndDegenerates) {
         return intersectTriangleWatertight(o, d, p0, p1, q2, tMin, tMax).has_value();
     };
     EXPECT_TRUE(test(origin, down, 0.f, 1.001f, p2));
-    EXPECT_FALSE(test(origin, down, 0.f, 1.f, p2));            // t == tMax is outside (tMin, tMax)
-    EXPECT_FALSE(test(origin, down, 1.f, kInfinity, p2));      // t == tMin is outside too
-    EXPECT_FALSE(test(origin, -down, 0.f, kInfinity, p2));     // behind the origin
+    EXPECT_FALSE(test(origin, down, 0.f, 1.f, p2));                          // t == tMax is outside (tMin, tMax)
+    EXPECT_FALSE(test(origin, down, 1.f, kInfinity, p2));                    // t == tMin is outside too
+    EXPECT_FALSE(test(origin, -down, 0.f, kInfinity, p2));                   // behind the origin
     EXPECT_TRUE(test(vec3(0.25f, 0.25f, -1.f), -down, 0.f, kInfinity, p2));  // back face: no culling
     EXPECT_FALSE(test(vec3(0.75f, 0.75f, 1.f), down, 0.f, kInfinity, p2));   // outside the hypotenuse
     EXPECT_FALSE(test(vec3(0.25f, 0.25f, 0.f), vec3(1.f, 0.f, 0.f), 0.f, kInfinity, p2));  // in-plane
-    EXPECT_FALSE(test(origin, down, 0.f, kInfinity, vec3(2.f, 0.f, 0.f)));  // degenerate (collinear)
+    EXPECT_FALSE(test(origin, down, 0.f, kInfinity, vec3(2.f, 0.f, 0.f)));                 // degenerate (collinear)
     // Exactly on a vertex and on an edge: hit (edge functions of zero count as inside).
     EXPECT_TRUE(test(vec3(0.f, 0.f, 1.f), down, 0.f, kInfinity, p2));
     EXPECT_TRUE(test(vec3(0.5f, 0.5f, 1.f), down, 0.f, kInfinity, p2));
@@ -123,14 +123,15 @@ TEST(RtCoreTraversal, BoxTest) {
         return intersectBox(box, o, reciprocalDirection(d), tMin, tMax);
     };
     ASSERT_TRUE(hit(vec3(0.f, 0.f, 5.f), vec3(0.f, 0.f, -1.f)));
-    EXPECT_EQ(*hit(vec3(0.f, 0.f, 5.f), vec3(0.f, 0.f, -1.f)), 4.f);      // entry distance
-    EXPECT_EQ(*hit(vec3(0.f), vec3(0.f, 0.f, -1.f)), 0.f);                 // inside: tMin
-    EXPECT_FALSE(hit(vec3(0.f, 2.f, 5.f), vec3(0.f, 0.f, -1.f)));          // passes above
-    EXPECT_FALSE(hit(vec3(0.f, 0.f, 5.f), vec3(0.f, 0.f, 1.f)));           // points away
+    EXPECT_EQ(*hit(vec3(0.f, 0.f, 5.f), vec3(0.f, 0.f, -1.f)), 4.f);          // entry distance
+    EXPECT_EQ(*hit(vec3(0.f), vec3(0.f, 0.f, -1.f)), 0.f);                    // inside: tMin
+    EXPECT_FALSE(hit(vec3(0.f, 2.f, 5.f), vec3(0.f, 0.f, -1.f)));             // passes above
+    EXPECT_FALSE(hit(vec3(0.f, 0.f, 5.f), vec3(0.f, 0.f, 1.f)));              // points away
     EXPECT_FALSE(hit(vec3(0.f, 0.f, 5.f), vec3(0.f, 0.f, -1.f), 0.f, 3.9f));  // ends before the box
-    EXPECT_TRUE(hit(vec3(1.f, 0.f, 5.f), vec3(0.f, 0.f, -1.f)));           // along a face (zero direction components)
-    EXPECT_TRUE(hit(vec3(1.f, 1.f, 5.f), vec3(0.f, 0.f, -1.f)));           // along an edge
-    EXPECT_FALSE(intersectBox(Aabb{}, vec3(0.f), reciprocalDirection(vec3(1.f, 1.f, 1.f)), 0.f, kInfinity));  // empty box
+    EXPECT_TRUE(hit(vec3(1.f, 0.f, 5.f), vec3(0.f, 0.f, -1.f)));  // along a face (zero direction components)
+    EXPECT_TRUE(hit(vec3(1.f, 1.f, 5.f), vec3(0.f, 0.f, -1.f)));  // along an edge
+    EXPECT_FALSE(
+        intersectBox(Aabb{}, vec3(0.f), reciprocalDirection(vec3(1.f, 1.f, 1.f)), 0.f, kInfinity));  // empty box
     // A flat box (a quad's bounds) is hit by a ray crossing its plane.
     EXPECT_TRUE(intersectBox(Aabb{vec3(-1.f, 0.f, -1.f), vec3(1.f, 0.f, 1.f)}, vec3(0.3f, 2.f, 0.1f),
                              reciprocalDirection(vec3(0.f, -1.f, 0.f)), 0.f, kInfinity));
@@ -182,7 +183,8 @@ TEST(RtCoreTraversal, EqualsBruteForceOnRandomScenes) {
             meshes.push_back(world.addMesh(makeSoupMesh(60 + 70 * m, seed * 10 + m, 1.f, 0.25f)));
         for (std::uint32_t i = 0; i < 7; ++i) {
             const ecs::Entity e = world.create("instance");
-            const quat rotation = glm::angleAxis(rng.range(0.f, 6.f), glm::normalize(rng.point(-1.f, 1.f) + vec3(0.01f)));
+            const quat rotation =
+                glm::angleAxis(rng.range(0.f, 6.f), glm::normalize(rng.point(-1.f, 1.f) + vec3(0.01f)));
             world.emplace(e, ecs::LocalTransform{rng.point(-3.f, 3.f), rotation, vec3(rng.range(0.5f, 2.f))});
             world.emplace(e, ecs::MeshInstance{meshes[i % meshes.size()], static_cast<std::uint8_t>(1u << (i % 3))});
         }

@@ -48,7 +48,9 @@ Geometry makeTorus(int rings, int sides) {
         }
     for (int i = 0; i < rings; ++i)
         for (int j = 0; j < sides; ++j) {
-            const auto id = [&](int r, int s) { return std::uint32_t(((r + rings) % rings) * sides + (s + sides) % sides); };
+            const auto id = [&](int r, int s) {
+                return std::uint32_t(((r + rings) % rings) * sides + (s + sides) % sides);
+            };
             g.indices.insert(g.indices.end(), {id(i, j), id(i + 1, j), id(i + 1, j + 1)});
             g.indices.insert(g.indices.end(), {id(i, j), id(i + 1, j + 1), id(i, j + 1)});
         }
@@ -100,12 +102,14 @@ Outcome traceBoth(const Geometry& unitShape, bool torus, float radius, const vec
     std::vector<vec3> points(unitShape.positions.begin(), unitShape.positions.end());
     std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
     for (std::size_t t = 0; t < unitShape.indices.size(); t += 3)
-        for (int k = 0; k < 3; ++k) edges.insert(std::minmax(unitShape.indices[t + k], unitShape.indices[t + (k + 1) % 3]));
+        for (int k = 0; k < 3; ++k)
+            edges.insert(std::minmax(unitShape.indices[t + k], unitShape.indices[t + (k + 1) % 3]));
     for (const auto& [a, b] : edges)
-        for (float s : {0.25f, 0.5f, 0.75f}) points.push_back(glm::mix(unitShape.positions[a], unitShape.positions[b], s));
+        for (float s : {0.25f, 0.5f, 0.75f})
+            points.push_back(glm::mix(unitShape.positions[a], unitShape.positions[b], s));
     for (const vec3& p : points) {
         const vec3 inner = innerPoint(p, torus);
-        aim(inner, p);                                        // from inside
+        aim(inner, p);                                                        // from inside
         aim(p + 1.5f * glm::normalize(p - inner) * (torus ? 0.4f : 1.f), p);  // from outside, along the normal
     }
     // A dense grid of directions from inside (any hit will do).

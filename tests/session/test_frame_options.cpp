@@ -45,9 +45,19 @@ TEST(FrameOptions, ArgumentsCarryOnlyWhatDiffersFromTheDefaults) {
     o.verify = true;
     o.backend = "rtcore";
     o.rtcoreSet = {"gpu.cores=2", "cache.sizeBytes=4096"};
-    const std::vector<std::string> expected = {"--width", "32", "--backend", "rtcore", "--rtcore-set", "gpu.cores=2",
-                                               "--rtcore-set", "cache.sizeBytes=4096", "--verify", "--ao-radius",
-                                               "0.25", "--max-translucency-depth", "3"};
+    const std::vector<std::string> expected = {"--width",
+                                               "32",
+                                               "--backend",
+                                               "rtcore",
+                                               "--rtcore-set",
+                                               "gpu.cores=2",
+                                               "--rtcore-set",
+                                               "cache.sizeBytes=4096",
+                                               "--verify",
+                                               "--ao-radius",
+                                               "0.25",
+                                               "--max-translucency-depth",
+                                               "3"};
     EXPECT_EQ(o.toArgs(kUseRender), expected);
     // Only the options of the asked-for command.
     for (const std::string& a : o.toArgs(kUsePlan)) EXPECT_NE(a, "--width");

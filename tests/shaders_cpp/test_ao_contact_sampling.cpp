@@ -194,12 +194,14 @@ TEST(AoContactSampling, NeighboursOfANearOccluderButNotThePixelItself) {
     const std::vector<std::uint32_t> counts = detail::aoContactSampleCounts(w, h, distance, geometry, 0.25f, 8, 1000);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
-            const bool inWindow = std::abs(x - 4) <= detail::kAoContactWindow && std::abs(y - 3) <= detail::kAoContactWindow;
+            const bool inWindow =
+                std::abs(x - 4) <= detail::kAoContactWindow && std::abs(y - 3) <= detail::kAoContactWindow;
             const bool expected = inWindow && !(x == 4 && y == 3) && geometry[at(x, y)];
             EXPECT_EQ(counts[at(x, y)], expected ? 8u : 0u) << x << ", " << y;
         }
     // Not nearer than the threshold: nobody.
-    for (const std::uint32_t c : detail::aoContactSampleCounts(w, h, distance, geometry, 0.1f, 8, 1000)) EXPECT_EQ(c, 0u);
+    for (const std::uint32_t c : detail::aoContactSampleCounts(w, h, distance, geometry, 0.1f, 8, 1000))
+        EXPECT_EQ(c, 0u);
     // Mismatched buffers are an error, not a silent empty answer.
     EXPECT_THROW(detail::aoContactSampleCounts(w, h + 1, distance, geometry, 0.25f, 8, 1000), std::invalid_argument);
 }

@@ -118,8 +118,8 @@ TEST(AreaLightIrradiance, ClosedFormsMatchStratifiedSampling) {
         if (k % 2 == 0) {
             const vec3 x = randomUnit();
             const vec3 y = glm::normalize(glm::cross(x, randomUnit()));
-            const ecs::LightSnapshot l = rectLight(p + 2.f * randomUnit(), x, y, vec2(0.2f + std::abs(u(rng)) * 2.f,
-                                                                                       0.2f + std::abs(u(rng)) * 2.f));
+            const ecs::LightSnapshot l = rectLight(p + 2.f * randomUnit(), x, y,
+                                                   vec2(0.2f + std::abs(u(rng)) * 2.f, 0.2f + std::abs(u(rng)) * 2.f));
             const vec3 toCentre = vec3(l.worldFromLight[3]) - p;
             const bool front = glm::dot(toCentre, -vec3(l.worldFromLight[2])) < 0.f;
             const float closed = front ? rectIntegral(l, p, n, ng) : 0.f;
@@ -128,7 +128,8 @@ TEST(AreaLightIrradiance, ClosedFormsMatchStratifiedSampling) {
             ++rects;
         } else {
             const float radius = 0.05f + std::abs(u(rng)) * 0.9f;
-            const ecs::LightSnapshot l = sphereLight(p + (radius + 0.2f + 2.f * std::abs(u(rng))) * randomUnit(), radius);
+            const ecs::LightSnapshot l =
+                sphereLight(p + (radius + 0.2f + 2.f * std::abs(u(rng))) * randomUnit(), radius);
             const std::optional<float> closed = sphereCosineIntegral(vec3(l.worldFromLight[3]) - p, radius, n, ng);
             if (!closed) {
                 ++sphereFallbacks;
@@ -171,7 +172,8 @@ TEST(AreaLightIrradiance, UnshadowedEstimateKeepsItsExpectation) {
             const int side = 512;
             for (int j = 0; j < side; ++j)
                 for (int i = 0; i < side; ++i) {
-                    const LightSample s = sampleAreaLight(l, surface.position, vec2((i + 0.5f) / side, (j + 0.5f) / side));
+                    const LightSample s =
+                        sampleAreaLight(l, surface.position, vec2((i + 0.5f) / side, (j + 0.5f) / side));
                     if (s.valid) reference += evalBrdfCos(surface, s.direction) * s.radianceOverPdf;
                 }
             reference /= float(side * side);

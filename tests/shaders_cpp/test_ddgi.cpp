@@ -99,8 +99,8 @@ RayFn uniformSky(vec3 L) {
 ::testing::AssertionResult relNear(vec3 a, vec3 b, float tol) {
     for (int c = 0; c < 3; ++c)
         if (!(std::fabs(a[c] - b[c]) <= tol * std::fabs(b[c]) + 1e-30f))
-            return ::testing::AssertionFailure() << "component " << c << ": " << a[c] << " vs " << b[c]
-                                                 << " (relative tolerance " << tol << ")";
+            return ::testing::AssertionFailure()
+                   << "component " << c << ": " << a[c] << " vs " << b[c] << " (relative tolerance " << tol << ")";
     return ::testing::AssertionSuccess();
 }
 
@@ -168,7 +168,8 @@ TEST(DdgiUpdate, UniformEnvironmentGivesPiL) {
     EXPECT_EQ(v.lastUpdateStats().misses, v.lastUpdateStats().rays);
     // Every probe, every direction (texel centres, borders via random directions).
     for (std::uint32_t p = 0; p < v.probeCount(); ++p)
-        for (std::uint32_t i = 0; i < 64; ++i) EXPECT_TRUE(relNear(v.probeIrradiance(p, randomDirection(i, p)), kPiF * L, 1e-4f)) << "probe";
+        for (std::uint32_t i = 0; i < 64; ++i)
+            EXPECT_TRUE(relNear(v.probeIrradiance(p, randomDirection(i, p)), kPiF * L, 1e-4f)) << "probe";
     for (const vec3& t : v.irradianceAtlas()) EXPECT_TRUE(relNear(t, kPiF * L, 1e-4f)) << "atlas";
     // Misses record maxRayDistance.
     const vec2 m = v.probeDistanceMoments(3, vec3(0.f, 1.f, 0.f));
@@ -176,9 +177,11 @@ TEST(DdgiUpdate, UniformEnvironmentGivesPiL) {
     // The query anywhere inside (and outside: clamped to the grid).
     for (std::uint32_t i = 0; i < 200; ++i) {
         const vec3 pos = randomPointIn(scene, i, 1);
-        EXPECT_TRUE(relNear(v.irradiance(pos, randomDirection(i, 2), randomDirection(i, 3)), kPiF * L, 1e-4f)) << "query";
+        EXPECT_TRUE(relNear(v.irradiance(pos, randomDirection(i, 2), randomDirection(i, 3)), kPiF * L, 1e-4f))
+            << "query";
     }
-    EXPECT_TRUE(relNear(v.irradiance(vec3(100.f, -50.f, 3.f), vec3(0.f, 1.f, 0.f), vec3(0.f)), kPiF * L, 1e-4f)) << "outside";
+    EXPECT_TRUE(relNear(v.irradiance(vec3(100.f, -50.f, 3.f), vec3(0.f, 1.f, 0.f), vec3(0.f)), kPiF * L, 1e-4f))
+        << "outside";
 }
 
 // ------------------------------------------------------- (2) hysteresis --
@@ -233,7 +236,8 @@ TEST(DdgiUpdate, GammaEncodingStoresEncodedValuesAndDecodesOnQuery) {
     const vec3 stored = h * enc(kPiF * L1) + (1.f - h) * enc(kPiF * L2);
     EXPECT_TRUE(relNear(v.irradianceAtlas()[55], stored, 1e-5f)) << "encoded";
     const vec3 decoded(std::pow(stored.x, 5.f), std::pow(stored.y, 5.f), std::pow(stored.z, 5.f));
-    EXPECT_TRUE(relNear(v.irradiance(vec3(0.5f), vec3(0.f, 1.f, 0.f), vec3(0.f, 0.f, 1.f)), decoded, 1e-4f)) << "decoded";
+    EXPECT_TRUE(relNear(v.irradiance(vec3(0.5f), vec3(0.f, 1.f, 0.f), vec3(0.f, 0.f, 1.f)), decoded, 1e-4f))
+        << "decoded";
     EXPECT_TRUE(relNear(v.irradianceAtlasImage().texels[0], decoded, 1e-4f)) << "image decoded";
 }
 
@@ -499,13 +503,13 @@ TEST(DdgiDeterminism, BitIdenticalAcrossThreadCounts) {
 TEST(DdgiStiff, DegenerateBoundsGiveAUsableVolume) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     const std::vector<Aabb> cases = {
-        Aabb{},                                                 // empty
-        box(vec3(1.f, 2.f, 3.f), vec3(1.f, 2.f, 3.f)),         // a point
-        box(vec3(-4.f, 0.f, -4.f), vec3(4.f, 0.f, 4.f)),       // a plane (zero-size y)
-        box(vec3(nan), vec3(1.f)),                             // NaN
-        box(vec3(-kInfinity), vec3(kInfinity)),                // infinite
-        box(vec3(-3e38f), vec3(3e38f)),                        // extent overflows
-        box(vec3(1e7f), vec3(1e7f + 1.f)),                     // far from the origin
+        Aabb{},                                           // empty
+        box(vec3(1.f, 2.f, 3.f), vec3(1.f, 2.f, 3.f)),    // a point
+        box(vec3(-4.f, 0.f, -4.f), vec3(4.f, 0.f, 4.f)),  // a plane (zero-size y)
+        box(vec3(nan), vec3(1.f)),                        // NaN
+        box(vec3(-kInfinity), vec3(kInfinity)),           // infinite
+        box(vec3(-3e38f), vec3(3e38f)),                   // extent overflows
+        box(vec3(1e7f), vec3(1e7f + 1.f)),                // far from the origin
     };
     const vec3 L(1.f, 2.f, 0.5f);
     for (std::size_t k = 0; k < cases.size(); ++k) {
@@ -561,7 +565,9 @@ TEST(DdgiStiff, HugeRadianceStaysFinite) {
         st.irradianceGamma = gamma;
         DdgiVolume v(box(vec3(0.f), vec3(1.f)), fixedProbes(st));
         updateWith(v, 0, 1, uniformSky(vec3(1e20f)));
-        EXPECT_TRUE(relNear(v.irradiance(vec3(0.5f), vec3(0.f, 0.f, 1.f), vec3(0.f, 1.f, 0.f)), vec3(kPiF * 1e20f), 1e-4f)) << "1e20";
+        EXPECT_TRUE(
+            relNear(v.irradiance(vec3(0.5f), vec3(0.f, 0.f, 1.f), vec3(0.f, 1.f, 0.f)), vec3(kPiF * 1e20f), 1e-4f))
+            << "1e20";
         // Beyond the safety clamp (and FLT_MAX itself): clamped to 1e30, counted.
         updateWith(v, 1, 1, uniformSky(vec3(3e38f)));
         EXPECT_EQ(v.lastUpdateStats().clampedSamples, v.lastUpdateStats().rays);
@@ -736,7 +742,7 @@ TEST(DdgiRelocation, ProbesInsideAWallMoveOutWithinTheBound) {
             continue;
         }
         EXPECT_EQ(v.probeState(p), DdgiProbeState::Relocating) << p;
-        EXPECT_FALSE(v.probeActive(p)) << p;  // not queried before its rays from outside came back
+        EXPECT_FALSE(v.probeActive(p)) << p;              // not queried before its rays from outside came back
         EXPECT_GT(v.probePosition(p).x, wall.hi.x) << p;  // through the nearer face
     }
     for (std::uint32_t f = 1; f < 12; ++f) updateWith(v, f, 3, boxWorld(v, {wall}));
@@ -817,11 +823,16 @@ TEST(DdgiClassification, ProbesThatReachNoSurfaceIdleAndTraceNothing) {
     EXPECT_GT(idle, 90u);  // at most the 3^3 probes around the corner can reach it
     for (std::uint32_t p = 0; p < v.probeCount(); ++p) {
         const Aabb reach = v.probeInfluenceBox(p);
-        const bool overlaps = glm::all(glm::lessThanEqual(reach.lo, object.hi)) && glm::all(glm::lessThanEqual(object.lo, reach.hi));
-        if (!overlaps) { EXPECT_EQ(v.probeState(p), DdgiProbeState::Idle) << p; }
+        const bool overlaps =
+            glm::all(glm::lessThanEqual(reach.lo, object.hi)) && glm::all(glm::lessThanEqual(object.lo, reach.hi));
+        if (!overlaps) {
+            EXPECT_EQ(v.probeState(p), DdgiProbeState::Idle) << p;
+        }
         // A probe whose grid point is within 2 of the box's centre sees it
         // with several of its 128 rays.
-        if (glm::length(v.probeGridPosition(p) - object.center()) < 2.f) { EXPECT_TRUE(v.probeActive(p)) << p; }
+        if (glm::length(v.probeGridPosition(p) - object.center()) < 2.f) {
+            EXPECT_TRUE(v.probeActive(p)) << p;
+        }
     }
     // The next update reads only the active probes' rays.
     EXPECT_EQ(v.tracedProbeCount(), active);
@@ -836,7 +847,9 @@ TEST(DdgiClassification, ProbesThatReachNoSurfaceIdleAndTraceNothing) {
     updateWith(v, 2, 4, boxWorld(v, {object, moved}));
     EXPECT_EQ(v.lastUpdateStats().tracedProbes, active + woken);
     for (std::uint32_t p = 0; p < v.probeCount(); ++p)
-        if (glm::length(v.probeGridPosition(p) - moved.center()) < 2.f) { EXPECT_TRUE(v.probeActive(p)) << p; }
+        if (glm::length(v.probeGridPosition(p) - moved.center()) < 2.f) {
+            EXPECT_TRUE(v.probeActive(p)) << p;
+        }
     // Classification off: every probe traced every update.
     DdgiVolume all(box(vec3(0.f), vec3(8.f)), fixedProbes(st));
     updateWith(all, 0, 4, boxWorld(all, {object}));
@@ -934,10 +947,10 @@ TEST(DdgiRelocation, TracedProbesNearAWallStopLeakingLightBehindIt) {
         EXPECT_EQ(fixed.pathGi, 0.0);
         EXPECT_LT(fixed.ddgiGi, 1e-4);
         EXPECT_LT(moved.ddgiGi, 2e-3);
-        std::printf("wall centre %.3f: probes inside it: leak %.3g without relocation, %.3g with\n", inside, fixed.ddgiGi,
-                    moved.ddgiGi);
+        std::printf("wall centre %.3f: probes inside it: leak %.3g without relocation, %.3g with\n", inside,
+                    fixed.ddgiGi, moved.ddgiGi);
         EXPECT_GT(fixed.stats.insideProbes, 0u);
-        EXPECT_EQ(moved.stats.insideProbes, 0u);   // all moved out
+        EXPECT_EQ(moved.stats.insideProbes, 0u);  // all moved out
         EXPECT_GT(moved.stats.offsetProbes, fixed.stats.insideProbes / 2);
         EXPECT_GT(moved.stats.activeProbes, fixed.stats.activeProbes);
         // Classification: probes beyond the floor's and the wall's reach trace nothing.
@@ -946,7 +959,7 @@ TEST(DdgiRelocation, TracedProbesNearAWallStopLeakingLightBehindIt) {
     }
     const WallRender fixed = renderBehindWall(0.015f, false), moved = renderBehindWall(0.015f, true);
     EXPECT_EQ(fixed.pathGi, 0.0);
-    EXPECT_GT(fixed.ddgiGi, 5e-3);             // the leak
+    EXPECT_GT(fixed.ddgiGi, 5e-3);                // the leak
     EXPECT_LT(moved.ddgiGi, 0.1 * fixed.ddgiGi);  // at least 10x less
     std::printf("leak behind the wall (mean gi.G, path-traced 0): %.3g without relocation, %.3g with\n", fixed.ddgiGi,
                 moved.ddgiGi);

@@ -59,7 +59,8 @@ void expectAllFinite(const Rendered& r, const std::string& what) {
     EXPECT_EQ(r.out.nonFiniteValuesRepaired, 0u) << what;
     for (const std::string& name : r.out.image.channelNames()) {
         const float* c = r.out.image.channel(name);
-        for (std::size_t i = 0; i < r.out.image.pixelCount(); ++i) ASSERT_TRUE(std::isfinite(c[i])) << what << " " << name;
+        for (std::size_t i = 0; i < r.out.image.pixelCount(); ++i)
+            ASSERT_TRUE(std::isfinite(c[i])) << what << " " << name;
     }
 }
 
@@ -205,8 +206,8 @@ TEST(Effects, CornellTracesNoReflectionTranslucencyVolumeOrAnyHitRays) {
 
 TEST(Effects, ShowcaseEveryEffectTracesRays) {
     const Rendered r = renderBuiltin("showcase", 64, 36);
-    for (Pass p : {Pass::GBuffer, Pass::Shadows, Pass::Reflections, Pass::AmbientOcclusion,
-                   Pass::GlobalIllumination, Pass::Translucency, Pass::Volumes})
+    for (Pass p : {Pass::GBuffer, Pass::Shadows, Pass::Reflections, Pass::AmbientOcclusion, Pass::GlobalIllumination,
+                   Pass::Translucency, Pass::Volumes})
         EXPECT_GT(report(r, p).rays, 0u) << passName(p);
     // Every ray type but the path tracer's bounce (a workload only planned on request).
     for (std::uint32_t t = 0; t < kRayTypeCount; ++t) {
@@ -215,11 +216,31 @@ TEST(Effects, ShowcaseEveryEffectTracesRays) {
     }
     EXPECT_EQ(r.out.counters.rays[kRayPathBounce], 0u);
     EXPECT_GT(r.out.counters.anyHitInvocations, 0u);  // the foliage's alpha test
-    for (const char* layer : {"R", "albedo.R", "normal.R", "geonormal.R", "depth.Z", "roughness.Y", "metalness.Y",
-                              "id.mesh", "id.instance", "motion.X", "emissive.R", "shadow.light0.V",
-                              "shadow.light0.hitT", "direct.light0.R", "direct.point.R", "reflection.R",
-                              "reflection.hitT", "reflection.brdf.R", "ao.V", "ao.hitT", "gi.R", "gi.hitT",
-                              "translucency.R", "volume.transmittance", "volume.inscatter.R"})
+    for (const char* layer : {"R",
+                              "albedo.R",
+                              "normal.R",
+                              "geonormal.R",
+                              "depth.Z",
+                              "roughness.Y",
+                              "metalness.Y",
+                              "id.mesh",
+                              "id.instance",
+                              "motion.X",
+                              "emissive.R",
+                              "shadow.light0.V",
+                              "shadow.light0.hitT",
+                              "direct.light0.R",
+                              "direct.point.R",
+                              "reflection.R",
+                              "reflection.hitT",
+                              "reflection.brdf.R",
+                              "ao.V",
+                              "ao.hitT",
+                              "gi.R",
+                              "gi.hitT",
+                              "translucency.R",
+                              "volume.transmittance",
+                              "volume.inscatter.R"})
         EXPECT_TRUE(r.out.image.hasChannel(layer)) << layer;
     expectAllFinite(r, "showcase");
 }
@@ -643,7 +664,8 @@ TEST(Effects, MotionVectorsFollowDeformingVertices) {
     grid.restNormals = grid.normals;
     grid.morphTargets.push_back(std::move(shear));
     const quat facing = glm::angleAxis(0.5f * kPi, vec3(1.f, 0.f, 0.f));  // object +y (the grid's normal) -> world +z
-    const ecs::Entity e = place(world, world.addMesh(ecs::load::makeMesh("sheared grid", std::move(grid))), vec3(0.f), facing);
+    const ecs::Entity e =
+        place(world, world.addMesh(ecs::load::makeMesh("sheared grid", std::move(grid))), vec3(0.f), facing);
     world.emplace(e, ecs::MorphWeights{{0.f}});
     addCamera(world, vec3(0.f, 0.f, 3.f), vec3(0.f));
     tracer::AccelManager accel;

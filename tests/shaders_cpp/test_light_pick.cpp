@@ -137,10 +137,12 @@ TEST(LightPick, PointLightsGlossyHighlightIsNotARarePick) {
 TEST(LightPick, APanelDoesNotTakeThePickFromBehind) {
     ecs::SceneSnapshot scene;
     // Emits along -(x cross -z) = -y: downward.
-    scene.lights.push_back(rectLight(vec3(0.f, 4.99f, 0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 0.f, -1.f), vec2(2.f, 1.2f), 12.f));
+    scene.lights.push_back(
+        rectLight(vec3(0.f, 4.99f, 0.f), vec3(1.f, 0.f, 0.f), vec3(0.f, 0.f, -1.f), vec2(2.f, 1.2f), 12.f));
     scene.lights.push_back(pointLight(vec3(3.f, 3.f, 0.f), 6.f));
     const vec3 down(0.f, -1.f, 0.f);
-    const ShadingPoint ceiling = surface(vec3(1.5f, 5.f, 0.f), down, glm::normalize(vec3(-1.f, -1.f, 0.f)), 0.7f, 1.f, 0.f);
+    const ShadingPoint ceiling =
+        surface(vec3(1.5f, 5.f, 0.f), down, glm::normalize(vec3(-1.f, -1.f, 0.f)), 0.7f, 1.f, 0.f);
     float pdf = 0.f;
     const ecs::LightSnapshot* picked = pickLight(scene, ceiling, 0.3f, pdf);
     EXPECT_EQ(picked, &scene.lights[1]);
@@ -163,7 +165,6 @@ TEST(LightPick, APanelDoesNotTakeThePickFromBehind) {
     EXPECT_EQ(lightPickPdf(scene, wall, scene.lights[1]), pdf);
 }
 
-
 // The pick path's MIS (shadeHits without everyLight, at a glossy hit): the
 // picked light's sample weighted against one specular-lobe sample, which
 // counts each area light it meets with the MIS weight against that light's
@@ -175,10 +176,11 @@ TEST(LightPick, LobeMisKeepsThePickedEstimateAndCutsItsTail) {
     scene.lights.push_back(rectLight(vec3(0.6f, 0.2f, 2.f), glm::normalize(vec3(1.f, 0.2f, 0.f)),
                                      glm::normalize(vec3(-0.2f, 1.f, 0.f)), vec2(1.5f, 0.8f), 12.f));
     scene.lights.push_back(pointLight(vec3(-1.f, 0.5f, 1.5f), 4.f));
-    ASSERT_GT(glm::dot(vec3(scene.lights[0].worldFromLight[2]), vec3(0.f, 0.f, 1.f)), 0.f) << "must emit along -z, down";
+    ASSERT_GT(glm::dot(vec3(scene.lights[0].worldFromLight[2]), vec3(0.f, 0.f, 1.f)), 0.f)
+        << "must emit along -z, down";
     for (const float roughness : {0.1f, 0.3f}) {
-        const ShadingPoint sp = surface(vec3(0.f), vec3(0.f, 0.f, 1.f), glm::normalize(vec3(-0.6f, -0.2f, 2.f)), 0.6f,
-                                        roughness, 0.3f);
+        const ShadingPoint sp =
+            surface(vec3(0.f), vec3(0.f, 0.f, 1.f), glm::normalize(vec3(-0.6f, -0.2f, 2.f)), 0.6f, roughness, 0.3f);
         std::mt19937 rng(11);
         std::uniform_real_distribution<float> u(0.f, 1.f);
         const int n = 400000;
@@ -190,7 +192,8 @@ TEST(LightPick, LobeMisKeepsThePickedEstimateAndCutsItsTail) {
             const vec2 ul(u(rng), u(rng)), ub(u(rng), u(rng));
             if (light) {
                 const bool area = light->light.isArea();
-                const LightSample ls = area ? sampleAreaLight(*light, sp.position, ul) : pointLightSample(*light, sp.position);
+                const LightSample ls =
+                    area ? sampleAreaLight(*light, sp.position, ul) : pointLightSample(*light, sp.position);
                 if (ls.valid && glm::dot(ls.direction, sp.geometricNormal) > 0.f) {
                     const double f = luminance(evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf) / pickPdf;
                     v[0] = f;
@@ -223,9 +226,10 @@ TEST(LightPick, LobeMisKeepsThePickedEstimateAndCutsItsTail) {
         EXPECT_GT(mean[0], 0.1);
         // The picked sample alone has a heavy tail on the glossy lobe; MIS cuts it
         // (measured, 1e6 samples: sd 24.2 -> 0.57 at roughness 0.1, 2.04 -> 1.06 at 0.3).
-        EXPECT_LT(sd[1], (roughness < 0.2f ? 0.1 : 0.7) * sd[0]) << "roughness " << roughness << ": sd " << sd[0] << " -> " << sd[1];
-        std::printf("roughness %.1f: mean %.4f / %.4f, sd per sample %.3f -> %.3f\n", roughness, mean[0], mean[1], sd[0],
-                    sd[1]);
+        EXPECT_LT(sd[1], (roughness < 0.2f ? 0.1 : 0.7) * sd[0])
+            << "roughness " << roughness << ": sd " << sd[0] << " -> " << sd[1];
+        std::printf("roughness %.1f: mean %.4f / %.4f, sd per sample %.3f -> %.3f\n", roughness, mean[0], mean[1],
+                    sd[0], sd[1]);
     }
 }
 

@@ -36,8 +36,8 @@ struct MirrorMetrics {
 
 float luminance(vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 
-MirrorMetrics measure(const std::vector<vec3>& test, const std::vector<vec3>& reference, const std::vector<bool>& mirror,
-                      int w, int h) {
+MirrorMetrics measure(const std::vector<vec3>& test, const std::vector<vec3>& reference,
+                      const std::vector<bool>& mirror, int w, int h) {
     MirrorMetrics m;
     const FlipResult f = hdrFlip(test, reference, w, h);
     std::size_t n = 0, interior = 0;
@@ -106,8 +106,9 @@ TEST(MirrorDenoise, ShowcaseMirrorIsCloserToTheReferenceAndKeepsItsDetail) {
     const MirrorMetrics r = measure(ref, ref, mirror, s.width, s.height);
     const MirrorMetrics noisy = measure(raw, ref, mirror, s.width, s.height);
     const MirrorMetrics den = measure(denoised, ref, mirror, s.width, s.height);
-    std::printf("mirror (%zu px): HDR-FLIP raw %.4f denoised %.4f; Laplacian energy reference %.4g raw %.4g denoised %.4g\n",
-                count, noisy.flip, den.flip, r.laplacian, noisy.laplacian, den.laplacian);
+    std::printf(
+        "mirror (%zu px): HDR-FLIP raw %.4f denoised %.4f; Laplacian energy reference %.4g raw %.4g denoised %.4g\n",
+        count, noisy.flip, den.flip, r.laplacian, noisy.laplacian, den.laplacian);
     EXPECT_LT(den.flip, noisy.flip);
     EXPECT_GT(den.laplacian, 0.8 * r.laplacian);
     EXPECT_LT(den.laplacian, 1.2 * r.laplacian);

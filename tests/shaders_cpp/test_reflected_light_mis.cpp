@@ -68,7 +68,8 @@ Estimate estimate(const ecs::LightSnapshot& light, const ShadingPoint& sp, bool 
             if (b.valid) {
                 const AreaLightHit h = intersectAreaLight(light, sp.position, b.direction);
                 if (h.valid)
-                    v += luminance(evalBrdfCos(sp, b.direction) * h.radiance) * powerHeuristic(1, b.pdf, 1, h.pdf) / b.pdf;
+                    v += luminance(evalBrdfCos(sp, b.direction) * h.radiance) * powerHeuristic(1, b.pdf, 1, h.pdf) /
+                         b.pdf;
             }
         }
         EXPECT_TRUE(std::isfinite(v));

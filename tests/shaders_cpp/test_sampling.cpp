@@ -39,8 +39,8 @@ vec3 randomDirection(std::uint32_t i, std::uint32_t seed) {
 bool finite(const vec2& v) { return std::isfinite(v.x) && std::isfinite(v.y); }
 
 vec3 dirFromAngles(double theta, double phi) {
-    return vec3(static_cast<float>(std::sin(theta) * std::cos(phi)), static_cast<float>(std::sin(theta) * std::sin(phi)),
-                static_cast<float>(std::cos(theta)));
+    return vec3(static_cast<float>(std::sin(theta) * std::cos(phi)),
+                static_cast<float>(std::sin(theta) * std::sin(phi)), static_cast<float>(std::cos(theta)));
 }
 
 // ------------------------------------------------------------------ Frame --
@@ -58,8 +58,8 @@ TEST(Frame, LiteralPoles) {
 }
 
 TEST(Frame, OrthonormalRightHandedForRandomAndNearPoleNormals) {
-    std::vector<vec3> normals = {{0.f, 0.f, 1.f}, {0.f, 0.f, -1.f}, {-0.f, -0.f, 1.f},
-                                 {-0.f, 0.f, -1.f}, {1.f, 0.f, 0.f}, {0.f, 1.f, 0.f}};
+    std::vector<vec3> normals = {{0.f, 0.f, 1.f},   {0.f, 0.f, -1.f}, {-0.f, -0.f, 1.f},
+                                 {-0.f, 0.f, -1.f}, {1.f, 0.f, 0.f},  {0.f, 1.f, 0.f}};
     for (float e : {1e-2f, 1e-4f, 1e-6f, 1e-8f, 1e-20f, 1e-38f}) {
         for (float s : {1.f, -1.f}) {
             normals.push_back(glm::normalize(vec3(e, 0.f, s)));
@@ -174,7 +174,7 @@ TEST(Sampling, UniformCone) {
 
 TEST(Ggx, Literals) {
     EXPECT_NEAR(ggxD(vec3(0.f, 0.f, 1.f), 0.3f), 1.0 / (kPiD * 0.09), 1e-4);
-    EXPECT_NEAR(ggxD(vec3(0.6f, 0.f, 0.8f), 1.f), 1.0 / kPiD, 1e-6);  // alpha = 1: D = 1/pi
+    EXPECT_NEAR(ggxD(vec3(0.6f, 0.f, 0.8f), 1.f), 1.0 / kPiD, 1e-6);          // alpha = 1: D = 1/pi
     EXPECT_NEAR(ggxD(vec3(0.f, 0.f, 5.f), 0.3f), 1.0 / (kPiD * 0.09), 1e-4);  // h need not be unit
     EXPECT_EQ(ggxAlpha(0.5f), 0.25f);
     EXPECT_EQ(ggxAlpha(0.f), kMinGgxAlpha);
@@ -338,8 +338,9 @@ TEST(Ggx, ReflectionPdfMatchesSamplerAndJacobian) {
 }
 
 TEST(Ggx, SmoothLimitIsFiniteAndMirror) {
-    std::vector<vec2> us = {vec2(0.f), vec2(1.f), vec2(kOneMinusEpsilon, 0.25f), vec2(0.5f, 0.f),
-                            vec2(1.f, 0.5f), vec2(std::nanf(""), 2.f), vec2(-1.f, 0.999f)};
+    std::vector<vec2> us = {vec2(0.f),         vec2(1.f),       vec2(kOneMinusEpsilon, 0.25f),
+                            vec2(0.5f, 0.f),   vec2(1.f, 0.5f), vec2(std::nanf(""), 2.f),
+                            vec2(-1.f, 0.999f)};
     for (std::uint32_t i = 0; i < 2000; ++i) us.push_back(rnd2(i, 101));
     for (float roughness : {0.f, 1e-4f}) {
         const float alpha = ggxAlpha(roughness);
@@ -491,8 +492,8 @@ TEST(OffsetRayOrigin, Literals) {
 TEST(OffsetRayOrigin, MovesStrictlyToTheNormalSide) {
     std::vector<float> coords;
     for (float m : {0.f, 1e-30f, 1e-8f, 0.03f, 0.04f, 1.f, 1e5f, 1e30f}) coords.push_back(m), coords.push_back(-m);
-    std::vector<vec3> normals = {{1.f, 0.f, 0.f}, {-1.f, 0.f, 0.f}, {0.f, 1.f, 0.f},
-                                 {0.f, -1.f, 0.f}, {0.f, 0.f, 1.f}, {0.f, 0.f, -1.f}};
+    std::vector<vec3> normals = {{1.f, 0.f, 0.f},  {-1.f, 0.f, 0.f}, {0.f, 1.f, 0.f},
+                                 {0.f, -1.f, 0.f}, {0.f, 0.f, 1.f},  {0.f, 0.f, -1.f}};
     for (std::uint32_t i = 0; i < 40; ++i) normals.push_back(randomDirection(i, 111));
     for (float x : coords) {
         for (float y : {0.f, 1e5f, -1e30f, 1e-30f}) {

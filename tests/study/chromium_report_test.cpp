@@ -56,16 +56,18 @@ TEST(ReportInChromium, LoadsWithoutConsoleErrorsAndShowsPlots) {
         "grid": {"cache.sizeBytes": [2048, 32768], "scheduler.policy": ["fifo", "treelet"]}})";
     const fs::path out = dir / "sweep";
     const Result sweep = run(std::string(RTLAB_CLI) + " sweep " + (dir / "study.json").string() + " --out " +
-                          out.string() + " --jobs 2");
+                             out.string() + " --jobs 2");
     ASSERT_EQ(sweep.exitCode, 0) << sweep.out;
     const Result report = run(std::string(RTLAB_CLI) + " report " + out.string());
     ASSERT_EQ(report.exitCode, 0) << report.out;
     const fs::path html = out / "report.html";
 
     // Headless, no GPU, a private profile; as root Chromium needs --no-sandbox.
-    std::string flags = " --headless --disable-gpu --hide-scrollbars --no-first-run --mute-audio"
-                        " --user-data-dir=" + (dir / "profile").string() +
-                        " --window-size=1100,1500 --virtual-time-budget=3000 --enable-logging=stderr --v=0";
+    std::string flags =
+        " --headless --disable-gpu --hide-scrollbars --no-first-run --mute-audio"
+        " --user-data-dir=" +
+        (dir / "profile").string() +
+        " --window-size=1100,1500 --virtual-time-budget=3000 --enable-logging=stderr --v=0";
     if (geteuid() == 0) flags += " --no-sandbox";
     const std::string url = " file://" + fs::absolute(html).string();
 

@@ -100,19 +100,24 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
         {R"({"workloads": []})", "s.json: workloads: must be a non-empty list"},
         {R"({"workloads": [3]})", "s.json: workloads[0]: must be a scene source"},
         {R"({"workloads": [{"scene": "builtin:cornell", "x": 1}]})", "s.json: workloads[0].x: unknown key"},
-        {R"({"workloads": [{"rays": "t.rtrays", "scene": "builtin:cornell"}]})", "s.json: workloads[0].rays: t.rtrays: no such file"},
+        {R"({"workloads": [{"rays": "t.rtrays", "scene": "builtin:cornell"}]})",
+         "s.json: workloads[0].rays: t.rtrays: no such file"},
         {R"({"workloads": ["builtin:cornell"], "render": {"width": 0}})", "s.json: render.width: must be an integer"},
         {R"({"workloads": ["builtin:cornell"], "render": {"gi": "x"}})", "s.json: render.gi: must be one of"},
-        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": []}})", "s.json: grid.cache.ways: must be a non-empty list"},
-        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": [2, 2]}})", "s.json: grid.cache.ways: value 2 repeated"},
-        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": [[2]]}})", "s.json: grid.cache.ways: must be a number"},
+        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": []}})",
+         "s.json: grid.cache.ways: must be a non-empty list"},
+        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": [2, 2]}})",
+         "s.json: grid.cache.ways: value 2 repeated"},
+        {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": [[2]]}})",
+         "s.json: grid.cache.ways: must be a number"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"bvh.width": [5]}})", "s.json: grid: bvh.width"},
         {R"({"workloads": ["builtin:cornell"], "base": {"nope.x": 1}})", "s.json: base: nope.x: unknown section"},
         {R"({"workloads": ["builtin:cornell"], "list": [{}]})", "s.json: list[0]: empty override set"},
         {R"({"workloads": ["builtin:cornell"], "list": [{"stack.refillEntries": 9}]})",
          "s.json: point p0000 (builtin:cornell, stack.refillEntries=9): stack.refillEntries"},
     };
-    for (const auto& [text, expected] : cases) EXPECT_EQ(errorOf(json::parse(text)).rfind(expected, 0), 0u) << errorOf(json::parse(text));
+    for (const auto& [text, expected] : cases)
+        EXPECT_EQ(errorOf(json::parse(text)).rfind(expected, 0), 0u) << errorOf(json::parse(text));
 }
 
 TEST(StudyParse, CanonicalFormIgnoresFormattingButNotContent) {
@@ -224,7 +229,8 @@ TEST(ResultStore, RecordsResumesAndRefusesAnotherStudy) {
         ResultStore store(dir, parseStudy(other, "t.json"), "t.json");
         ADD_FAILURE() << "another study was accepted";
     } catch (const InputError& e) {
-        EXPECT_EQ(std::string(e.what()).rfind("t.json: differs from the study whose results are in " + dir.string(), 0), 0u)
+        EXPECT_EQ(std::string(e.what()).rfind("t.json: differs from the study whose results are in " + dir.string(), 0),
+                  0u)
             << e.what();
     }
     const fs::path notSweep = freshDir("store_other");

@@ -39,8 +39,7 @@ public:
             const RayDesc& ray = rays[lane];
             Closest best;
             best.t = ray.tMax;
-            if (isValidRay(ray))
-                traceOne(engine, args, filter, lane, ray, best);
+            if (isValidRay(ray)) traceOne(engine, args, filter, lane, ray, best);
             filter.finish(lane, best.hit, best.t, best.instance, best.geometry, best.primitive, out[lane]);
         }
         filter.rethrowIfFailed();

@@ -44,8 +44,12 @@ float hitDistance(const tracer::AccelManager& accel, const vec3& origin, const v
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh{};
-    rh.ray.org_x = origin.x; rh.ray.org_y = origin.y; rh.ray.org_z = origin.z;
-    rh.ray.dir_x = dir.x; rh.ray.dir_y = dir.y; rh.ray.dir_z = dir.z;
+    rh.ray.org_x = origin.x;
+    rh.ray.org_y = origin.y;
+    rh.ray.org_z = origin.z;
+    rh.ray.dir_x = dir.x;
+    rh.ray.dir_y = dir.y;
+    rh.ray.dir_z = dir.z;
     rh.ray.tfar = kInfinity;
     rh.ray.mask = 0xff;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;

@@ -38,9 +38,9 @@ struct Payload {
     int misses = 0;
     int anyHits = 0;
     int intersections = 0;
-    float t = -1.f;                // RayTCurrent() in closest-hit
-    std::uint32_t record = kNone;  // hit group whose closest-hit ran
-    std::uint32_t missTag = kNone; // miss shader that ran
+    float t = -1.f;                 // RayTCurrent() in closest-hit
+    std::uint32_t record = kNone;   // hit group whose closest-hit ran
+    std::uint32_t missTag = kNone;  // miss shader that ran
     std::uint32_t instanceIndex = kNone;
     std::uint32_t instanceId = kNone;
     std::uint32_t geometryIndex = kNone;
@@ -162,9 +162,7 @@ struct TestScene {
     }
     ecs::MeshId quad(bool nonOpaque = false) { return mesh({quadGeometry(nonOpaque)}); }
     // Unit sphere's AABB [-1, 1]^3 (use with sphereShader).
-    ecs::MeshId sphere(bool nonOpaque = false) {
-        return mesh({boxGeometry({Aabb{vec3(-1.f), vec3(1.f)}}, nonOpaque)});
-    }
+    ecs::MeshId sphere(bool nonOpaque = false) { return mesh({boxGeometry({Aabb{vec3(-1.f), vec3(1.f)}}, nonOpaque)}); }
 
     // One entity per instance, so the returned value is the TLAS instance index.
     std::uint32_t place(ecs::MeshId meshId, const vec3& translation, ecs::MeshInstance inst = {},
@@ -390,8 +388,8 @@ TEST(RayFlags, CullFrontFacingTriangles) {
 
 TEST(RayFlags, CullOpaque) {
     TestScene s;
-    s.place(s.quad(false), vec3(0.f));                // instance 0: opaque, t = 10
-    s.place(s.quad(true), vec3(0.f, 0.f, -1.f));      // instance 1: non-opaque, t = 11
+    s.place(s.quad(false), vec3(0.f));            // instance 0: opaque, t = 10
+    s.place(s.quad(true), vec3(0.f, 0.f, -1.f));  // instance 1: non-opaque, t = 11
     const P p = s.pipeline(makeDesc(2));
     EXPECT_EQ(trace(p, down(0.25f, -0.5f)).instanceIndex, 0u);
     // Step: the opaque quad is culled; the non-opaque one behind it is committed.
@@ -402,8 +400,8 @@ TEST(RayFlags, CullOpaque) {
 
 TEST(RayFlags, CullNonOpaque) {
     TestScene s;
-    s.place(s.quad(true), vec3(0.f));                 // instance 0: non-opaque, t = 10
-    s.place(s.quad(false), vec3(0.f, 0.f, -1.f));     // instance 1: opaque, t = 11
+    s.place(s.quad(true), vec3(0.f));              // instance 0: non-opaque, t = 10
+    s.place(s.quad(false), vec3(0.f, 0.f, -1.f));  // instance 1: opaque, t = 11
     const P p = s.pipeline(makeDesc(2, anyHitReturning(AnyHitResult::Accept)));
     const Payload plain = trace(p, down(0.25f, -0.5f));
     EXPECT_EQ(plain.instanceIndex, 0u);
@@ -593,11 +591,11 @@ TEST(AnyHit, AcceptHitAndEndSearchCommitsThatCandidate) {
     // Step: order-independent form: near ignored, middle ends the search, far accepted.
     GlassStack s3(3);
     const P q(s3.build(), makeDesc(1, [](const HitContext& c, Payload& pl, const HitAttributes&) {
-        ++pl.anyHits;
-        pl.anyHitT.push_back(c.rayTCurrent);
-        if (c.rayTCurrent < 10.5f) return AnyHitResult::Ignore;
-        return c.rayTCurrent < 11.5f ? AnyHitResult::AcceptAndEndSearch : AnyHitResult::Accept;
-    }));
+                  ++pl.anyHits;
+                  pl.anyHitT.push_back(c.rayTCurrent);
+                  if (c.rayTCurrent < 10.5f) return AnyHitResult::Ignore;
+                  return c.rayTCurrent < 11.5f ? AnyHitResult::AcceptAndEndSearch : AnyHitResult::Accept;
+              }));
     const Payload mid = trace(q, down(0.25f, -0.5f));
     EXPECT_FLOAT_EQ(mid.t, 11.f);  // even though the near quad would be closer
     ASSERT_FALSE(mid.anyHitT.empty());
@@ -787,9 +785,9 @@ TEST(ShaderTable, AutomaticInstanceContributionIsSlotBaseTimesRayTypeCount) {
     TestScene s;
     const ecs::MeshId single = s.mesh({s.quadGeometry()});
     const ecs::MeshId pair = s.mesh({s.quadGeometry(), s.quadGeometry(false, vec3(3.f, 0.f, 0.f))});
-    s.place(pair, vec3(0.f));               // instance 0
-    s.place(single, vec3(0.f, 5.f, 0.f));   // instance 1
-    s.place(pair, vec3(0.f, 10.f, 0.f));    // instance 2
+    s.place(pair, vec3(0.f));              // instance 0
+    s.place(single, vec3(0.f, 5.f, 0.f));  // instance 1
+    s.place(pair, vec3(0.f, 10.f, 0.f));   // instance 2
     const AccelManager& accel = s.build();
     // Step: slots are laid out per geometry, meshes in id order.
     EXPECT_EQ(accel.geometrySlotBase(single), 0u);
@@ -799,7 +797,9 @@ TEST(ShaderTable, AutomaticInstanceContributionIsSlotBaseTimesRayTypeCount) {
     desc.rayTypeCount = 2;
     const P p(accel, std::move(desc), s.backend.get());
     // Step: with multiplier = ray-type count, record = (slotBase + g) * 2 + rayType.
-    struct Case { std::uint32_t instance, geometry, slot; };
+    struct Case {
+        std::uint32_t instance, geometry, slot;
+    };
     for (const Case c : {Case{0, 0, 1}, Case{0, 1, 2}, Case{1, 0, 0}, Case{2, 0, 1}, Case{2, 1, 2}})
         for (std::uint32_t rc = 0; rc < 2; ++rc) {
             TraceArgs args;
@@ -899,10 +899,12 @@ TEST(RayInterval, TMinAndTMaxAreOpenEnds) {
     s.place(s.quad(), vec3(0.f));
     const P p = s.pipeline(makeDesc(1));
     // Step: the quad is at exactly t = 2.
-    const auto hits = [&](float tMin, float tMax) { return trace(p, down(0.25f, -0.5f, 2.f, tMin, tMax)).closestHits == 1; };
+    const auto hits = [&](float tMin, float tMax) {
+        return trace(p, down(0.25f, -0.5f, 2.f, tMin, tMax)).closestHits == 1;
+    };
     EXPECT_TRUE(hits(0.f, kInfinity));
-    EXPECT_FALSE(hits(2.f, kInfinity));   // t == TMin is outside
-    EXPECT_FALSE(hits(0.f, 2.f));         // t == TMax is outside
+    EXPECT_FALSE(hits(2.f, kInfinity));  // t == TMin is outside
+    EXPECT_FALSE(hits(0.f, 2.f));        // t == TMax is outside
     EXPECT_TRUE(hits(1.999f, kInfinity));
     EXPECT_TRUE(hits(0.f, 2.001f));
     EXPECT_TRUE(hits(1.999f, 2.001f));
@@ -924,7 +926,8 @@ TEST(RayInterval, HitOneFloatBelowTMaxCounts) {
     const Payload r = trace(p, down(0.25f, -0.5f, 2.f, 0.f, std::nextafter(2.f, kInfinity)));
     EXPECT_EQ(r.closestHits, 1);
     EXPECT_EQ(r.t, 2.f);
-    EXPECT_EQ(trace(p, down(0.25f, -0.5f, 2.f, std::nextafter(2.f, 0.f), std::nextafter(2.f, kInfinity))).closestHits, 1);
+    EXPECT_EQ(trace(p, down(0.25f, -0.5f, 2.f, std::nextafter(2.f, 0.f), std::nextafter(2.f, kInfinity))).closestHits,
+              1);
 }
 
 TEST(InstanceMask, RayMaskAndInstanceMaskUseTheLowEightBits) {
@@ -947,7 +950,7 @@ TEST(InstanceMask, RayMaskAndInstanceMaskUseTheLowEightBits) {
     EXPECT_FALSE(hits(0.25f, 0x100));  // only the low 8 bits count: 0x100 -> 0
     EXPECT_TRUE(hits(0.25f, 0x102));
     EXPECT_FALSE(hits(0.25f, 0x00));
-    EXPECT_FALSE(hits(5.25f, 0xff));   // instance mask 0: never hit
+    EXPECT_FALSE(hits(5.25f, 0xff));  // instance mask 0: never hit
 }
 
 TEST(HitKind, FrontFaceFollowsTheWindingSeenFromTheRay) {
@@ -1049,7 +1052,8 @@ TEST(Procedural, IntersectionShaderAttributesAndHitKindReachClosestHit) {
     TestScene s;
     // Step: two boxes, spheres around (0,0,0) and (3,0,0); the instance is moved by (1,2,-3).
     const std::vector<vec3> centers = {vec3(0.f), vec3(3.f, 0.f, 0.f)};
-    const ecs::MeshId m = s.mesh({s.boxGeometry({Aabb{vec3(-1.f), vec3(1.f)}, Aabb{vec3(2.f, -1.f, -1.f), vec3(4.f, 1.f, 1.f)}})});
+    const ecs::MeshId m =
+        s.mesh({s.boxGeometry({Aabb{vec3(-1.f), vec3(1.f)}, Aabb{vec3(2.f, -1.f, -1.f), vec3(4.f, 1.f, 1.f)}})});
     s.place(m, vec3(1.f, 2.f, -3.f));
     const P p = s.pipeline(makeDesc(1, {}, sphereShader(9, centers)));
     // Step: straight down onto the second sphere's pole (object z = 1, world z = -2 -> t = 12).
@@ -1095,21 +1099,22 @@ TEST(Procedural, ReportHitAcceptsOnlyTBetweenTMinAndRayTCurrent) {
 TEST(Procedural, AnyHitOnNonOpaqueProceduralGeometryCanIgnore) {
     TestScene s;
     s.place(s.sphere(/*nonOpaque=*/true), vec3(0.f));
-    P::Desc desc = makeDesc(1,
-                            [](const HitContext& c, Payload& pl, const HitAttributes& a) {
-                                ++pl.anyHits;
-                                pl.anyHitT.push_back(c.rayTCurrent);
-                                // Step: hit kind 1 is a hole, hit kind 2 is solid.
-                                EXPECT_EQ(a.values[0], float(c.hitKind));
-                                return c.hitKind == 1 ? AnyHitResult::Ignore : AnyHitResult::Accept;
-                            },
-                            [](const IntersectionContext& c, Payload& pl) {
-                                HitAttributes a;
-                                a.values[0] = 1.f;
-                                pl.reports.push_back(c.reportHit(10.f, 1, a));
-                                a.values[0] = 2.f;
-                                pl.reports.push_back(c.reportHit(10.5f, 2, a));
-                            });
+    P::Desc desc = makeDesc(
+        1,
+        [](const HitContext& c, Payload& pl, const HitAttributes& a) {
+            ++pl.anyHits;
+            pl.anyHitT.push_back(c.rayTCurrent);
+            // Step: hit kind 1 is a hole, hit kind 2 is solid.
+            EXPECT_EQ(a.values[0], float(c.hitKind));
+            return c.hitKind == 1 ? AnyHitResult::Ignore : AnyHitResult::Accept;
+        },
+        [](const IntersectionContext& c, Payload& pl) {
+            HitAttributes a;
+            a.values[0] = 1.f;
+            pl.reports.push_back(c.reportHit(10.f, 1, a));
+            a.values[0] = 2.f;
+            pl.reports.push_back(c.reportHit(10.5f, 2, a));
+        });
     const P p = s.pipeline(std::move(desc));
     const Payload r = trace(p, down(0.f, 0.f));
     // Step: the ignored report returns false and is forgotten; the accepted one commits.
@@ -1139,10 +1144,13 @@ TEST(Procedural, TwoReportsCommitTheNearer) {
     const AccelManager& accel = s.build();
     for (const bool farFirst : {true, false}) {
         const float first = farFirst ? 11.f : 9.5f, second = farFirst ? 9.5f : 11.f;
-        const P p(accel, makeDesc(1, {}, [=](const IntersectionContext& c, Payload& pl) {
-                      pl.reports.push_back(c.reportHit(first, 1, {}));
-                      pl.reports.push_back(c.reportHit(second, 2, {}));
-                  }), s.backend.get());
+        const P p(accel,
+                  makeDesc(1, {},
+                           [=](const IntersectionContext& c, Payload& pl) {
+                               pl.reports.push_back(c.reportHit(first, 1, {}));
+                               pl.reports.push_back(c.reportHit(second, 2, {}));
+                           }),
+                  s.backend.get());
         const Payload r = trace(p, down(0.f, 0.f));
         EXPECT_FLOAT_EQ(r.t, 9.5f);
         EXPECT_EQ(r.hitKind, farFirst ? 2u : 1u);
@@ -1162,7 +1170,8 @@ TEST(Procedural, MissingIntersectionShaderOrBadHitKindThrowsPipelineError) {
     EXPECT_THROW(trace(none, down(0.f, 0.f)), PipelineError);
     // Step: a skipped primitive needs no shader (AABB tests may be conservative, so skip by flag).
     EXPECT_EQ(trace(none, down(0.f, 0.f), withFlags(RayFlag::SkipProceduralPrimitives)).misses, 1);
-    const P bad = s.another(makeDesc(1, {}, [](const IntersectionContext& c, Payload&) { c.reportHit(10.f, 128, {}); }));
+    const P bad =
+        s.another(makeDesc(1, {}, [](const IntersectionContext& c, Payload&) { c.reportHit(10.f, 128, {}); }));
     EXPECT_THROW(trace(bad, down(0.f, 0.f)), PipelineError);
 }
 
@@ -1203,7 +1212,10 @@ TEST(SystemValues, InstanceIdIndexGeometryAndPrimitive) {
         anyHitSaw.emplace_back(h.instanceIndex, h.instanceId, h.geometryIndex, h.primitiveIndex);
         return AnyHitResult::Accept;
     }));
-    struct Case { RayDesc ray; std::uint32_t index, id, geometry, primitive; };
+    struct Case {
+        RayDesc ray;
+        std::uint32_t index, id, geometry, primitive;
+    };
     // Step: (0.25, -0.5) lies in triangle 0 (below the diagonal), (-0.5, 0.25) in triangle 1.
     for (const Case& k : {Case{down(0.25f, -0.5f), 0, 0xabcdef, 0, 0}, Case{down(2.5f, 5.25f), 1, 1, 1, 1},
                           Case{down(3.25f, 9.5f), 2, 7, 1, 0}, Case{down(-0.5f, 10.25f), 2, 7, 0, 1}}) {
@@ -1263,15 +1275,15 @@ struct ParityScene : TestScene {
         place(wall, vec3(-1.f, 0.5f, 1.f), flags(InstanceFlag::TriangleFrontCounterClockwise));
         place(sphere(), vec3(2.5f, 0.f, 0.f));
         place(sphere(true), vec3(3.f, 0.5f, 1.5f));
-        place(mesh({quadGeometry(false), quadGeometry(true, vec3(0.f, 0.f, 0.25f))}), vec3(0.f, 0.f, -3.f), {}, kIdentity,
-              vec3(4.f, 1.f, 1.f));
+        place(mesh({quadGeometry(false), quadGeometry(true, vec3(0.f, 0.f, 0.25f))}), vec3(0.f, 0.f, -3.f), {},
+              kIdentity, vec3(4.f, 1.f, 1.f));
     }
 };
 
 // Cut-out any-hit: a pure function of the candidate, so the committed hit does not depend on traversal order.
 AnyHitResult cutout(const HitContext& c, Payload&, const HitAttributes& a) {
     return (a.values[0] < 0.3f || (c.primitiveIndex + c.instanceIndex) % 3 == 2) ? AnyHitResult::Ignore
-                                                                                  : AnyHitResult::Accept;
+                                                                                 : AnyHitResult::Accept;
 }
 
 constexpr int kGridW = 21, kGridH = 6;  // 21 = 16 + 5: partial packets and a partial tile
@@ -1311,9 +1323,8 @@ TEST(PacketPath, DispatchCoherentMatchesPerRayTraceRay) {
         const TraceArgs args = withFlags(flags);
         std::vector<Payload> single(kGridW * kGridH), packet(kGridW * kGridH);
         // Step: one traceRay per pixel...
-        const TraceCounters cs = p.dispatchRays(kGridW, kGridH, [&](int x, int y) {
-            p.traceRay(args, parityRay(x, y), single[y * kGridW + x]);
-        });
+        const TraceCounters cs = p.dispatchRays(
+            kGridW, kGridH, [&](int x, int y) { p.traceRay(args, parityRay(x, y), single[y * kGridW + x]); });
         // Step: ...against 8-wide packets.
         const TraceCounters cp = p.dispatchCoherent(
             kGridW, kGridH, args, [](int x, int y, Payload&) { return parityRay(x, y); },
@@ -1343,9 +1354,9 @@ TEST(PacketPath, DispatchCoherentMatchesPerRayTraceRay) {
 
 TEST(Counters, EqualHandCountedNumbers) {
     TestScene s;
-    s.place(s.quad(false), vec3(0.f));               // A: opaque at x in [-1, 1]
-    s.place(s.quad(true), vec3(4.f, 0.f, 0.f));      // B: non-opaque at x in [3, 5]
-    s.place(s.quad(false), vec3(4.f, 0.f, 2.f));     // C: opaque blocker above B
+    s.place(s.quad(false), vec3(0.f));            // A: opaque at x in [-1, 1]
+    s.place(s.quad(true), vec3(4.f, 0.f, 0.f));   // B: non-opaque at x in [3, 5]
+    s.place(s.quad(false), vec3(4.f, 0.f, 2.f));  // C: opaque blocker above B
     const P* self = nullptr;
     // Step: records 0..2 are A, B, C (automatic offsets); a shadow ray (type 1) hitting C uses record 3.
     P::Desc desc = makeDesc(4, anyHitReturning(AnyHitResult::Accept));

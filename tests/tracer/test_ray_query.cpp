@@ -32,11 +32,12 @@ struct QueryScene {
     SceneSnapshot snapshot;
     tracer::AccelManager accel;
 
-    explicit QueryScene(bool watertight) : accel([&] {
-        tracer::AccelOptions o;
-        o.watertight = watertight;
-        return o;
-    }()) {
+    explicit QueryScene(bool watertight)
+        : accel([&] {
+              tracer::AccelOptions o;
+              o.watertight = watertight;
+              return o;
+          }()) {
         world.addMaterial({});
         const MeshId sphere = world.addMesh(load::makeMesh("sphere", load::makeIcosphere(1.f, 3, 0)));
         const MeshId cube = world.addMesh(load::makeMesh("cube", load::makeBox(vec3(0.8f), 0)));
@@ -58,10 +59,12 @@ struct QueryScene {
 std::vector<tracer::RayDesc> testRays(std::size_t count) {
     std::vector<tracer::RayDesc> rays(count);
     for (std::size_t i = 0; i < count; ++i) {
-        auto u = [&](std::uint32_t d) { return sampleUniform(SampleKey{static_cast<std::uint32_t>(i), 0, 0, 0, 7}, d); };
+        auto u = [&](std::uint32_t d) {
+            return sampleUniform(SampleKey{static_cast<std::uint32_t>(i), 0, 0, 0, 7}, d);
+        };
         const bool inside = i % 3 == 0;
-        const vec3 origin = inside ? vec3(u(0) - 0.5f, u(1) - 0.5f, u(2) - 0.5f)
-                                   : vec3(8.f * u(0) - 4.f, 6.f * u(1) - 3.f, 6.f + u(2));
+        const vec3 origin =
+            inside ? vec3(u(0) - 0.5f, u(1) - 0.5f, u(2) - 0.5f) : vec3(8.f * u(0) - 4.f, 6.f * u(1) - 3.f, 6.f + u(2));
         const vec3 target(7.f * u(3) - 3.5f, 4.f * u(4) - 2.f, 3.f * u(5) - 1.5f);
         rays[i] = tracer::RayDesc{origin, 0.f, glm::normalize(target - origin), kInfinity};
     }
@@ -79,7 +82,8 @@ void expectSameHit(const tracer::QueryHit& q, const tracer::CommittedHit& p, std
     EXPECT_EQ(q.primitive, p.primitiveIndex) << "ray " << ray;
 }
 
-std::vector<tracer::CommittedHit> pipelineHits(const tracer::AccelManager& accel, const std::vector<tracer::RayDesc>& rays) {
+std::vector<tracer::CommittedHit> pipelineHits(const tracer::AccelManager& accel,
+                                               const std::vector<tracer::RayDesc>& rays) {
     tracer::Pipeline<Payload>::Desc desc;
     desc.hitGroups.resize(accel.geometrySlotCount());
     for (auto& g : desc.hitGroups)
@@ -140,14 +144,14 @@ TEST(RayQuery, InvalidRaysMissAndInactiveLanesAreLeftAlone) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     const vec3 o(0.f, 0.f, 6.f), d(0.f, 0.f, -1.f);  // a valid ray hits the sphere
     tracer::RayDesc rays[8] = {
-        {o, 0.f, d, kInfinity},                 // valid: hits
-        {vec3(nan, 0.f, 6.f), 0.f, d, kInfinity},  // NaN origin
+        {o, 0.f, d, kInfinity},                           // valid: hits
+        {vec3(nan, 0.f, 6.f), 0.f, d, kInfinity},         // NaN origin
         {o, 0.f, vec3(0.f, kInfinity, -1.f), kInfinity},  // infinite direction
-        {o, -1.f, d, kInfinity},                // negative TMin
-        {o, 3.f, d, 2.f},                       // TMax < TMin
-        {o, 0.f, d, nan},                       // NaN TMax
-        {o, 0.f, vec3(0.f), kInfinity},         // zero direction
-        {o, 0.f, d, kInfinity},                 // inactive
+        {o, -1.f, d, kInfinity},                          // negative TMin
+        {o, 3.f, d, 2.f},                                 // TMax < TMin
+        {o, 0.f, d, nan},                                 // NaN TMax
+        {o, 0.f, vec3(0.f), kInfinity},                   // zero direction
+        {o, 0.f, d, kInfinity},                           // inactive
     };
     bool active[8] = {true, true, true, true, true, true, true, false};
     tracer::QueryHit out[8];

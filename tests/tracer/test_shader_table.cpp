@@ -40,8 +40,8 @@ TEST(MaterialShaderTable, RayTypeAndMaterialSelectTheRecord) {
     desc.hitGroups = tracer::buildMaterialShaderTable<Payload>(
         accel, snap, 2, [](const Material& m, const Geometry&, std::uint32_t rayType) {
             P::HitGroup g;
-            g.closestHit = [tag = m.name + "/" + std::to_string(rayType)](const tracer::HitContext&, Payload& p,
-                                                                          const tracer::HitAttributes&) { p.tag = tag; };
+            g.closestHit = [tag = m.name + "/" + std::to_string(rayType)](
+                               const tracer::HitContext&, Payload& p, const tracer::HitAttributes&) { p.tag = tag; };
             return g;
         });
     desc.missShaders.push_back([](const tracer::MissContext&, Payload& p) { p.tag = "miss"; });

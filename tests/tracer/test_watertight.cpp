@@ -53,7 +53,9 @@ Leaks countLeaks(const Geometry& shape, const vec3& translation, float scale, bo
     tracer::Pipeline<Payload>::Desc desc;
     desc.hitGroups.resize(accel.geometrySlotCount());
     for (auto& g : desc.hitGroups)
-        g.closestHit = [](const tracer::HitContext& c, Payload& p, const tracer::HitAttributes&) { p.t = c.rayTCurrent; };
+        g.closestHit = [](const tracer::HitContext& c, Payload& p, const tracer::HitAttributes&) {
+            p.t = c.rayTCurrent;
+        };
     desc.missShaders.push_back([](const tracer::MissContext&, Payload& p) { p.t = -1.f; });
     const tracer::Pipeline<Payload> pipeline(accel, std::move(desc));
 
@@ -93,8 +95,8 @@ struct Placement {
     vec3 translation;
     float scale;
 };
-const Placement kPlacements[] = {{vec3(0.f), 1.f}, {vec3(0.f), 1e-4f}, {vec3(0.f), 1e4f}, {vec3(1e5f, 0.f, 0.f), 1.f},
-                                 {vec3(1e5f, 0.f, 0.f), 1e4f}};
+const Placement kPlacements[] = {
+    {vec3(0.f), 1.f}, {vec3(0.f), 1e-4f}, {vec3(0.f), 1e4f}, {vec3(1e5f, 0.f, 0.f), 1.f}, {vec3(1e5f, 0.f, 0.f), 1e4f}};
 
 }  // namespace
 
@@ -117,7 +119,10 @@ TEST(WatertightTriangle, SharedEdgeIsHitByExactlyOneOrBothNeverNeither) {
     // Seeded property test: two triangles sharing edge (a, b); rays through
     // random points of that edge hit at least one of them.
     std::uint32_t h = 7u;
-    auto rnd = [&] { h = h * 1664525u + 1013904223u; return (h >> 8) / 16777216.f; };
+    auto rnd = [&] {
+        h = h * 1664525u + 1013904223u;
+        return (h >> 8) / 16777216.f;
+    };
     int neither = 0;
     for (int i = 0; i < 20000; ++i) {
         const vec3 a(rnd(), rnd(), rnd() * 0.1f), b(rnd() + 1.f, rnd() + 1.f, rnd() * 0.1f);
@@ -139,7 +144,8 @@ TEST(Watertight, IcosphereVerticesAndEdgesNeverLeakAtAnyScale) {
             const Leaks l = countLeaks(sphere, p.translation, p.scale, true, flags);
             EXPECT_GT(l.rays, 30000u);
             EXPECT_EQ(l.misses, 0u) << "scale " << p.scale << " translation " << p.translation.x << " flags " << flags;
-            EXPECT_EQ(l.passThroughs, 0u) << "scale " << p.scale << " translation " << p.translation.x << " flags " << flags;
+            EXPECT_EQ(l.passThroughs, 0u)
+                << "scale " << p.scale << " translation " << p.translation.x << " flags " << flags;
         }
 }
 

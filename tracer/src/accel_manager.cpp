@@ -20,10 +20,10 @@ void embreeErrorHandler(void*, RTCError code, const char* message) {
 }
 
 void uploadVertices(RTCGeometry geom, const ecs::Geometry& g, bool allocate) {
-    float* v = allocate ? static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                                      RTC_FORMAT_FLOAT3, sizeof(float) * 3,
-                                                                      g.positions.size()))
-                        : static_cast<float*>(rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_VERTEX, 0));
+    float* v = allocate
+                   ? static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                                 sizeof(float) * 3, g.positions.size()))
+                   : static_cast<float*>(rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_VERTEX, 0));
     std::memcpy(v, g.positions.data(), g.positions.size() * sizeof(vec3));
     if (!allocate) rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
 }
@@ -53,9 +53,12 @@ std::vector<std::uint32_t> mortonTriangleOrder(const ecs::Geometry& g) {
     const vec3 scale = 1023.f / glm::max(bounds.extent(), vec3(1e-30f));
     std::vector<std::pair<std::uint32_t, std::uint32_t>> keyed(n);
     for (std::size_t t = 0; t < n; ++t) {
-        const vec3 c = (g.positions[g.indices[3 * t]] + g.positions[g.indices[3 * t + 1]] + g.positions[g.indices[3 * t + 2]]) / 3.f;
+        const vec3 c =
+            (g.positions[g.indices[3 * t]] + g.positions[g.indices[3 * t + 1]] + g.positions[g.indices[3 * t + 2]]) /
+            3.f;
         const glm::uvec3 q = glm::uvec3(glm::clamp((c - bounds.lo) * scale, vec3(0.f), vec3(1023.f)));
-        keyed[t] = {spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2), static_cast<std::uint32_t>(t)};
+        keyed[t] = {spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2),
+                    static_cast<std::uint32_t>(t)};
     }
     std::sort(keyed.begin(), keyed.end());
     std::vector<std::uint32_t> order(n);
@@ -155,7 +158,8 @@ void buildClusters(WatertightTriangles& data, const ecs::Geometry& g, const std:
                 // each box pay a callback and their own triangles.
                 const float members = static_cast<float>(c.count);
                 const float mergedCost = area * (kCallbackCost + members + 1.f);
-                const float apartCost = clusterArea * (kCallbackCost + members) + boxes[k].surfaceArea() * (kCallbackCost + 1.f);
+                const float apartCost =
+                    clusterArea * (kCallbackCost + members) + boxes[k].surfaceArea() * (kCallbackCost + 1.f);
                 if (mergedCost > apartCost) continue;
                 if (best == pending.size() || area < bestArea) best = k, bestArea = area;
             }
@@ -214,7 +218,8 @@ void watertightBoundsCallback(const RTCBoundsFunctionArguments* args) {
     storeEmbreeBounds(args->bounds_o, box);
 }
 
-void AccelManager::updateConservativePadding(const ecs::SceneSnapshot& scene, const std::vector<std::uint8_t>& changed) {
+void AccelManager::updateConservativePadding(const ecs::SceneSnapshot& scene,
+                                             const std::vector<std::uint8_t>& changed) {
     const auto& meshes = *scene.meshes;
     // Step: the largest |object coordinate| of every mesh (recomputed only for changed ones).
     if (objectMagnitude_.size() < meshes.size()) objectMagnitude_.resize(meshes.size(), -1.f);
@@ -268,9 +273,9 @@ struct AccelManager::Blas {
     RTCScene scene = nullptr;
     std::vector<RTCGeometry> geometries;
     std::vector<GeometryInfo> info;
-    std::vector<std::vector<Aabb>> boxes;  // procedural AABBs (user data of the geometry)
+    std::vector<std::vector<Aabb>> boxes;                          // procedural AABBs (user data of the geometry)
     std::vector<std::unique_ptr<WatertightTriangles>> watertight;  // per geometry; null unless watertight triangles
-    std::vector<std::vector<std::uint32_t>> clusterOrder;  // per deformable geometry: build-time order
+    std::vector<std::vector<std::uint32_t>> clusterOrder;          // per deformable geometry: build-time order
     std::uint32_t refitsSinceCheck = 0;
 
     // Refit cost / rebuild cost at the current positions (>= ~1).
@@ -283,7 +288,9 @@ struct AccelManager::Blas {
             }
         return rebuildCost > 0.0 ? refitCost / rebuildCost : 1.0;
     }
-    ~Blas() { if (scene) rtcReleaseScene(scene); }
+    ~Blas() {
+        if (scene) rtcReleaseScene(scene);
+    }
 };
 
 AccelManager::AccelManager(AccelOptions options) : options_(options), device_(options.threads) {}
@@ -335,8 +342,8 @@ void AccelManager::buildBlas(const ecs::MeshAsset& mesh, ecs::MeshId id, const s
     // (docs/acceleration-structures.md, "Refit in Embree").
     bool deformable = false;
     for (const ecs::Geometry& g : mesh.geometries) deformable = deformable || g.deformable();
-    rtcSetSceneFlags(blas->scene,
-                     static_cast<RTCSceneFlags>(sceneFlags() | (deformable ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE)));
+    rtcSetSceneFlags(blas->scene, static_cast<RTCSceneFlags>(
+                                      sceneFlags() | (deformable ? RTC_SCENE_FLAG_DYNAMIC : RTC_SCENE_FLAG_NONE)));
     if (deformable) rtcSetSceneBuildQuality(blas->scene, RTC_BUILD_QUALITY_LOW);
     blas->boxes.reserve(mesh.geometries.size());
     for (const ecs::Geometry& g : mesh.geometries) {
@@ -509,7 +516,8 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
             if (blases_[id])
                 for (std::size_t g = 0; g < blases_[id]->info.size(); ++g) {
                     const ecs::MaterialId m = meshes[id].geometries[g].material;
-                    blases_[id]->info[g].opaque = m >= materials.size() || materials[m].alphaMode == ecs::AlphaMode::Opaque;
+                    blases_[id]->info[g].opaque =
+                        m >= materials.size() || materials[m].alphaMode == ecs::AlphaMode::Opaque;
                 }
 
     // Step: shader-table slots, one per geometry, meshes in id order.

@@ -51,7 +51,7 @@ struct PipelineContext;
 // may return to one: the last few instances are kept (direct-mapped by
 // index). The lane of a ray is its Embree ray id.
 struct TraversalContext {
-    RTCIntersectContext embree;  // must stay first
+    RTCIntersectContext embree;           // must stay first
     PipelineContext* pipeline = nullptr;  // the DXR state of a pipeline trace; null for a plain query
     const AccelManager* accel = nullptr;
     alignas(32) float worldOrigin[3][kMaxLanes];
@@ -109,7 +109,8 @@ struct TraversalContext {
         // Lanes without a ray have a zero direction and stay invalid.
         alignas(32) float o[3][kMaxLanes], d[3][kMaxLanes];
         objectSpaceRays8(objectFromWorld, worldOrigin, worldDirection, o, d);
-        for (std::uint32_t lane = 0; lane < kMaxLanes; ++lane) e.objectDirection[lane] = vec3(d[0][lane], d[1][lane], d[2][lane]);
+        for (std::uint32_t lane = 0; lane < kMaxLanes; ++lane)
+            e.objectDirection[lane] = vec3(d[0][lane], d[1][lane], d[2][lane]);
         e.packet.setRays(o[0], o[1], o[2], d[0], d[1], d[2]);
         return e;
     }
@@ -188,8 +189,12 @@ float openIntervalEnd(float tMax) {
 // inwards); the hit starts invalid.
 RTCRayHit embreeRay(const RayDesc& r, std::uint32_t mask) {
     RTCRayHit rh{};
-    rh.ray.org_x = r.origin.x; rh.ray.org_y = r.origin.y; rh.ray.org_z = r.origin.z;
-    rh.ray.dir_x = r.direction.x; rh.ray.dir_y = r.direction.y; rh.ray.dir_z = r.direction.z;
+    rh.ray.org_x = r.origin.x;
+    rh.ray.org_y = r.origin.y;
+    rh.ray.org_z = r.origin.z;
+    rh.ray.dir_x = r.direction.x;
+    rh.ray.dir_y = r.direction.y;
+    rh.ray.dir_z = r.direction.z;
     rh.ray.tnear = openIntervalStart(r.tMin);
     rh.ray.tfar = openIntervalEnd(r.tMax);
     rh.ray.mask = mask & 0xff;
@@ -208,8 +213,12 @@ bool setEmbreePacket(TraversalContext& ctx, const RayDesc* rays, const bool* act
     // Step: structure of arrays.
     for (int i = 0; i < kMaxLanes; ++i) {
         const RayDesc& r = rays[i];
-        rh.ray.org_x[i] = r.origin.x; rh.ray.org_y[i] = r.origin.y; rh.ray.org_z[i] = r.origin.z;
-        rh.ray.dir_x[i] = r.direction.x; rh.ray.dir_y[i] = r.direction.y; rh.ray.dir_z[i] = r.direction.z;
+        rh.ray.org_x[i] = r.origin.x;
+        rh.ray.org_y[i] = r.origin.y;
+        rh.ray.org_z[i] = r.origin.z;
+        rh.ray.dir_x[i] = r.direction.x;
+        rh.ray.dir_y[i] = r.direction.y;
+        rh.ray.dir_z[i] = r.direction.z;
         rh.ray.tnear[i] = r.tMin;
         rh.ray.tfar[i] = r.tMax;
         rh.ray.time[i] = 0.f;
@@ -231,16 +240,16 @@ bool setEmbreePacket(TraversalContext& ctx, const RayDesc* rays, const bool* act
         const VF ox = at(rh.ray.org_x), oy = at(rh.ray.org_y), oz = at(rh.ray.org_z);
         const VF dx = at(rh.ray.dir_x), dy = at(rh.ray.dir_y), dz = at(rh.ray.dir_z);
         const VF lo = at(rh.ray.tnear), hi = at(rh.ray.tfar);
-        const VI ok = *reinterpret_cast<const VI*>(valid + first) & finite(ox) & finite(oy) & finite(oz) &
-                      finite(dx) & finite(dy) & finite(dz) & (lo >= zero) & (hi >= lo);
+        const VI ok = *reinterpret_cast<const VI*>(valid + first) & finite(ox) & finite(oy) & finite(oz) & finite(dx) &
+                      finite(dy) & finite(dz) & (lo >= zero) & (hi >= lo);
         *reinterpret_cast<VI*>(valid + first) = ok;
         any |= simd::signMask<4>(ok);
-        const VF start = simd::select<4>(lo == inf, lo,
-                                         simd::select<4>(lo == zero, simd::splat<4>(std::numeric_limits<float>::denorm_min()),
-                                                         (VF)((VI)lo + 1)));
-        const VF end = simd::select<4>(hi == zero, hi,
-                                       simd::select<4>(hi == inf, simd::splat<4>(std::numeric_limits<float>::max()),
-                                                       (VF)((VI)hi - 1)));
+        const VF start = simd::select<4>(
+            lo == inf, lo,
+            simd::select<4>(lo == zero, simd::splat<4>(std::numeric_limits<float>::denorm_min()), (VF)((VI)lo + 1)));
+        const VF end = simd::select<4>(
+            hi == zero, hi,
+            simd::select<4>(hi == inf, simd::splat<4>(std::numeric_limits<float>::max()), (VF)((VI)hi - 1)));
         simd::storeu<4>(rh.ray.tnear + first, simd::select<4>(ok, start, zero));
         simd::storeu<4>(rh.ray.tfar + first, simd::select<4>(ok, end, zero));
         const VF o[3] = {ox, oy, oz}, d[3] = {dx, dy, dz};
@@ -364,7 +373,6 @@ vec3 clusterGeometricNormal(const TriangleCluster& c, std::uint32_t slot) {
     const vec3 p0 = c.vertex(static_cast<int>(slot), 0);
     return glm::cross(c.vertex(static_cast<int>(slot), 1) - p0, c.vertex(static_cast<int>(slot), 2) - p0);
 }
-
 
 // One candidate (slot of the cluster, lane i of the call) against the lane's
 // committed hit: the DXR filter (unless filter-free), then the commit.
@@ -495,8 +503,7 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
                 local.setRays(&RTCRayN_org_x(rayN, a->N, 0), &RTCRayN_org_y(rayN, a->N, 0),
                               &RTCRayN_org_z(rayN, a->N, 0), &RTCRayN_dir_x(rayN, a->N, 0),
                               &RTCRayN_dir_y(rayN, a->N, 0), &RTCRayN_dir_z(rayN, a->N, 0));
-            setPacketIntervals(&RTCRayN_tnear(rayN, a->N, 0), &RTCRayN_tfar(rayN, a->N, 0), packet.tMin,
-                               packet.tMax);
+            setPacketIntervals(&RTCRayN_tnear(rayN, a->N, 0), &RTCRayN_tfar(rayN, a->N, 0), packet.tMin, packet.tMax);
             packet.activate(callMask);
             PacketHits hits;
             if (!intersectPacketWatertight(packet, cluster, hits)) return;
@@ -505,8 +512,8 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
             for (std::uint32_t slot = 0; slot < cluster.count; ++slot)
                 for (std::uint32_t m = hits.mask[slot] & ~finished; m != 0; m &= m - 1) {
                     const unsigned i = static_cast<unsigned>(std::countr_zero(m));
-                    if (considerCandidate(a, i, pipeline, occlusion, i, instanceIndex, cluster, slot,
-                                          hits.t[slot][i], hits.b1[slot][i], hits.b2[slot][i]))
+                    if (considerCandidate(a, i, pipeline, occlusion, i, instanceIndex, cluster, slot, hits.t[slot][i],
+                                          hits.b1[slot][i], hits.b2[slot][i]))
                         finished |= 1u << i;
                 }
             return;
@@ -519,12 +526,11 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
         if (a->N == WatertightRayPacket::kLanes ? !((callMask >> i) & 1u) : a->valid[i] == 0) continue;
         const std::uint32_t lane = laneOf(i);
         const WatertightRay ray =
-            instanceRays ? (traversal->singleRay ? instanceRays->single : instanceRays->packet.ray(static_cast<int>(lane)))
-                         : makeWatertightRay(
-                               vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i),
-                                    RTCRayN_org_z(rayN, a->N, i)),
-                               vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i),
-                                    RTCRayN_dir_z(rayN, a->N, i)));
+            instanceRays
+                ? (traversal->singleRay ? instanceRays->single : instanceRays->packet.ray(static_cast<int>(lane)))
+                : makeWatertightRay(
+                      vec3(RTCRayN_org_x(rayN, a->N, i), RTCRayN_org_y(rayN, a->N, i), RTCRayN_org_z(rayN, a->N, i)),
+                      vec3(RTCRayN_dir_x(rayN, a->N, i), RTCRayN_dir_y(rayN, a->N, i), RTCRayN_dir_z(rayN, a->N, i)));
         intersectClusterWatertight(ray, cluster, exclusiveStart(RTCRayN_tnear(rayN, a->N, i)),
                                    tieInclusiveUpperBound(RTCRayN_tfar(rayN, a->N, i)), hits);
         for (std::uint32_t m = hits.mask; m != 0; m &= m - 1) {
@@ -538,7 +544,9 @@ void intersectWatertightCluster(const Args* a, bool occlusion) {
 
 }  // namespace
 
-void watertightIntersectCallback(const RTCIntersectFunctionNArguments* args) { intersectWatertightCluster(args, false); }
+void watertightIntersectCallback(const RTCIntersectFunctionNArguments* args) {
+    intersectWatertightCluster(args, false);
+}
 void watertightOccludedCallback(const RTCOccludedFunctionNArguments* args) { intersectWatertightCluster(args, true); }
 
 void proceduralIntersectCallback(const RTCIntersectFunctionNArguments* args) { runIntersectionShader(args, false); }
@@ -550,8 +558,8 @@ TraceEngine::TraceEngine(const AccelManager& accel, const ShaderTableView& shade
 void TraceEngine::throwRecordOutOfRange(std::uint64_t record, std::uint32_t instanceIndex,
                                         std::uint32_t geometryIndex) const {
     throw PipelineError("hit group record " + std::to_string(record) + " out of range (table has " +
-                        std::to_string(hitGroupCount_) + "; instance " + std::to_string(instanceIndex) +
-                        ", geometry " + std::to_string(geometryIndex) + ")");
+                        std::to_string(hitGroupCount_) + "; instance " + std::to_string(instanceIndex) + ", geometry " +
+                        std::to_string(geometryIndex) + ")");
 }
 
 CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void* payload, std::uint32_t depth,
@@ -587,7 +595,7 @@ CommittedHit TraceEngine::trace(const TraceArgs& args, const RayDesc& ray, void*
         return out;
     }
     ctx.filter.finish(0, rh.hit.geomID != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar, rh.hit.instID[0], rh.hit.geomID,
-               rh.hit.primID, out);
+                      rh.hit.primID, out);
     return out;
 }
 
@@ -619,16 +627,15 @@ void TraceEngine::trace8(const TraceArgs& args, const RayDesc* rays, void* const
                     commitAfterTraversal(ctx, i, rh.ray.tfar[i], rh.hit.instID[0][i], rh.hit.geomID[i],
                                          rh.hit.primID[i], vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]),
                                          rh.hit.u[i], rh.hit.v[i], out[i], counters);
-                else
-                    ctx.filter.finish(i, false, 0.f, 0, 0, 0, out[i]);
+                else ctx.filter.finish(i, false, 0.f, 0, 0, 0, out[i]);
             }
             return;
         }
     }
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i])
-            ctx.filter.finish(i, valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar[i], rh.hit.instID[0][i],
-                       rh.hit.geomID[i], rh.hit.primID[i], out[i]);
+            ctx.filter.finish(i, valid[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID, rh.ray.tfar[i],
+                              rh.hit.instID[0][i], rh.hit.geomID[i], rh.hit.primID[i], out[i]);
 }
 
 // Ray queries (ray_query.hpp): a traversal context without pipeline state;
@@ -652,7 +659,6 @@ QueryHit queryHitOf(const RTCRayHit8& rh, int i) {
     return h;
 }
 
-
 }  // namespace
 
 void queryClosest8(const AccelManager& accel, const RayDesc* rays, const bool* active, QueryHit* out,
@@ -660,7 +666,8 @@ void queryClosest8(const AccelManager& accel, const RayDesc* rays, const bool* a
     TraversalContext ctx(accel, queryMarkerFor(accel), coherence == RayCoherence::Coherent);
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh;
-    if (setEmbreePacket(ctx, rays, active, instanceMask, valid, rh)) rtcIntersect8(valid, accel.tlas(), &ctx.embree, &rh);
+    if (setEmbreePacket(ctx, rays, active, instanceMask, valid, rh))
+        rtcIntersect8(valid, accel.tlas(), &ctx.embree, &rh);
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i]) out[i] = valid[i] ? queryHitOf(rh, i) : QueryHit{};
 }
@@ -670,7 +677,8 @@ void queryAny8(const AccelManager& accel, const RayDesc* rays, const bool* activ
     TraversalContext ctx(accel, queryMarkerFor(accel), coherence == RayCoherence::Coherent);
     alignas(32) int valid[kMaxLanes];
     alignas(32) RTCRayHit8 rh;
-    if (setEmbreePacket(ctx, rays, active, instanceMask, valid, rh)) rtcOccluded8(valid, accel.tlas(), &ctx.embree, &rh.ray);
+    if (setEmbreePacket(ctx, rays, active, instanceMask, valid, rh))
+        rtcOccluded8(valid, accel.tlas(), &ctx.embree, &rh.ray);
     for (int i = 0; i < kMaxLanes; ++i)
         if (active[i]) out[i] = valid[i] && rh.ray.tfar[i] < 0.f;
 }
@@ -705,9 +713,9 @@ bool queryAny(const AccelManager& accel, const RayDesc& ray, std::uint32_t insta
 }
 
 // EmbreeBackend: TraceEngine behind the TraversalBackend interface.
-void EmbreeBackend::trace(const TraceEngine& engine, const TraceArgs& args, const RayDesc* rays,
-                          void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
-                          CommittedHit* out, TraceCounters& counters) {
+void EmbreeBackend::trace(const TraceEngine& engine, const TraceArgs& args, const RayDesc* rays, void* const* payloads,
+                          const bool* active, std::size_t count, std::uint32_t depth, CommittedHit* out,
+                          TraceCounters& counters) {
     if (count == 1) {
         if (active[0]) out[0] = engine.trace(args, rays[0], payloads[0], depth, counters);
         return;

@@ -50,7 +50,8 @@ __attribute__((target("avx2"))) void transformAvx2(const glm::dmat4& m, const fl
 }  // namespace
 
 void objectSpaceRays8(const glm::dmat4& objectFromWorld, const float (&worldOrigin)[3][8],
-                      const float (&worldDirection)[3][8], float (&objectOrigin)[3][8], float (&objectDirection)[3][8]) {
+                      const float (&worldDirection)[3][8], float (&objectOrigin)[3][8],
+                      float (&objectDirection)[3][8]) {
     static const bool avx2 = simd::hasAvx2();
     if (avx2) transformAvx2(objectFromWorld, worldOrigin, worldDirection, objectOrigin, objectDirection);
     else transformLanes<2>(objectFromWorld, worldOrigin, worldDirection, objectOrigin, objectDirection);

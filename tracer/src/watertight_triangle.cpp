@@ -78,14 +78,11 @@ namespace {
 // Stores t and the barycentrics of all N lanes and returns the hit lanes'
 // mask; stores nothing when it is 0.
 template <int N>
-RTLAB_SIMD_INLINE std::uint32_t shearedEdgeTest(const simd::vfloat<N>& akx, const simd::vfloat<N>& aky,
-                                                const simd::vfloat<N>& akz, const simd::vfloat<N>& bkx,
-                                                const simd::vfloat<N>& bky, const simd::vfloat<N>& bkz,
-                                                const simd::vfloat<N>& ckx, const simd::vfloat<N>& cky,
-                                                const simd::vfloat<N>& ckz, const simd::vfloat<N>& sx,
-                                                const simd::vfloat<N>& sy, const simd::vfloat<N>& sz,
-                                                const simd::vfloat<N>& tMin, const simd::vfloat<N>& tMax,
-                                                float* tOut, float* b1Out, float* b2Out) {
+RTLAB_SIMD_INLINE std::uint32_t shearedEdgeTest(
+    const simd::vfloat<N>& akx, const simd::vfloat<N>& aky, const simd::vfloat<N>& akz, const simd::vfloat<N>& bkx,
+    const simd::vfloat<N>& bky, const simd::vfloat<N>& bkz, const simd::vfloat<N>& ckx, const simd::vfloat<N>& cky,
+    const simd::vfloat<N>& ckz, const simd::vfloat<N>& sx, const simd::vfloat<N>& sy, const simd::vfloat<N>& sz,
+    const simd::vfloat<N>& tMin, const simd::vfloat<N>& tMax, float* tOut, float* b1Out, float* b2Out) {
     using V = simd::vfloat<N>;
     using VI = simd::vint<N>;
     // Step: shear, edge functions, determinant.
@@ -97,7 +94,8 @@ RTLAB_SIMD_INLINE std::uint32_t shearedEdgeTest(const simd::vfloat<N>& akx, cons
     const V w = bx * ay - by * ax;
     const V zero = simd::splat<N>(0.f);
     const V det = u + v + w;
-    const VI inside = ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
+    const VI inside =
+        ~(((u < zero) | (v < zero) | (w < zero)) & ((u > zero) | (v > zero) | (w > zero))) & (det != zero);
     // Step: early-out on an empty mask, before any division.
     if (simd::signMask<N>(inside) == 0) return 0;
     const V az = sz * akz, bz = sz * bkz, cz = sz * ckz;
@@ -133,8 +131,9 @@ RTLAB_SIMD_INLINE std::uint32_t intersectPacketLanes(const WatertightRayPacket& 
         const VI xIs0 = mask(p.xIs0), xIs1 = mask(p.xIs1), yIs0 = mask(p.yIs0), yIs1 = mask(p.yIs1);
         const VI zIs0 = mask(p.zIs0), zIs1 = mask(p.zIs1);
         auto permuted = [&](int k, const VI& is0, const VI& is1) __attribute__((always_inline)) {
-            return simd::select<N>(is0, simd::splat<N>(c.v[k][0][slot]),
-                                   simd::select<N>(is1, simd::splat<N>(c.v[k][1][slot]), simd::splat<N>(c.v[k][2][slot])));
+            return simd::select<N>(
+                is0, simd::splat<N>(c.v[k][0][slot]),
+                simd::select<N>(is1, simd::splat<N>(c.v[k][1][slot]), simd::splat<N>(c.v[k][2][slot])));
         };
         akx = permuted(0, xIs0, xIs1) - ox, aky = permuted(0, yIs0, yIs1) - oy, akz = permuted(0, zIs0, zIs1) - oz;
         bkx = permuted(1, xIs0, xIs1) - ox, bky = permuted(1, yIs0, yIs1) - oy, bkz = permuted(1, zIs0, zIs1) - oz;
@@ -194,7 +193,7 @@ RTLAB_SIMD_INLINE void setPacketLanes(WatertightRayPacket& p, int first, const f
 }
 
 __attribute__((target("avx2"))) void setPacketAvx2(WatertightRayPacket& p, const float* ox, const float* oy,
-                                                  const float* oz, const float* dx, const float* dy, const float* dz) {
+                                                   const float* oz, const float* dx, const float* dy, const float* dz) {
     setPacketLanes<8>(p, 0, ox, oy, oz, dx, dy, dz);
 }
 
@@ -247,8 +246,6 @@ void WatertightRayPacket::setRays(const float* ox, const float* oy, const float*
     }
     uniformValid = validRays != 0 && sharePermutation(validRays);
 }
-
-
 
 bool intersectPacketWatertight(const WatertightRayPacket& rays, const TriangleCluster& cluster, PacketHits& out) {
     static const bool avx2 = simd::hasAvx2();

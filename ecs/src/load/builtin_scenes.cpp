@@ -76,7 +76,9 @@ Texture makeFoliageTexture() {
                 inside = inside || glm::dot(d, d) < 1.f;
             }
             std::uint8_t* px = &t.rgba8[(y * 64 + x) * 4];
-            px[0] = 60; px[1] = static_cast<std::uint8_t>(120 + 60 * uv.y); px[2] = 40;
+            px[0] = 60;
+            px[1] = static_cast<std::uint8_t>(120 + 60 * uv.y);
+            px[2] = 40;
             px[3] = inside ? 255 : 0;
         }
     return t;
@@ -86,7 +88,8 @@ Texture makeFoliageTexture() {
 MeshAsset makeWavingCloth(MaterialId material) {
     Geometry g = makeGrid(1.6f, 24, material);
     MorphTarget wave;
-    for (const vec3& p : g.positions) wave.positionDeltas.emplace_back(0.f, 0.25f * std::sin(4.f * p.x + 3.f * p.z), 0.f);
+    for (const vec3& p : g.positions)
+        wave.positionDeltas.emplace_back(0.f, 0.25f * std::sin(4.f * p.x + 3.f * p.z), 0.f);
     g.restPositions = g.positions;
     g.restNormals = g.normals;
     g.morphTargets.push_back(std::move(wave));
@@ -155,8 +158,8 @@ void buildShowcase(World& world) {
           vec3(-3.0f, 1.4f, 0.8f), glm::angleAxis(0.9f, vec3(0, 1, 0)));
 
     // Rigid motion: a blue box sliding back and forth (TLAS-only updates).
-    const Entity mover = place(world, "moving box",
-                               world.addMesh(makeMesh("small box", makeBox(vec3(0.6f), blue))), vec3(-1.5f, 0.3f, 1.2f));
+    const Entity mover = place(world, "moving box", world.addMesh(makeMesh("small box", makeBox(vec3(0.6f), blue))),
+                               vec3(-1.5f, 0.3f, 1.2f));
     // Deformation: a waving cloth driven by a morph weight (BLAS refits).
     const Entity cloth = place(world, "waving cloth", world.addMesh(makeWavingCloth(clothMat)), vec3(2.0f, 1.8f, 0.5f),
                                glm::angleAxis(0.5f * kPi, vec3(1, 0, 0)) * glm::angleAxis(0.3f, vec3(0, 0, 1)));
@@ -206,8 +209,8 @@ void buildCornell(World& world) {
     place(world, "right wall", greenWall, vec3(0.5f * s, 0.5f * s, 0.f), glm::angleAxis(0.5f * kPi, z));
     place(world, "tall box", world.addMesh(makeMesh("tall box", makeBox(vec3(0.6f, 1.2f, 0.6f), white))),
           vec3(-0.35f, 0.6f, -0.3f), glm::angleAxis(0.3f, vec3(0, 1, 0)));
-    place(world, "short box", world.addMesh(makeMesh("short box", makeBox(vec3(0.6f), white))),
-          vec3(0.4f, 0.3f, 0.3f), glm::angleAxis(-0.3f, vec3(0, 1, 0)));
+    place(world, "short box", world.addMesh(makeMesh("short box", makeBox(vec3(0.6f), white))), vec3(0.4f, 0.3f, 0.3f),
+          glm::angleAxis(-0.3f, vec3(0, 1, 0)));
     Light panel{LightType::Rect, vec3(1.f, 0.85f, 0.6f), 15.f};
     panel.size = vec2(0.5f, 0.4f);
     addLight(world, "ceiling light", panel, vec3(0.f, s - 0.005f, 0.f));
@@ -286,11 +289,11 @@ Parameters parseParameters(const std::string& source, const BuiltinScene& scene,
         const std::string range = std::to_string(spec->min) + " to " + std::to_string(spec->max);
         std::uint64_t value = 0;
         if (!parseInteger(text, value))
-            throw InputError(source, "parameter '" + key + "' has value '" + text + "', expected an integer from " +
-                                         range);
+            throw InputError(source,
+                             "parameter '" + key + "' has value '" + text + "', expected an integer from " + range);
         if (value < spec->min || value > spec->max)
-            throw InputError(source, "parameter '" + key + "' is " + std::to_string(value) + ", out of range (" +
-                                         range + ")");
+            throw InputError(source,
+                             "parameter '" + key + "' is " + std::to_string(value) + ", out of range (" + range + ")");
         values[key] = static_cast<std::uint32_t>(value);
     }
     return values;

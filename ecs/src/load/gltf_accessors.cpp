@@ -130,10 +130,10 @@ std::vector<vec3> GltfConverter::readVec3(int accessor, const std::string& what,
 // normals and texture coordinates).
 std::vector<vec3> GltfConverter::readPositions(int accessor, const std::string& what) {
     if (!quantized_) return readVec3(accessor, what, 0, {{kFloat}}, "VEC3 float");
-    return readVec3(accessor, what, 0,
-                    {{kFloat}, {kByte, false, true}, {kUByte, false, true}, {kShort, false, true},
-                     {kUShort, false, true}},
-                    "VEC3 float or (KHR_mesh_quantization) byte/short");
+    return readVec3(
+        accessor, what, 0,
+        {{kFloat}, {kByte, false, true}, {kUByte, false, true}, {kShort, false, true}, {kUShort, false, true}},
+        "VEC3 float or (KHR_mesh_quantization) byte/short");
 }
 
 std::vector<vec3> GltfConverter::readNormals(int accessor, const std::string& what, std::size_t n) {
@@ -150,14 +150,14 @@ std::vector<vec3> GltfConverter::readPositionDeltas(int accessor, const std::str
 
 // Index accessor, every index checked against the vertex count.
 std::vector<std::uint32_t> GltfConverter::readIndices(int accessor, const std::string& what, std::size_t n) {
-    const AccessorView v = view(accessor, what, {TINYGLTF_TYPE_SCALAR},
-                                {{kUByte, false, true}, {kUShort, false, true}, {kUInt, false, true}},
-                                "SCALAR unsigned byte/short/int");
+    const AccessorView v =
+        view(accessor, what, {TINYGLTF_TYPE_SCALAR},
+             {{kUByte, false, true}, {kUShort, false, true}, {kUInt, false, true}}, "SCALAR unsigned byte/short/int");
     std::vector<std::uint32_t> out = readUInts(v);
     for (std::size_t i = 0; i < out.size(); ++i)
         if (out[i] >= n)
-            fail_(cat("accessor ", v.index, " (", what, "): index ", out[i], " at position ", i,
-                      " is out of range (", n, " vertices)"));
+            fail_(cat("accessor ", v.index, " (", what, "): index ", out[i], " at position ", i, " is out of range (",
+                      n, " vertices)"));
     return out;
 }
 
@@ -193,16 +193,16 @@ std::optional<std::vector<std::uint32_t>> GltfConverter::decodeDraco(const tg::P
     for (std::size_t i = 0; i < accessors.size(); ++i) {
         const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessors[i])];
         if (acc.count != mesh.points)
-            fail_(cat(label, ": decodes ", mesh.points, " points but accessor ", accessors[i], " declares ",
-                      acc.count));
+            fail_(
+                cat(label, ": decodes ", mesh.points, " points but accessor ", accessors[i], " declares ", acc.count));
         decoded_[accessors[i]] = std::move(mesh.attributes[i]);
     }
     if (prim.indices >= 0) {
         checkIndex(prim.indices, m_.accessors, "accessor", cat("indices of ", label));
         const std::size_t declared = m_.accessors[static_cast<std::size_t>(prim.indices)].count;
         if (declared != mesh.indices.size())
-            fail_(cat(label, ": decodes ", mesh.indices.size(), " indices but accessor ", prim.indices,
-                      " declares ", declared));
+            fail_(cat(label, ": decodes ", mesh.indices.size(), " indices but accessor ", prim.indices, " declares ",
+                      declared));
     }
     return std::move(mesh.indices);
 }

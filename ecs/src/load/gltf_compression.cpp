@@ -14,7 +14,8 @@ namespace rtlab::ecs::load::compression {
 namespace {
 
 template <class T>
-bool convertAll(const draco::PointAttribute& attr, std::size_t points, int components, std::vector<unsigned char>& out) {
+bool convertAll(const draco::PointAttribute& attr, std::size_t points, int components,
+                std::vector<unsigned char>& out) {
     out.resize(points * static_cast<std::size_t>(components) * sizeof(T));
     std::vector<T> element(static_cast<std::size_t>(components));
     for (std::size_t p = 0; p < points; ++p) {
@@ -109,7 +110,9 @@ std::string decodeMeshopt(unsigned char* dst, const unsigned char* src, std::siz
     std::vector<unsigned char> scratch(count * stride);
     int rc = 0;
     switch (mode) {
-        case MeshoptMode::Attributes: rc = meshopt_decodeVertexBuffer(scratch.data(), count, stride, src, srcSize); break;
+        case MeshoptMode::Attributes:
+            rc = meshopt_decodeVertexBuffer(scratch.data(), count, stride, src, srcSize);
+            break;
         case MeshoptMode::Triangles: rc = meshopt_decodeIndexBuffer(scratch.data(), count, stride, src, srcSize); break;
         case MeshoptMode::Indices: rc = meshopt_decodeIndexSequence(scratch.data(), count, stride, src, srcSize); break;
     }

@@ -59,8 +59,7 @@ void GltfConverter::validateHierarchy() {
         for (int c : m_.nodes[static_cast<std::size_t>(i)].children) stack.push_back(c);
     }
     for (int i = 0; i < n; ++i)
-        if (!reached[static_cast<std::size_t>(i)])
-            fail_(cat("node hierarchy contains a cycle through ", nodeLabel(i)));
+        if (!reached[static_cast<std::size_t>(i)]) fail_(cat("node hierarchy contains a cycle through ", nodeLabel(i)));
 }
 
 std::vector<int> GltfConverter::sceneRoots() const {

@@ -26,8 +26,8 @@ namespace rtlab::ecs::load::gltf {
 namespace tg = tinygltf;
 
 // Limits that keep malformed input from exhausting the stack or memory.
-constexpr std::size_t kMaxJsonDepth = 128;                    // glTF itself nests < 10 deep
-constexpr std::uint64_t kMaxJsonInteger = 0x7fffffffu;        // tinygltf stores indices in int
+constexpr std::size_t kMaxJsonDepth = 128;                      // glTF itself nests < 10 deep
+constexpr std::uint64_t kMaxJsonInteger = 0x7fffffffu;          // tinygltf stores indices in int
 constexpr std::size_t kMaxUnbackedAccessorElements = 1u << 24;  // accessors without bufferView are zeros
 constexpr float kInfiniteFar = 1e30f;                           // zfar for glTF's infinite projection
 
@@ -145,13 +145,13 @@ struct StagedClip {
 
 struct Staged {
     std::vector<Texture> textures;
-    std::vector<Material> materials;  // baseColorTexture: index into textures
-    std::vector<MeshAsset> meshes;    // Geometry::material: index into materials
-    std::vector<StagedNode> nodes;    // parents before children
-    std::vector<int> roots;           // indices into nodes
+    std::vector<Material> materials;               // baseColorTexture: index into textures
+    std::vector<MeshAsset> meshes;                 // Geometry::material: index into materials
+    std::vector<StagedNode> nodes;                 // parents before children
+    std::vector<int> roots;                        // indices into nodes
     std::vector<std::optional<StagedSkin>> skins;  // by glTF skin index
     std::vector<StagedClip> clips;
-    std::vector<int> nodeSlot;  // glTF node -> index into nodes, -1 if not loaded
+    std::vector<int> nodeSlot;                 // glTF node -> index into nodes, -1 if not loaded
     std::uint32_t skippedPointPrimitives = 0;  // in the converted meshes
     std::uint32_t skippedLinePrimitives = 0;   // lines, line loops and line strips
 };
@@ -160,9 +160,9 @@ struct Staged {
 struct BaseMesh {
     MeshAsset asset;  // all data: morph targets, joints/weights when present
     std::size_t targetCount = 0;
-    bool skinnable = false;        // every primitive has JOINTS_0 and WEIGHTS_0
+    bool skinnable = false;          // every primitive has JOINTS_0 and WEIGHTS_0
     std::uint32_t jointsNeeded = 0;  // 1 + largest joint index with non-zero weight
-    int rigidVariant = -1;         // index into Staged::meshes, shared by rigid instances
+    int rigidVariant = -1;           // index into Staged::meshes, shared by rigid instances
 };
 
 // Validates the parsed model and converts what the loaded scene reaches. The
@@ -261,7 +261,7 @@ private:
     std::vector<int> imageSlot_;
     std::vector<std::optional<BaseMesh>> baseMeshes_;
     int defaultMaterial_ = -1;
-    bool quantized_ = false;  // the file uses KHR_mesh_quantization
+    bool quantized_ = false;                             // the file uses KHR_mesh_quantization
     std::map<int, std::vector<unsigned char>> decoded_;  // Draco-decoded accessors of the current primitive
 };
 

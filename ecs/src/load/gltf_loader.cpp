@@ -119,10 +119,9 @@ void decodeMeshoptViews(tg::Model& model, const Prechecked& pre, const Fail& fai
         const std::vector<unsigned char>& source = model.buffers.at(v.sourceBuffer).data;
         if (v.sourceOffset + v.sourceLength > source.size() || view.byteOffset + v.count * v.stride > target.size())
             fail(cat("bufferViews[", v.view, "]: EXT_meshopt_compression data exceeds its buffer"));
-        const std::string problem =
-            compression::decodeMeshopt(target.data() + view.byteOffset, source.data() + v.sourceOffset,
-                                       static_cast<std::size_t>(v.sourceLength), static_cast<std::size_t>(v.count),
-                                       static_cast<std::size_t>(v.stride), v.mode, v.filter);
+        const std::string problem = compression::decodeMeshopt(
+            target.data() + view.byteOffset, source.data() + v.sourceOffset, static_cast<std::size_t>(v.sourceLength),
+            static_cast<std::size_t>(v.count), static_cast<std::size_t>(v.stride), v.mode, v.filter);
         if (!problem.empty()) fail(cat("bufferViews[", v.view, "]: EXT_meshopt_compression: ", problem));
     }
 }

@@ -55,8 +55,8 @@ Material GltfConverter::convertMaterial(int index) {
     const tg::PbrMetallicRoughness& pbr = mat.pbrMetallicRoughness;
     if (pbr.baseColorFactor.size() != 4) fail_(cat(label, ": baseColorFactor must have 4 elements"));
     for (int c = 0; c < 4; ++c)
-        out.baseColor[c] = factor(pbr.baseColorFactor[static_cast<std::size_t>(c)], 0.f, 1.f,
-                                  cat(label, " baseColorFactor"));
+        out.baseColor[c] =
+            factor(pbr.baseColorFactor[static_cast<std::size_t>(c)], 0.f, 1.f, cat(label, " baseColorFactor"));
     out.metallic = factor(pbr.metallicFactor, 0.f, 1.f, cat(label, " metallicFactor"));
     out.roughness = factor(pbr.roughnessFactor, 0.f, 1.f, cat(label, " roughnessFactor"));
 
@@ -74,8 +74,8 @@ Material GltfConverter::convertMaterial(int index) {
     if (!mat.emissiveFactor.empty()) {
         if (mat.emissiveFactor.size() != 3) fail_(cat(label, ": emissiveFactor must have 3 elements"));
         for (int c = 0; c < 3; ++c)
-            out.emissive[c] = factor(mat.emissiveFactor[static_cast<std::size_t>(c)], 0.f, 1.f,
-                                     cat(label, " emissiveFactor"));
+            out.emissive[c] =
+                factor(mat.emissiveFactor[static_cast<std::size_t>(c)], 0.f, 1.f, cat(label, " emissiveFactor"));
     }
     if (const auto s = extensionNumber(mat, "KHR_materials_emissive_strength", "emissiveStrength", label))
         out.emissive *= factor(*s, 0.f, 3.0e38f, cat(label, " emissiveStrength"));
@@ -146,10 +146,23 @@ std::optional<Texture> GltfConverter::convertImage(int index) const {
     for (std::size_t px = 0; px < w * h; ++px) {
         std::uint8_t* d = &t.rgba8[px * 4];
         switch (comp) {
-            case 1: d[0] = d[1] = d[2] = sample(px, 0); d[3] = 255; break;
-            case 2: d[0] = d[1] = d[2] = sample(px, 0); d[3] = sample(px, 1); break;
-            case 3: d[0] = sample(px, 0); d[1] = sample(px, 1); d[2] = sample(px, 2); d[3] = 255; break;
-            default: for (std::size_t c = 0; c < 4; ++c) d[c] = sample(px, c); break;
+            case 1:
+                d[0] = d[1] = d[2] = sample(px, 0);
+                d[3] = 255;
+                break;
+            case 2:
+                d[0] = d[1] = d[2] = sample(px, 0);
+                d[3] = sample(px, 1);
+                break;
+            case 3:
+                d[0] = sample(px, 0);
+                d[1] = sample(px, 1);
+                d[2] = sample(px, 2);
+                d[3] = 255;
+                break;
+            default:
+                for (std::size_t c = 0; c < 4; ++c) d[c] = sample(px, c);
+                break;
         }
     }
     return t;

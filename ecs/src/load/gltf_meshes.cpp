@@ -133,7 +133,10 @@ Geometry GltfConverter::convertPrimitive(const tg::Primitive& prim, const std::s
         const std::string what = cat("TEXCOORD_0 of ", where);
         const AccessorView v =
             quantized_ ? view(uvAccessor, what, {TINYGLTF_TYPE_VEC2},
-                              {{kFloat}, {kByte, false, true}, {kUByte, false, true}, {kShort, false, true},
+                              {{kFloat},
+                               {kByte, false, true},
+                               {kUByte, false, true},
+                               {kShort, false, true},
                                {kUShort, false, true}},
                               "VEC2 float or (KHR_mesh_quantization) byte/short")
                        : view(uvAccessor, what, {TINYGLTF_TYPE_VEC2}, {{kFloat}, {kUByte, true}, {kUShort, true}},
@@ -146,17 +149,16 @@ Geometry GltfConverter::convertPrimitive(const tg::Primitive& prim, const std::s
 
     const int jointsAccessor = attribute(prim, "JOINTS_0");
     const int weightsAccessor = attribute(prim, "WEIGHTS_0");
-    if ((jointsAccessor >= 0) != (weightsAccessor >= 0))
-        fail_(cat(where, " has only one of JOINTS_0 and WEIGHTS_0"));
+    if ((jointsAccessor >= 0) != (weightsAccessor >= 0)) fail_(cat(where, " has only one of JOINTS_0 and WEIGHTS_0"));
     hasSkinAttributes = jointsAccessor >= 0;
     if (hasSkinAttributes) {
         const std::string jWhat = cat("JOINTS_0 of ", where), wWhat = cat("WEIGHTS_0 of ", where);
         const AccessorView jv = view(jointsAccessor, jWhat, {TINYGLTF_TYPE_VEC4},
                                      {{kUByte, false, true}, {kUShort, false, true}}, "VEC4 unsigned byte/short");
         requireCount(jv, jWhat, n);
-        const AccessorView wv = view(weightsAccessor, wWhat, {TINYGLTF_TYPE_VEC4},
-                                     {{kFloat}, {kUByte, true}, {kUShort, true}},
-                                     "VEC4 float or normalized unsigned byte/short");
+        const AccessorView wv =
+            view(weightsAccessor, wWhat, {TINYGLTF_TYPE_VEC4}, {{kFloat}, {kUByte, true}, {kUShort, true}},
+                 "VEC4 float or normalized unsigned byte/short");
         requireCount(wv, wWhat, n);
         const std::vector<std::uint32_t> j = readUInts(jv);
         const std::vector<float> w = readFloats(wv, wWhat);

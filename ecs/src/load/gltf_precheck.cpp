@@ -23,13 +23,13 @@ namespace {
 using Json = nlohmann::json;
 
 enum class Kind : std::uint8_t {
-    UInt,          // integer in [0, kMaxJsonInteger]
-    Number,        // finite number
+    UInt,    // integer in [0, kMaxJsonInteger]
+    Number,  // finite number
     Bool,
     String,
-    Object,        // nested schema
+    Object,  // nested schema
     UIntArray,
-    NumberArray,   // optionally of fixed length
+    NumberArray,  // optionally of fixed length
     StringArray,
     ObjectArray,   // array of nested schema
     UIntMap,       // object whose values are UInt (primitive attributes)
@@ -38,7 +38,8 @@ enum class Kind : std::uint8_t {
 
 struct Schema;
 struct Prop {
-    Prop(const char* n, Kind k, bool req = false, std::size_t len = 0, const Schema* s = nullptr, bool nonEmptyArray = false)
+    Prop(const char* n, Kind k, bool req = false, std::size_t len = 0, const Schema* s = nullptr,
+         bool nonEmptyArray = false)
         : name(n), kind(k), required(req), length(len), schema(s), nonEmpty(nonEmptyArray) {}
     const char* name;
     Kind kind;
@@ -73,9 +74,10 @@ Prop objectArrayProp(const char* n, const Schema& s, bool required = false, bool
 
 // The subset of the glTF 2.0 JSON schema that matters for type safety.
 const Schema& gltfSchema() {
-    static const Schema textureInfo{{uintProp("index", true), uintProp("texCoord"), numberProp("scale"),
-                                     numberProp("strength")}};
-    static const Schema transmissionExt{{numberProp("transmissionFactor"), objectProp("transmissionTexture", textureInfo)}};
+    static const Schema textureInfo{
+        {uintProp("index", true), uintProp("texCoord"), numberProp("scale"), numberProp("strength")}};
+    static const Schema transmissionExt{
+        {numberProp("transmissionFactor"), objectProp("transmissionTexture", textureInfo)}};
     static const Schema iorExt{{numberProp("ior")}};
     static const Schema volumeExt{{numberProp("thicknessFactor"), objectProp("thicknessTexture", textureInfo),
                                    numberProp("attenuationDistance"), numberArrayProp("attenuationColor", 3)}};
@@ -84,26 +86,30 @@ const Schema& gltfSchema() {
                              numberProp("metallicFactor"), numberProp("roughnessFactor"),
                              objectProp("metallicRoughnessTexture", textureInfo)}};
     static const Schema material{{objectProp("pbrMetallicRoughness", pbr), objectProp("normalTexture", textureInfo),
-                                  objectProp("occlusionTexture", textureInfo), objectProp("emissiveTexture", textureInfo),
-                                  numberArrayProp("emissiveFactor", 3), stringProp("alphaMode"),
-                                  numberProp("alphaCutoff"), boolProp("doubleSided")},
+                                  objectProp("occlusionTexture", textureInfo),
+                                  objectProp("emissiveTexture", textureInfo), numberArrayProp("emissiveFactor", 3),
+                                  stringProp("alphaMode"), numberProp("alphaCutoff"), boolProp("doubleSided")},
                                  {{"KHR_materials_transmission", &transmissionExt},
                                   {"KHR_materials_ior", &iorExt},
                                   {"KHR_materials_volume", &volumeExt},
                                   {"KHR_materials_emissive_strength", &emissiveStrengthExt}}};
     static const Schema dracoExt{{uintProp("bufferView", true), {"attributes", Kind::UIntMap, true}}};
-    static const Schema primitive{{{"attributes", Kind::UIntMap, true}, uintProp("indices"), uintProp("material"),
-                                   uintProp("mode"), {"targets", Kind::UIntMapArray}},
+    static const Schema primitive{{{"attributes", Kind::UIntMap, true},
+                                   uintProp("indices"),
+                                   uintProp("material"),
+                                   uintProp("mode"),
+                                   {"targets", Kind::UIntMapArray}},
                                   {{"KHR_draco_mesh_compression", &dracoExt}}};
     static const Schema mesh{{objectArrayProp("primitives", primitive, true, true), numberArrayProp("weights")}};
     static const Schema nodeLight{{uintProp("light", true)}};
-    static const Schema node{{uintProp("camera"), uintProp("skin"), uintProp("mesh"), uintArrayProp("children"),
-                              numberArrayProp("matrix", 16), numberArrayProp("rotation", 4),
-                              numberArrayProp("scale", 3), numberArrayProp("translation", 3),
-                              numberArrayProp("weights")},
-                             {{"KHR_lights_punctual", &nodeLight}}};
+    static const Schema node{
+        {uintProp("camera"), uintProp("skin"), uintProp("mesh"), uintArrayProp("children"),
+         numberArrayProp("matrix", 16), numberArrayProp("rotation", 4), numberArrayProp("scale", 3),
+         numberArrayProp("translation", 3), numberArrayProp("weights")},
+        {{"KHR_lights_punctual", &nodeLight}}};
     static const Schema scene{{uintArrayProp("nodes")}};
-    static const Schema sparseIndices{{uintProp("bufferView", true), uintProp("byteOffset"), uintProp("componentType", true)}};
+    static const Schema sparseIndices{
+        {uintProp("bufferView", true), uintProp("byteOffset"), uintProp("componentType", true)}};
     static const Schema sparseValues{{uintProp("bufferView", true), uintProp("byteOffset")}};
     static const Schema sparse{{uintProp("count", true), objectProp("indices", sparseIndices, true),
                                 objectProp("values", sparseValues, true)}};
@@ -122,32 +128,35 @@ const Schema& gltfSchema() {
     static const Schema image{{stringProp("uri"), stringProp("mimeType"), uintProp("bufferView")}};
     static const Schema texture{{uintProp("sampler"), uintProp("source")}};
     static const Schema sampler{{uintProp("magFilter"), uintProp("minFilter"), uintProp("wrapS"), uintProp("wrapT")}};
-    static const Schema skin{{uintProp("inverseBindMatrices"), uintProp("skeleton"), uintArrayProp("joints", true, true)}};
-    static const Schema perspective{{numberProp("aspectRatio"), numberProp("yfov", true), numberProp("zfar"),
-                                     numberProp("znear", true)}};
-    static const Schema orthographic{{numberProp("xmag", true), numberProp("ymag", true), numberProp("zfar", true),
-                                      numberProp("znear", true)}};
-    static const Schema camera{{stringProp("type", true), objectProp("perspective", perspective),
-                                objectProp("orthographic", orthographic)}};
+    static const Schema skin{
+        {uintProp("inverseBindMatrices"), uintProp("skeleton"), uintArrayProp("joints", true, true)}};
+    static const Schema perspective{
+        {numberProp("aspectRatio"), numberProp("yfov", true), numberProp("zfar"), numberProp("znear", true)}};
+    static const Schema orthographic{
+        {numberProp("xmag", true), numberProp("ymag", true), numberProp("zfar", true), numberProp("znear", true)}};
+    static const Schema camera{
+        {stringProp("type", true), objectProp("perspective", perspective), objectProp("orthographic", orthographic)}};
     static const Schema channelTarget{{uintProp("node"), stringProp("path", true)}};
     static const Schema channel{{uintProp("sampler", true), objectProp("target", channelTarget, true)}};
-    static const Schema animationSampler{{uintProp("input", true), stringProp("interpolation"), uintProp("output", true)}};
-    static const Schema animation{{objectArrayProp("channels", channel, true), objectArrayProp("samplers", animationSampler, true)}};
-    static const Schema asset{{stringProp("version", true), stringProp("generator"), stringProp("minVersion"),
-                               stringProp("copyright")}};
+    static const Schema animationSampler{
+        {uintProp("input", true), stringProp("interpolation"), uintProp("output", true)}};
+    static const Schema animation{
+        {objectArrayProp("channels", channel, true), objectArrayProp("samplers", animationSampler, true)}};
+    static const Schema asset{
+        {stringProp("version", true), stringProp("generator"), stringProp("minVersion"), stringProp("copyright")}};
     static const Schema spot{{numberProp("innerConeAngle"), numberProp("outerConeAngle")}};
     static const Schema light{{stringProp("type", true), numberArrayProp("color", 3), numberProp("intensity"),
                                numberProp("range"), objectProp("spot", spot)}};
     static const Schema lightsExt{{objectArrayProp("lights", light, true)}};
-    static const Schema root{{objectProp("asset", asset, true), uintProp("scene"), objectArrayProp("scenes", scene),
-                              objectArrayProp("nodes", node), objectArrayProp("meshes", mesh),
-                              objectArrayProp("accessors", accessor), objectArrayProp("bufferViews", bufferView),
-                              objectArrayProp("buffers", buffer), objectArrayProp("images", image),
-                              objectArrayProp("textures", texture), objectArrayProp("samplers", sampler),
-                              objectArrayProp("materials", material), objectArrayProp("skins", skin),
-                              objectArrayProp("cameras", camera), objectArrayProp("animations", animation),
-                              stringArrayProp("extensionsUsed"), stringArrayProp("extensionsRequired")},
-                             {{"KHR_lights_punctual", &lightsExt}}};
+    static const Schema root{
+        {objectProp("asset", asset, true), uintProp("scene"), objectArrayProp("scenes", scene),
+         objectArrayProp("nodes", node), objectArrayProp("meshes", mesh), objectArrayProp("accessors", accessor),
+         objectArrayProp("bufferViews", bufferView), objectArrayProp("buffers", buffer),
+         objectArrayProp("images", image), objectArrayProp("textures", texture), objectArrayProp("samplers", sampler),
+         objectArrayProp("materials", material), objectArrayProp("skins", skin), objectArrayProp("cameras", camera),
+         objectArrayProp("animations", animation), stringArrayProp("extensionsUsed"),
+         stringArrayProp("extensionsRequired")},
+        {{"KHR_lights_punctual", &lightsExt}}};
     return root;
 }
 
@@ -274,8 +283,7 @@ std::string readJsonText(const std::filesystem::path& path, bool binary, const F
     if (std::memcmp(header, "glTF", 4) != 0) fail("not a binary glTF file (bad GLB magic)");
     if (readLe32(header + 4) != 2) fail(cat("unsupported GLB container version ", readLe32(header + 4)));
     const std::uint64_t declared = readLe32(header + 8);
-    if (declared != fileSize)
-        fail(cat("GLB header declares ", declared, " bytes but the file has ", fileSize));
+    if (declared != fileSize) fail(cat("GLB header declares ", declared, " bytes but the file has ", fileSize));
     const std::uint64_t jsonLength = readLe32(header + 12);
     if (readLe32(header + 16) != 0x4E4F534Au) fail("GLB: the first chunk is not a JSON chunk");
     if (jsonLength == 0 || jsonLength > fileSize - 20) fail("GLB: JSON chunk length exceeds the file");
@@ -300,10 +308,14 @@ std::uint64_t jsonUInt(const Json& obj, const char* key, std::uint64_t fallback)
 }
 
 bool isSupportedExtension(const std::string& name) {
-    static const std::array<std::string_view, 8> kSupported = {
-        "KHR_lights_punctual",         "KHR_materials_transmission", "KHR_materials_ior",
-        "KHR_materials_volume",        "KHR_materials_emissive_strength", "KHR_draco_mesh_compression",
-        "EXT_meshopt_compression",     "KHR_mesh_quantization"};
+    static const std::array<std::string_view, 8> kSupported = {"KHR_lights_punctual",
+                                                               "KHR_materials_transmission",
+                                                               "KHR_materials_ior",
+                                                               "KHR_materials_volume",
+                                                               "KHR_materials_emissive_strength",
+                                                               "KHR_draco_mesh_compression",
+                                                               "EXT_meshopt_compression",
+                                                               "KHR_mesh_quantization"};
     return std::find(kSupported.begin(), kSupported.end(), name) != kSupported.end();
 }
 
@@ -328,7 +340,6 @@ std::size_t jsonNestingDepth(std::string_view text) {
     return deepest;
 }
 
-
 void precheckDraco(Json& doc, Prechecked& out) {
     if (!doc.contains("meshes")) return;
     const Json empty = Json::array();
@@ -339,7 +350,8 @@ void precheckDraco(Json& doc, Prechecked& out) {
         for (std::size_t p = 0; p < primitives.size(); ++p) {
             Json& prim = primitives[p];
             const auto ext = prim.find("extensions");
-            if (ext == prim.end() || !ext->contains("KHR_draco_mesh_compression") || !prim.contains("indices")) continue;
+            if (ext == prim.end() || !ext->contains("KHR_draco_mesh_compression") || !prim.contains("indices"))
+                continue;
             const std::size_t indices = jsonUInt(prim, "indices", 0);
             if (indices < accessors.size() && accessors[indices].contains("bufferView")) continue;
             out.hiddenIndices.push_back({m, p, indices});
@@ -387,13 +399,15 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
         v.count = jsonUInt(m, "count", 0);
         v.stride = jsonUInt(m, "byteStride", 0);
         if (v.sourceBuffer >= buffers.size()) fail(cat(where, ".buffer ", v.sourceBuffer, " is out of range"));
-        if (placeholder[v.sourceBuffer]) fail(cat(where, ".buffer ", v.sourceBuffer, " is a fallback buffer without data"));
+        if (placeholder[v.sourceBuffer])
+            fail(cat(where, ".buffer ", v.sourceBuffer, " is a fallback buffer without data"));
         const std::uint64_t sourceBytes = jsonUInt(buffers[v.sourceBuffer], "byteLength", 0);
         if (v.sourceOffset > sourceBytes || v.sourceLength > sourceBytes - v.sourceOffset)
             fail(cat(where, " (byteOffset ", v.sourceOffset, " + byteLength ", v.sourceLength, ") exceeds buffers[",
                      v.sourceBuffer, "] (", sourceBytes, " bytes)"));
         if (v.stride == 0 || v.count == 0) fail(cat(where, ": byteStride and count must be at least 1"));
-        const std::uint64_t viewOffset = jsonUInt(views[i], "byteOffset", 0), viewBytes = jsonUInt(views[i], "byteLength", 0);
+        const std::uint64_t viewOffset = jsonUInt(views[i], "byteOffset", 0),
+                            viewBytes = jsonUInt(views[i], "byteLength", 0);
         if (v.count > viewBytes / v.stride)
             fail(cat(where, ": ", v.count, " elements of ", v.stride, " bytes exceed the bufferView's ", viewBytes,
                      " bytes"));

@@ -31,10 +31,10 @@ Geometry makeBox(const vec3& size, MaterialId material) {
 
 Geometry makeIcosphere(float radius, int levels, MaterialId material) {
     const float t = (1.f + std::sqrt(5.f)) / 2.f;
-    std::vector<vec3> p = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<vec3> p = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
     for (vec3& v : p) v = glm::normalize(v);
-    std::vector<std::uint32_t> idx = {0, 11, 5, 0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
+    std::vector<std::uint32_t> idx = {0, 11, 5,  0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
                                       4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3,  9,  4, 3,  4,  2, 3, 2, 6, 3,
                                       6, 8,  3,  8, 9,  4, 9, 5, 2, 4, 11, 6,  2, 10, 8,  6, 7, 9, 8, 1};
     // Step: split every edge once per level, sharing midpoints through a map.
@@ -115,9 +115,11 @@ Geometry makeLathe(const std::vector<vec2>& profile, int segments, MaterialId ma
     for (std::size_t ring = 0; ring < profile.size(); ++ring)
         for (int s = 0; s <= segments; ++s) {
             const float phi = 2.f * kPi * static_cast<float>(s) / static_cast<float>(segments);
-            g.positions.emplace_back(profile[ring].x * std::cos(phi), profile[ring].y, -profile[ring].x * std::sin(phi));
-            g.uv0.emplace_back(static_cast<float>(s) / static_cast<float>(segments),
-                               static_cast<float>(ring) / static_cast<float>(std::max<std::size_t>(profile.size() - 1, 1)));
+            g.positions.emplace_back(profile[ring].x * std::cos(phi), profile[ring].y,
+                                     -profile[ring].x * std::sin(phi));
+            g.uv0.emplace_back(
+                static_cast<float>(s) / static_cast<float>(segments),
+                static_cast<float>(ring) / static_cast<float>(std::max<std::size_t>(profile.size() - 1, 1)));
         }
     // Step: quads between consecutive rings, counter-clockwise seen from outside.
     for (std::size_t ring = 0; ring + 1 < profile.size(); ++ring) {

@@ -96,13 +96,16 @@ struct HeightField {
         const int n1 = quads + 1;
         // Step: heights, one grid row per task.
         parallelForEach(static_cast<std::size_t>(n1), [&](std::size_t j) {
-            for (std::size_t v = j * n1; v < (j + 1) * n1; ++v) grid.positions[v].y = noiseHeight(grid.positions[v].x, grid.positions[v].z);
+            for (std::size_t v = j * n1; v < (j + 1) * n1; ++v)
+                grid.positions[v].y = noiseHeight(grid.positions[v].x, grid.positions[v].z);
         });
         // Step: normals from central differences (one-sided at the border).
         parallelForEach(static_cast<std::size_t>(n1), [&](std::size_t j) {
             for (int i = 0; i < n1; ++i) {
-                const vec3 dx = vertex(std::min(i + 1, quads), static_cast<int>(j)) - vertex(std::max(i - 1, 0), static_cast<int>(j));
-                const vec3 dz = vertex(i, std::min(static_cast<int>(j) + 1, quads)) - vertex(i, std::max(static_cast<int>(j) - 1, 0));
+                const vec3 dx = vertex(std::min(i + 1, quads), static_cast<int>(j)) -
+                                vertex(std::max(i - 1, 0), static_cast<int>(j));
+                const vec3 dz = vertex(i, std::min(static_cast<int>(j) + 1, quads)) -
+                                vertex(i, std::max(static_cast<int>(j) - 1, 0));
                 grid.normals[j * n1 + i] = glm::normalize(glm::cross(dz, dx));
             }
         });
@@ -117,7 +120,8 @@ struct HeightField {
         const float fz = glm::clamp((z / side + 0.5f) * quads, 0.f, static_cast<float>(quads));
         const int i = std::min(static_cast<int>(fx), quads - 1), j = std::min(static_cast<int>(fz), quads - 1);
         const float u = fx - i, v = fz - j;
-        const float h00 = vertex(i, j).y, h10 = vertex(i + 1, j).y, h01 = vertex(i, j + 1).y, h11 = vertex(i + 1, j + 1).y;
+        const float h00 = vertex(i, j).y, h10 = vertex(i + 1, j).y, h01 = vertex(i, j + 1).y,
+                    h11 = vertex(i + 1, j + 1).y;
         // makeGrid splits each quad along its (i, j)-(i+1, j+1) diagonal.
         return v > u ? h00 + (h11 - h01) * u + (h01 - h00) * v : h00 + (h10 - h00) * u + (h11 - h10) * v;
     }
@@ -128,9 +132,10 @@ struct HeightField {
 // normals.
 void displace(Geometry& g, float amount, float frequency, std::uint32_t seed) {
     for (std::size_t v = 0; v < g.positions.size(); ++v)
-        g.positions[v] += g.normals[v] * amount * fractalNoise(g.positions[v] * frequency, 4, [&](const vec3& p, std::uint32_t o) {
-                              return valueNoise3(p, seed, kShapeNoise, o);
-                          });
+        g.positions[v] +=
+            g.normals[v] * amount * fractalNoise(g.positions[v] * frequency, 4, [&](const vec3& p, std::uint32_t o) {
+                return valueNoise3(p, seed, kShapeNoise, o);
+            });
     g.normals = generateVertexNormals(g.positions, g.indices);
 }
 
@@ -139,9 +144,7 @@ void transform(Geometry& g, const vec3& scale, const vec3& offset) {
     g.normals = generateVertexNormals(g.positions, g.indices);
 }
 
-Light sun(float intensity) {
-    return Light{LightType::Directional, vec3(1.f, 0.95f, 0.85f), intensity};
-}
+Light sun(float intensity) { return Light{LightType::Directional, vec3(1.f, 0.95f, 0.85f), intensity}; }
 const vec3 kSunDirection = glm::normalize(vec3(-0.4f, -1.f, -0.3f));
 
 }  // namespace
@@ -188,7 +191,7 @@ void buildForest(World& world, const Parameters& p) {
     {
         // Four stacked cones as one zig-zag profile, each edge cut in four.
         const std::array<vec2, 9> corners = {vec2{0.f, 1.2f}, {2.2f, 1.2f}, {0.6f, 3.3f}, {1.8f, 3.1f}, {0.45f, 5.1f},
-                                             {1.4f, 4.9f},  {0.3f, 6.6f}, {0.9f, 6.5f}, {0.f, 8.2f}};
+                                             {1.4f, 4.9f},    {0.3f, 6.6f}, {0.9f, 6.5f}, {0.f, 8.2f}};
         std::vector<vec2> profile{corners[0]};
         for (std::size_t c = 1; c < corners.size(); ++c)
             for (int k = 1; k <= 4; ++k) profile.push_back(glm::mix(corners[c - 1], corners[c], k / 4.f));
@@ -274,7 +277,8 @@ void buildHairball(World& world, const Parameters& p) {
             const vec3 across = glm::normalize(glm::cross(along, unitVector(u(5), u(6)) + 1e-3f * vec3(1.f, 0.f, 0.f)));
             const float length = 0.5f + 0.5f * u(7), width = 0.002f;
             const vec3 base = centre - 0.5f * length * along;
-            const vec3 corners[3] = {base - 0.5f * width * across, base + 0.5f * width * across, centre + 0.5f * length * along};
+            const vec3 corners[3] = {base - 0.5f * width * across, base + 0.5f * width * across,
+                                     centre + 0.5f * length * along};
             const vec3 normal = glm::normalize(glm::cross(corners[1] - corners[0], corners[2] - corners[0]));
             for (std::size_t c = 0; c < 3; ++c) {
                 g.positions[3 * t + c] = corners[c];
@@ -284,8 +288,8 @@ void buildHairball(World& world, const Parameters& p) {
         }
     });
     place(world, "hairball", world.addMesh(makeMesh("hairball", std::move(g))), vec3(0.f));
-    world.settings().generated = std::to_string(count) +
-                                 " slivers (length 0.5 to 1, base width 0.002) in a ball of radius 1";
+    world.settings().generated =
+        std::to_string(count) + " slivers (length 0.5 to 1, base width 0.002) in a ball of radius 1";
 
     addLight(world, "sun", sun(3.f), vec3(0.f), kSunDirection);
     Light point{LightType::Point, vec3(1.f, 0.9f, 0.8f), 8.f};

@@ -105,7 +105,8 @@ public:
     }
 
     // An object whose keys all belong to `allowed`.
-    void expectObject(const json& j, const std::string& keyPath, std::initializer_list<std::string_view> allowed) const {
+    void expectObject(const json& j, const std::string& keyPath,
+                      std::initializer_list<std::string_view> allowed) const {
         if (!j.is_object()) fail(keyPath, std::string("expected an object, got ") + j.type_name());
         for (const auto& item : j.items()) {
             bool known = false;
@@ -218,7 +219,8 @@ public:
         }
         const float len = glm::length(dir);
         if (!(len > 1e-6f) || !std::isfinite(len))
-            fail(where, hasLookAt ? "lookAt must differ from the position" : "direction must be a non-zero vector of finite length");
+            fail(where, hasLookAt ? "lookAt must differ from the position"
+                                  : "direction must be a non-zero vector of finite length");
         return orientationLookingAlong(dir / len);
     }
 
@@ -299,8 +301,7 @@ json parseDocument(const std::string& text, const Parser& p) {
                 if (!stack.empty() && parsed.is_string()) {
                     Frame& top = stack.back();
                     top.lastKey = parsed.get<std::string>();
-                    if (!top.keys.insert(top.lastKey).second && !duplicate)
-                        duplicate = joinKey(top.path, top.lastKey);
+                    if (!top.keys.insert(top.lastKey).second && !duplicate) duplicate = joinKey(top.path, top.lastKey);
                 }
                 break;
             case json::parse_event_t::value: valuePath(); break;
@@ -332,7 +333,8 @@ GltfDesc parseGltf(const Parser& p, const json& j, const std::string& kp) {
     if (j.contains("scale")) {
         d.scale = p.vec3Of(j["scale"], joinKey(kp, "scale"));
         for (int i = 0; i < 3; ++i)
-            if (d.scale[i] == 0.f) p.fail(joinIndex(joinKey(kp, "scale"), static_cast<std::size_t>(i)), "must be non-zero");
+            if (d.scale[i] == 0.f)
+                p.fail(joinIndex(joinKey(kp, "scale"), static_cast<std::size_t>(i)), "must be non-zero");
     }
     return d;
 }
@@ -349,9 +351,9 @@ VolumeDesc parseVolume(const Parser& p, const json& j, const std::string& kp, st
         if (j.contains("grid")) d.gridName = p.string(j["grid"], joinKey(kp, "grid"));
         d.name = d.file.stem().string();
     } else {
-        p.expectObject(j, kp,
-                       {"procedural", "bounds", "voxelSize", "density", "seed", "name", "densityScale", "albedo",
-                        "translation"});
+        p.expectObject(
+            j, kp,
+            {"procedural", "bounds", "voxelSize", "density", "seed", "name", "densityScale", "albedo", "translation"});
         d.procedural = true;
         const std::string kind = p.string(j["procedural"], joinKey(kp, "procedural"));
         if (kind != "fog") p.fail(joinKey(kp, "procedural"), "unknown procedural volume '" + kind + "' (known: fog)");
@@ -365,11 +367,12 @@ VolumeDesc parseVolume(const Parser& p, const json& j, const std::string& kp, st
         for (int a = 0; a < 3; ++a)
             if (!(d.bounds.lo[a] < d.bounds.hi[a]))
                 p.fail(bk, "min must be < max on every axis (axis " + std::string(1, "xyz"[a]) + ": " +
-                               Parser::formatFloat(d.bounds.lo[a]) + " >= " + Parser::formatFloat(d.bounds.hi[a]) + ")");
+                               Parser::formatFloat(d.bounds.lo[a]) + " >= " + Parser::formatFloat(d.bounds.hi[a]) +
+                               ")");
         const vec3 e = d.bounds.extent();
-        d.voxelSize = j.contains("voxelSize") ? p.positive(p.number(j["voxelSize"], joinKey(kp, "voxelSize")),
-                                                           joinKey(kp, "voxelSize"))
-                                              : std::max(e.x, std::max(e.y, e.z)) / 64.f;
+        d.voxelSize = j.contains("voxelSize")
+                          ? p.positive(p.number(j["voxelSize"], joinKey(kp, "voxelSize")), joinKey(kp, "voxelSize"))
+                          : std::max(e.x, std::max(e.y, e.z)) / 64.f;
         if (j.contains("density"))
             d.density = p.nonNegative(p.number(j["density"], joinKey(kp, "density")), joinKey(kp, "density"));
         if (j.contains("seed")) d.seed = p.uint32(j["seed"], joinKey(kp, "seed"));
@@ -379,7 +382,8 @@ VolumeDesc parseVolume(const Parser& p, const json& j, const std::string& kp, st
     if (j.contains("densityScale"))
         d.volume.densityScale =
             p.nonNegative(p.number(j["densityScale"], joinKey(kp, "densityScale")), joinKey(kp, "densityScale"));
-    if (j.contains("albedo")) d.volume.albedo = p.unitRange(p.vec3Of(j["albedo"], joinKey(kp, "albedo")), joinKey(kp, "albedo"));
+    if (j.contains("albedo"))
+        d.volume.albedo = p.unitRange(p.vec3Of(j["albedo"], joinKey(kp, "albedo")), joinKey(kp, "albedo"));
     if (j.contains("translation")) d.translation = p.vec3Of(j["translation"], joinKey(kp, "translation"));
     return d;
 }
@@ -394,8 +398,9 @@ LightDesc parseLight(const Parser& p, const json& j, const std::string& kp, std:
         p.expectObject(j, kp, {"type", "name", "color", "intensity", "position", "range"});
         d.light.type = LightType::Point;
     } else if (type == "spot") {
-        p.expectObject(j, kp, {"type", "name", "color", "intensity", "position", "range", "direction", "lookAt",
-                               "innerConeAngle", "outerConeAngle"});
+        p.expectObject(j, kp,
+                       {"type", "name", "color", "intensity", "position", "range", "direction", "lookAt",
+                        "innerConeAngle", "outerConeAngle"});
         d.light.type = LightType::Spot;
     } else if (type == "directional") {
         p.expectObject(j, kp, {"type", "name", "color", "intensity", "position", "direction", "lookAt"});
@@ -410,20 +415,23 @@ LightDesc parseLight(const Parser& p, const json& j, const std::string& kp, std:
         p.fail(tk, "unknown light type '" + type + "' (known: point, spot, directional, rect, sphere)");
     }
     d.name = j.contains("name") ? p.string(j["name"], joinKey(kp, "name")) : type + " light " + std::to_string(index);
-    if (j.contains("color")) d.light.color = p.nonNegative(p.vec3Of(j["color"], joinKey(kp, "color")), joinKey(kp, "color"));
+    if (j.contains("color"))
+        d.light.color = p.nonNegative(p.vec3Of(j["color"], joinKey(kp, "color")), joinKey(kp, "color"));
     if (j.contains("intensity"))
         d.light.intensity = p.nonNegative(p.number(j["intensity"], joinKey(kp, "intensity")), joinKey(kp, "intensity"));
     if (j.contains("position")) d.position = p.vec3Of(j["position"], joinKey(kp, "position"));
-    if (j.contains("range")) d.light.range = p.nonNegative(p.number(j["range"], joinKey(kp, "range")), joinKey(kp, "range"));
+    if (j.contains("range"))
+        d.light.range = p.nonNegative(p.number(j["range"], joinKey(kp, "range")), joinKey(kp, "range"));
     if (d.light.type == LightType::Spot) {
         if (j.contains("innerConeAngle"))
             d.light.innerConeAngle = p.nonNegative(p.number(j["innerConeAngle"], joinKey(kp, "innerConeAngle")),
                                                    joinKey(kp, "innerConeAngle"));
         if (j.contains("outerConeAngle"))
-            d.light.outerConeAngle = p.positive(p.number(j["outerConeAngle"], joinKey(kp, "outerConeAngle")),
-                                                joinKey(kp, "outerConeAngle"));
+            d.light.outerConeAngle =
+                p.positive(p.number(j["outerConeAngle"], joinKey(kp, "outerConeAngle")), joinKey(kp, "outerConeAngle"));
         if (d.light.outerConeAngle > 0.5f * kPi)
-            p.fail(joinKey(kp, "outerConeAngle"), "must be <= pi/2, got " + Parser::formatFloat(d.light.outerConeAngle));
+            p.fail(joinKey(kp, "outerConeAngle"),
+                   "must be <= pi/2, got " + Parser::formatFloat(d.light.outerConeAngle));
         if (d.light.innerConeAngle > d.light.outerConeAngle)
             p.fail(joinKey(kp, "innerConeAngle"), "must be <= outerConeAngle");
     }
@@ -467,7 +475,8 @@ CameraDesc parseCamera(const Parser& p, const json& j, const std::string& kp, bo
         if (!(d.camera.yfov > 0.f && d.camera.yfov < kPi))
             p.fail(joinKey(kp, "yfov"), "must be in (0, pi) radians, got " + Parser::formatFloat(d.camera.yfov));
     }
-    if (j.contains("znear")) d.camera.znear = p.positive(p.number(j["znear"], joinKey(kp, "znear")), joinKey(kp, "znear"));
+    if (j.contains("znear"))
+        d.camera.znear = p.positive(p.number(j["znear"], joinKey(kp, "znear")), joinKey(kp, "znear"));
     if (j.contains("zfar")) d.camera.zfar = p.number(j["zfar"], joinKey(kp, "zfar"));
     if (!(d.camera.zfar > d.camera.znear))
         p.fail(joinKey(kp, "zfar"), "must be > znear (" + Parser::formatFloat(d.camera.znear) + "), got " +
@@ -502,7 +511,8 @@ SceneDesc parseScene(const Parser& p, const json& doc) {
                    {"name", "frameSeconds", "background", "gltf", "volumes", "lights", "camera", "cameraPath"});
     SceneDesc s;
     s.settings.name = doc.contains("name") ? p.string(doc["name"], "name") : p.jsonPath().stem().string();
-    if (doc.contains("frameSeconds")) s.settings.frameSeconds = p.positive(p.number(doc["frameSeconds"], "frameSeconds"), "frameSeconds");
+    if (doc.contains("frameSeconds"))
+        s.settings.frameSeconds = p.positive(p.number(doc["frameSeconds"], "frameSeconds"), "frameSeconds");
     if (doc.contains("background"))
         s.settings.backgroundRadiance = p.nonNegative(p.vec3Of(doc["background"], "background"), "background");
     if (doc.contains("gltf")) {
@@ -511,7 +521,8 @@ SceneDesc parseScene(const Parser& p, const json& doc) {
     }
     if (doc.contains("volumes")) {
         const json& a = p.expectArray(doc["volumes"], "volumes");
-        for (std::size_t i = 0; i < a.size(); ++i) s.volumes.push_back(parseVolume(p, a[i], joinIndex("volumes", i), i));
+        for (std::size_t i = 0; i < a.size(); ++i)
+            s.volumes.push_back(parseVolume(p, a[i], joinIndex("volumes", i), i));
     }
     if (doc.contains("lights")) {
         const json& a = p.expectArray(doc["lights"], "lights");

@@ -26,13 +26,11 @@ void loadScene(World& world, const std::string& source) {
         if (!std::filesystem::exists(path, ec)) throw InputError(source, "no such file");
         if (std::filesystem::is_directory(path, ec)) throw InputError(source, "is a directory, not a scene file");
         const std::string ext = lowercaseExtension(path);
-        if (ext == ".gltf" || ext == ".glb")
-            loadGltf(world, path);
-        else if (ext == ".json")
-            loadSceneJson(world, path);
+        if (ext == ".gltf" || ext == ".glb") loadGltf(world, path);
+        else if (ext == ".json") loadSceneJson(world, path);
         else
-            throw InputError(source, "unknown scene type '" + ext +
-                                         "' (expected builtin:NAME, .gltf, .glb or a scene .json)");
+            throw InputError(source,
+                             "unknown scene type '" + ext + "' (expected builtin:NAME, .gltf, .glb or a scene .json)");
     }
     addDefaultCameraAndLight(world);
 }
@@ -92,7 +90,8 @@ void addDefaultCameraAndLight(World& world) {
             const Camera cam{};
             const float distance = radius / std::tan(0.5f * cam.yfov) * 1.1f;
             found = world.create("default camera");
-            world.emplace(found, LocalTransform{center + vec3(0.f, 0.f, distance), quat(1.f, 0.f, 0.f, 0.f), vec3(1.f)});
+            world.emplace(found,
+                          LocalTransform{center + vec3(0.f, 0.f, distance), quat(1.f, 0.f, 0.f, 0.f), vec3(1.f)});
             world.emplace(found, Camera{cam.yfov, distance * 1e-3f, distance + 4.f * radius, 0.f});
         }
         world.setActiveCamera(found);

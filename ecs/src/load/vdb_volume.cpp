@@ -108,9 +108,9 @@ float smoothstep(float edge0, float edge1, float x) {
 float fogShape(float u, float v, float w, std::uint32_t seed) {
     const float dx = 2.f * u - 1.f, dy = 2.f * v - 1.f, dz = 2.f * w - 1.f;
     const float r = std::sqrt(dx * dx + dy * dy + dz * dz);  // 1 at the face centres
-    if (r >= 0.9f) return 0.f;                                 // the displaced distance is >= 0.75
+    if (r >= 0.9f) return 0.f;                               // the displaced distance is >= 0.75
     const float n = fogNoise(u, v, w, seed);
-    const float displaced = r + 0.3f * (n - 0.5f);             // in [r - 0.15, r + 0.15)
+    const float displaced = r + 0.3f * (n - 0.5f);  // in [r - 0.15, r + 0.15)
     const float falloff = 1.f - smoothstep(0.35f, 0.75f, displaced);
     return std::clamp(falloff * (0.4f + 0.6f * n), 0.f, 1.f);
 }
@@ -185,9 +185,9 @@ std::string describeCoord(const openvdb::Coord& c) {
 // OpenVDB messages look like "IoError: not a VDB file"; keep the text only.
 std::string openVdbReason(const std::exception& e) {
     std::string msg = e.what();
-    for (const char* prefix : {"IoError: ", "RuntimeError: ", "ValueError: ", "TypeError: ", "LookupError: ",
-                               "KeyError: ", "IndexError: ", "ArithmeticError: ", "NotImplementedError: ",
-                               "ReferenceError: "})
+    for (const char* prefix :
+         {"IoError: ", "RuntimeError: ", "ValueError: ", "TypeError: ", "LookupError: ", "KeyError: ", "IndexError: ",
+          "ArithmeticError: ", "NotImplementedError: ", "ReferenceError: "})
         if (msg.rfind(prefix, 0) == 0) return msg.substr(std::strlen(prefix));
     return msg;
 }
@@ -251,8 +251,8 @@ std::string checkVdbLayout(std::istream& in, std::uint64_t fileSize) {
         if (offsets[0] < static_cast<std::int64_t>(pos) || offsets[1] < offsets[0] || offsets[2] < offsets[1])
             return "corrupt VDB file (inconsistent offsets in the descriptor of " + which + ")";
         if (static_cast<std::uint64_t>(offsets[2]) > fileSize)
-            return "truncated VDB file (" + which + " ends at byte " + std::to_string(offsets[2]) +
-                   ", the file has " + std::to_string(fileSize) + " bytes)";
+            return "truncated VDB file (" + which + " ends at byte " + std::to_string(offsets[2]) + ", the file has " +
+                   std::to_string(fileSize) + " bytes)";
         pos = static_cast<std::uint64_t>(offsets[2]);
         in.seekg(static_cast<std::streamoff>(pos));
         if (!in) return "truncated or corrupt VDB file";
@@ -267,8 +267,8 @@ VolumeGrid::~VolumeGrid() = default;
 
 std::shared_ptr<VolumeGrid> VolumeGrid::makeProceduralFog(const Aabb& bounds, float voxelSize, float peakDensity,
                                                           std::uint32_t seed) {
-    if (!isFinite(bounds.lo) || !isFinite(bounds.hi) || !(bounds.lo.x < bounds.hi.x) ||
-        !(bounds.lo.y < bounds.hi.y) || !(bounds.lo.z < bounds.hi.z))
+    if (!isFinite(bounds.lo) || !isFinite(bounds.hi) || !(bounds.lo.x < bounds.hi.x) || !(bounds.lo.y < bounds.hi.y) ||
+        !(bounds.lo.z < bounds.hi.z))
         throw std::invalid_argument("procedural fog: bounds must be finite with lo < hi on every axis");
     if (!std::isfinite(voxelSize) || !(voxelSize > 0.f))
         throw std::invalid_argument("procedural fog: voxel size must be finite and > 0");
@@ -392,8 +392,8 @@ std::shared_ptr<VolumeGrid> VolumeGrid::loadVdb(const std::filesystem::path& pat
                 throw InputError(where, "grid '" + gridName + "' not found (the file has " + names + ")");
             }
             if (!named->isType<openvdb::FloatGrid>())
-                throw InputError(where, "grid '" + gridName + "' holds " + named->valueType() +
-                                            " values: not a float grid");
+                throw InputError(where,
+                                 "grid '" + gridName + "' holds " + named->valueType() + " values: not a float grid");
             grid = openvdb::gridPtrCast<openvdb::FloatGrid>(named);
         }
     } catch (const InputError&) {

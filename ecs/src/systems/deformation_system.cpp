@@ -58,14 +58,18 @@ void World::runDeformationSystem(FrameUpdate&) {
                      dirty_->rebuiltMeshes.contains(inst.mesh);
         if (skin && !dirty)
             for (Entity j : skin->joints)
-                if (alive(j) && j.index < changed.size() && changed[j.index]) { dirty = true; break; }
+                if (alive(j) && j.index < changed.size() && changed[j.index]) {
+                    dirty = true;
+                    break;
+                }
         if (!dirty || inst.mesh >= meshes_.size()) return;
 
         if (skin) {
             jointMatrices.resize(skin->joints.size());
             for (std::size_t j = 0; j < skin->joints.size(); ++j) {
                 const WorldTransform* w = get<WorldTransform>(skin->joints[j]);
-                const mat4 inverseBind = j < skin->inverseBindMatrices.size() ? skin->inverseBindMatrices[j] : mat4(1.f);
+                const mat4 inverseBind =
+                    j < skin->inverseBindMatrices.size() ? skin->inverseBindMatrices[j] : mat4(1.f);
                 jointMatrices[j] = (w ? w->worldFromObject : mat4(1.f)) * inverseBind;
             }
         }
@@ -76,4 +80,3 @@ void World::runDeformationSystem(FrameUpdate&) {
 }
 
 }  // namespace rtlab::ecs
-

@@ -29,11 +29,10 @@ private:
 }  // namespace
 
 const SchedulerPolicyEntry& rtcoreSimPolicy_oldest_first() {
-    static const SchedulerPolicyEntry entry{
-        "oldestFirst", "the ready ray submitted earliest issues first",
-        [](const SchedulerParams&) -> std::unique_ptr<SchedulerPolicy> {
-            return std::make_unique<OldestFirstPolicy>();
-        }};
+    static const SchedulerPolicyEntry entry{"oldestFirst", "the ready ray submitted earliest issues first",
+                                            [](const SchedulerParams&) -> std::unique_ptr<SchedulerPolicy> {
+                                                return std::make_unique<OldestFirstPolicy>();
+                                            }};
     return entry;
 }
 

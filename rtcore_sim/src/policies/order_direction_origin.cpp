@@ -66,8 +66,8 @@ std::vector<std::uint32_t> directionOriginOrder(std::span<const SimRay> rays) {
                                      spread3(quantize(o.y, lo.y, hi.y, 1024)) << 1 |
                                      spread3(quantize(o.z, lo.z, hi.z, 1024));
         const float len = std::max(std::abs(d.x) + std::abs(d.y) + std::abs(d.z), 1e-30f);
-        const std::uint64_t direction = spread2(quantize(d.x / len, -1.f, 1.f, 32768)) << 1 |
-                                        spread2(quantize(d.y / len, -1.f, 1.f, 32768));
+        const std::uint64_t direction =
+            spread2(quantize(d.x / len, -1.f, 1.f, 32768)) << 1 | spread2(quantize(d.y / len, -1.f, 1.f, 32768));
         keys[i] = octant << 60 | origin << 30 | direction;
     }
     std::vector<std::uint32_t> order(rays.size());

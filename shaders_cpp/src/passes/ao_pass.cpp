@@ -25,7 +25,8 @@ std::vector<std::uint16_t> windowSumsOfOthers(int width, int height, const std::
         const std::uint8_t* row = in.data() + y * w;
         for (int x = 0; x < width; ++x) {
             std::uint16_t sum = 0;
-            for (int q = std::max(0, x - kAoContactWindow); q <= std::min(width - 1, x + kAoContactWindow); ++q) sum += row[q];
+            for (int q = std::max(0, x - kAoContactWindow); q <= std::min(width - 1, x + kAoContactWindow); ++q)
+                sum += row[q];
             rows[y * w + static_cast<std::size_t>(x)] = sum;
         }
     });
@@ -76,7 +77,8 @@ std::vector<std::uint32_t> aoContactSampleCounts(int width, int height, std::spa
             // A source pixel is the only source of the flagged-once pixels in its window.
             const std::size_t onlyThroughMe = source[i] ? flaggedOnceAround[i] : 0;
             const std::size_t others = flagged - onlyThroughMe + kMostFlaggedByOne;
-            counts[i] = static_cast<std::uint32_t>(std::min<std::size_t>(perSample, budgetPerPixel * geometryPixels / others));
+            counts[i] =
+                static_cast<std::uint32_t>(std::min<std::size_t>(perSample, budgetPerPixel * geometryPixels / others));
         }
     });
     return counts;
@@ -155,7 +157,8 @@ std::uint64_t runAmbientOcclusionPass(PassFrame& passFrame, tracer::TraceCounter
         std::uint32_t most = 0;
         for (std::size_t i = 0; i < n; ++i)
             if (counts[i]) pixels.push_back(static_cast<std::uint32_t>(i)), most = std::max(most, counts[i]);
-        bytes += n * (sizeof(float) + sizeof(std::uint8_t) + sizeof(std::uint32_t)) + pixels.size() * sizeof(std::uint32_t);
+        bytes +=
+            n * (sizeof(float) + sizeof(std::uint8_t) + sizeof(std::uint32_t)) + pixels.size() * sizeof(std::uint32_t);
         const int rows = static_cast<int>((pixels.size() + kListGridWidth - 1) / kListGridWidth);
         const auto pixelOf = [&](int x, int y) -> std::optional<std::size_t> {
             const std::size_t item = static_cast<std::size_t>(y) * kListGridWidth + static_cast<std::size_t>(x);

@@ -51,7 +51,9 @@ void wakeAroundChanges(const ecs::SceneSnapshot& scene, const std::vector<Aabb>&
     const bool newUpdate = !history.ddgiSeenUpdate || *history.ddgiSeenUpdate != scene.update.frame;
     for (std::size_t i = 0; i < scene.instances.size() && newUpdate; ++i) {
         const ecs::MeshId mesh = scene.instances[i].mesh;
-        const auto listed = [&](const std::vector<ecs::MeshId>& v) { return std::find(v.begin(), v.end(), mesh) != v.end(); };
+        const auto listed = [&](const std::vector<ecs::MeshId>& v) {
+            return std::find(v.begin(), v.end(), mesh) != v.end();
+        };
         if (listed(scene.update.refitMeshes) || listed(scene.update.rebuiltMeshes)) volume.wakeProbes(bounds[i]);
     }
     const std::vector<Aabb>& before = history.ddgiInstanceBounds;
@@ -112,8 +114,8 @@ std::uint64_t runDdgiPass(PassFrame& passFrame, tracer::TraceCounters& counters)
         const HitPayload& h = hits[i];
         if (!h.hit || !feedback || !seenFromFront(h)) continue;
         const ecs::Material& m = ctx.material(h.material);
-        const vec3 diffuse = (1.f - glm::clamp(m.metallic, 0.f, 1.f)) * (1.f - glm::clamp(m.transmission, 0.f, 1.f)) *
-                             h.albedo;
+        const vec3 diffuse =
+            (1.f - glm::clamp(m.metallic, 0.f, 1.f)) * (1.f - glm::clamp(m.transmission, 0.f, 1.f)) * h.albedo;
         radiance[i] += diffuse / kPi * volume.irradiance(h.position, h.shadingNormal, -incoming[i]);
     }
     // Back-face hits only report a distance: no shading, no shadow rays.
@@ -144,8 +146,8 @@ std::uint64_t runDdgiPass(PassFrame& passFrame, tracer::TraceCounters& counters)
     const DdgiAtlasImage e = volume.irradianceAtlasImage();
     atlas = Image(e.width, e.height);
     atlas.addRgbLayer("", e.texels);
-    return volume.bytesAllocated() + grid.size() * (sizeof(SecondaryRay) + sizeof(HitPayload) + 3 * 3 * sizeof(float) +
-                                                    sizeof(DdgiRayResult));
+    return volume.bytesAllocated() +
+           grid.size() * (sizeof(SecondaryRay) + sizeof(HitPayload) + 3 * 3 * sizeof(float) + sizeof(DdgiRayResult));
 }
 
 }  // namespace rtlab::shaders::detail

@@ -50,10 +50,13 @@ std::uint64_t runGBufferPass(PassFrame& passFrame, tracer::TraceCounters& counte
     std::vector<vec3> directions(columns * static_cast<std::size_t>(h));
     parallelForEach(static_cast<std::size_t>(h), [&](std::size_t y) {
         for (std::size_t x = 0; x < columns; ++x)
-            directions[y * columns + x] = camera.ray(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f).direction;
+            directions[y * columns + x] =
+                camera.ray(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f).direction;
     });
     const vec3 origin = camera.ray(0.5f, 0.5f).origin;
-    const auto direction = [&](int x, int y) { return directions[static_cast<std::size_t>(y) * columns + static_cast<std::size_t>(x)]; };
+    const auto direction = [&](int x, int y) {
+        return directions[static_cast<std::size_t>(y) * columns + static_cast<std::size_t>(x)];
+    };
     // Step: primary rays through pixel centres.
     counters.add(ctx.pipeline().dispatchCoherent(
         w, h, ctx.args(kRayPrimary),
@@ -98,7 +101,8 @@ std::uint64_t runGBufferPass(PassFrame& passFrame, tracer::TraceCounters& counte
                     prevWorld = vec3(previous.worldFromObject[p.entity] * vec4(object, 1.f));
                 }
                 const std::optional<vec2> prev = previousCamera->project(prevWorld);
-                if (prev && std::isfinite(prev->x) && std::isfinite(prev->y)) g.motion = *prev - vec2(x + 0.5f, y + 0.5f);
+                if (prev && std::isfinite(prev->x) && std::isfinite(prev->y))
+                    g.motion = *prev - vec2(x + 0.5f, y + 0.5f);
             }
         }));
 

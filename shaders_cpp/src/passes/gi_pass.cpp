@@ -11,7 +11,7 @@ namespace rtlab::shaders::detail {
 
 std::uint64_t runDiffuseGiPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
     return passFrame.ctx.plan.gi == GiTechnique::Ddgi ? runDdgiPass(passFrame, counters)
-                                                  : runGlobalIlluminationPass(passFrame, counters);
+                                                      : runGlobalIlluminationPass(passFrame, counters);
 }
 
 std::uint64_t runGlobalIlluminationPass(PassFrame& passFrame, tracer::TraceCounters& counters) {
@@ -31,8 +31,8 @@ std::uint64_t runGlobalIlluminationPass(PassFrame& passFrame, tracer::TraceCount
                 const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s), stream::kGiBounce);
                 const vec3 dir = cosineDirectionAbove(g.normal, g.geometricNormal,
                                                       vec2(sampleUniform(key, 0), sampleUniform(key, 1)));
-                rays[i].ray =
-                    tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
+                rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f,
+                                              dir, kInfinity};
             }
         });
         traceAndShadeSecondary(ctx, rays, kRayGi, static_cast<std::uint32_t>(s), stream::kGiHit, result, counters);

@@ -24,12 +24,12 @@ void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<S
 
 void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPayload>& hits,
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
-               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters,
-               bool everyLight) {
+               std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters, bool everyLight) {
     const std::size_t n = hits.size();
     std::vector<vec3> lightContribution(n, vec3(0.f));
     const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
-    const auto args = ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader);
+    const auto args =
+        ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader);
     // A shadow query: the miss shader runs when nothing occludes (closest-hit is skipped).
     const auto unoccluded = [&](int x, int y, const HitPayload& p) {
         const std::size_t i = index(x, y);
@@ -108,9 +108,10 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             traceFromHits([&](std::size_t i, const ShadingPoint& sp) -> std::optional<tracer::RayDesc> {
                 const SampleKey key = ctx.key(i, sample, hitStream);
                 const bool area = light.light.isArea();
-                const LightSample ls = area ? sampleAreaLight(light, sp.position,
-                                                              vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
-                                            : pointLightSample(light, sp.position);
+                const LightSample ls = area
+                                           ? sampleAreaLight(light, sp.position,
+                                                             vec2(sampleUniform(key, dim), sampleUniform(key, dim + 1)))
+                                           : pointLightSample(light, sp.position);
                 if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
                 const float mis = area ? powerHeuristic(1, ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;
                 if (!(mis > 0.f)) return std::nullopt;
@@ -149,9 +150,9 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
             const ecs::LightSnapshot* light = pickLight(ctx.scene, sp, sampleUniform(key, 0), pickPdf);
             if (!light) return std::nullopt;
             const bool area = light->light.isArea();
-            const LightSample ls = area ? sampleAreaLight(*light, sp.position,
-                                                          vec2(sampleUniform(key, 1), sampleUniform(key, 2)))
-                                        : pointLightSample(*light, sp.position);
+            const LightSample ls =
+                area ? sampleAreaLight(*light, sp.position, vec2(sampleUniform(key, 1), sampleUniform(key, 2)))
+                     : pointLightSample(*light, sp.position);
             if (!ls.valid || glm::dot(ls.direction, sp.geometricNormal) <= 0.f) return std::nullopt;
             const float mis =
                 area && glossy(sp) ? powerHeuristic(1, pickPdf * ls.pdf, 1, specularLobePdf(sp, ls.direction)) : 1.f;

@@ -16,9 +16,9 @@ struct SecondaryRay {
 
 struct SecondaryResult {
     explicit SecondaryResult(std::size_t n) : radiance(n, vec3(0.f)), hitT(n, 0.f), hits(n, 0) {}
-    std::vector<vec3> radiance;      // incoming radiance along each pixel's secondary rays (summed over samples)
-    std::vector<float> hitT;         // their hit distances, summed over the rays that hit
-    std::vector<std::uint32_t> hits; // how many hit
+    std::vector<vec3> radiance;       // incoming radiance along each pixel's secondary rays (summed over samples)
+    std::vector<float> hitT;          // their hit distances, summed over the rays that hit
+    std::vector<std::uint32_t> hits;  // how many hit
     // Mean hit distance over the rays that hit; 0 when none did (the "no hit" value of every hitT layer but AO's).
     float meanHitT(std::size_t i) const { return hits[i] ? hitT[i] / float(hits[i]) : 0.f; }
 };

@@ -97,9 +97,9 @@ std::uint64_t runPathTracePass(PassFrame& passFrame, tracer::TraceCounters& coun
                     throughput[i] *= b->weight;
                     incoming[i] = b->direction;
                     rays[i].active = true;
-                    rays[i].ray = tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, b->direction,
-                                                                   sp.errorScale),
-                                                  0.f, b->direction, kInfinity};
+                    rays[i].ray =
+                        tracer::RayDesc{rayOriginLeaving(sp.position, sp.geometricNormal, b->direction, sp.errorScale),
+                                        0.f, b->direction, kInfinity};
                 }
             });
             if (std::none_of(rays.begin(), rays.end(), [](const SecondaryRay& r) { return r.active; })) break;

@@ -26,8 +26,8 @@ std::uint64_t runReflectionPass(PassFrame& passFrame, tracer::TraceCounters& cou
     parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
         for (std::size_t i = begin; i < end; ++i) {
             const GPixel& g = ctx.gbuffer[i];
-            glossy[i] = g.hit && g.roughness <= ctx.plan.reflectionMaxRoughness &&
-                        ctx.material(g.material).transmission <= 0.f;
+            glossy[i] =
+                g.hit && g.roughness <= ctx.plan.reflectionMaxRoughness && ctx.material(g.material).transmission <= 0.f;
             if (!glossy[i]) continue;
             const vec2 ab = specularBrdfIntegral(std::max(glm::dot(g.normal, g.viewDir), 0.f), g.roughness);
             brdf[i] = specularF0(g.albedo, g.metalness) * ab.x + vec3(ab.y);
@@ -41,15 +41,16 @@ std::uint64_t runReflectionPass(PassFrame& passFrame, tracer::TraceCounters& cou
                 const GPixel& g = ctx.gbuffer[i];
                 const Frame frame = makeFrame(g.normal);
                 const vec3 wo = toLocal(frame, g.viewDir);
-                const GgxReflectionSample rs = sampleGgxReflection(
-                    wo, ggxAlpha(g.roughness), ctx.screenStratified2D(i, static_cast<std::uint32_t>(s), stream::kReflection));
+                const GgxReflectionSample rs =
+                    sampleGgxReflection(wo, ggxAlpha(g.roughness),
+                                        ctx.screenStratified2D(i, static_cast<std::uint32_t>(s), stream::kReflection));
                 if (!(rs.pdf > 0.f)) continue;
                 const vec3 dir = glm::normalize(toWorld(frame, rs.wi));
                 if (glm::dot(dir, g.geometricNormal) <= 0.f) continue;  // below the surface
                 rays[i].active = true;
                 ++validSamples[i];
-                rays[i].ray =
-                    tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f, dir, kInfinity};
+                rays[i].ray = tracer::RayDesc{rayOriginLeaving(g.position, g.geometricNormal, dir, g.errorScale), 0.f,
+                                              dir, kInfinity};
             }
         });
         // The reflected hit's direct light: every light with its own shadow
@@ -73,7 +74,8 @@ std::uint64_t runReflectionPass(PassFrame& passFrame, tracer::TraceCounters& cou
     });
     out.addRgbLayer("reflection", radiance);
     out.addRgbLayer("reflection.brdf", brdf);
-    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + sizeof(BrdfSample) + 6 * 3 * sizeof(float) + 2 * sizeof(float) + 1);
+    return n * (sizeof(SecondaryRay) + sizeof(HitPayload) + sizeof(BrdfSample) + 6 * 3 * sizeof(float) +
+                2 * sizeof(float) + 1);
 }
 
 }  // namespace rtlab::shaders::detail

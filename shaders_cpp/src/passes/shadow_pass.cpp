@@ -40,7 +40,7 @@ std::uint64_t runShadowPass(PassFrame& passFrame, tracer::TraceCounters& counter
         float* penumbra = out.addChannel(layer + ".penumbra", 0.f);
         std::vector<vec3> unshadowed(n, vec3(0.f));
         VisibilityTally tally(n);
-        std::vector<float> mediumT(n, 1.f);  // this sample's fog transmittance toward the light
+        std::vector<float> mediumT(n, 1.f);       // this sample's fog transmittance toward the light
         std::vector<float> sampleWeight(n, 0.f);  // this sample's luminance(f cos Le / pdf): weights its visibility
         bytes += n * (3 * sizeof(float) + 3 * sizeof(float) + sizeof(float)) + tally.bytes();
         const std::uint32_t areaStream = stream::kAreaLight + areaIndex;
@@ -50,15 +50,15 @@ std::uint64_t runShadowPass(PassFrame& passFrame, tracer::TraceCounters& counter
                     const std::size_t i = ctx.pixelIndex(x, y);
                     const GPixel& g = ctx.gbuffer[i];
                     if (!g.hit) return std::nullopt;
-                    const LightSample ls =
-                        sampleAreaLight(light, g.position, ctx.screenStratified2D(i, static_cast<std::uint32_t>(s), areaStream));
+                    const LightSample ls = sampleAreaLight(
+                        light, g.position, ctx.screenStratified2D(i, static_cast<std::uint32_t>(s), areaStream));
                     if (!ls.valid || glm::dot(ls.direction, g.geometricNormal) <= 0.f) return std::nullopt;
                     sampleWeight[i] = luminance(evalBrdfCos(shadingPointOf(g), ls.direction) * ls.radianceOverPdf);
                     if (!(sampleWeight[i] > 0.f) || !std::isfinite(sampleWeight[i])) return std::nullopt;
                     ++tally.tested[i];
                     const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
-                    mediumT[i] = ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s),
-                                                   stream::transmittance(areaStream));
+                    mediumT[i] = ctx.transmittance(ray.origin, ray.direction, ray.tMax, i,
+                                                   static_cast<std::uint32_t>(s), stream::transmittance(areaStream));
                     return ray;
                 },
                 [&](int x, int y, const HitPayload& p) {
@@ -112,8 +112,8 @@ std::uint64_t runShadowPass(PassFrame& passFrame, tracer::TraceCounters& counter
             const vec3 f = evalBrdfCos(sp, ls.direction) * ls.radianceOverPdf / pdf;
             if (!(luminance(f) > 0.f)) return std::nullopt;
             const tracer::RayDesc ray = shadowRayToward(ls, g.position, g.geometricNormal, g.errorScale);
-            contribution[i] = f * ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s),
-                                                    fogStream);
+            contribution[i] =
+                f * ctx.transmittance(ray.origin, ray.direction, ray.tMax, i, static_cast<std::uint32_t>(s), fogStream);
             return ray;
         };
         const bool traceEach = pointLights.size() <= kTraceEveryPointLight;
@@ -152,7 +152,8 @@ std::uint64_t runShadowPass(PassFrame& passFrame, tracer::TraceCounters& counter
         });
         // Traced one by one the layer has no noise but the fog's; picked, it is noisy
         // (the denoiser filters direct.pointPicked only).
-        out.addRgbLayer(pointLights.size() <= kTraceEveryPointLight ? "direct.point" : "direct.pointPicked", pointDirect);
+        out.addRgbLayer(pointLights.size() <= kTraceEveryPointLight ? "direct.point" : "direct.pointPicked",
+                        pointDirect);
     }
     return bytes;
 }

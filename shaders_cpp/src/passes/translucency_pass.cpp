@@ -38,9 +38,9 @@ vec3 absorptionCoefficient(const ecs::Material& m) {
 
 struct PathState {
     bool active = false;
-    bool inside = false;     // travelling inside a transmissive medium
+    bool inside = false;  // travelling inside a transmissive medium
     vec3 throughput{1.f};
-    vec3 sigmaA{0.f};        // absorption of the medium being travelled
+    vec3 sigmaA{0.f};  // absorption of the medium being travelled
 };
 
 // One interface event at `p` (normal n on the incident side, direction d):
@@ -116,12 +116,13 @@ std::uint64_t runTranslucencyPass(PassFrame& passFrame, tracer::TraceCounters& c
                     if (st.inside) st.throughput *= glm::exp(-st.sigmaA * h.t);
                     const ecs::Material& m = ctx.material(h.material);
                     if (m.transmission > 0.f && depth < maxDepth &&
-                        std::max({st.throughput.x, st.throughput.y, st.throughput.z}) >= ctx.settings.throughputCutoff) {
-                        const SampleKey key =
-                            ctx.key(i, static_cast<std::uint32_t>(s), stream::kTranslucency + static_cast<std::uint32_t>(depth));
+                        std::max({st.throughput.x, st.throughput.y, st.throughput.z}) >=
+                            ctx.settings.throughputCutoff) {
+                        const SampleKey key = ctx.key(i, static_cast<std::uint32_t>(s),
+                                                      stream::kTranslucency + static_cast<std::uint32_t>(depth));
                         bool crossed = false;
-                        rays[i].ray = interfaceEvent(h.position, h.geometricNormal, rays[i].ray.direction, m.ior, h.frontFace,
-                                                     sampleUniform(key, 0), h.errorScale, crossed);
+                        rays[i].ray = interfaceEvent(h.position, h.geometricNormal, rays[i].ray.direction, m.ior,
+                                                     h.frontFace, sampleUniform(key, 0), h.errorScale, crossed);
                         rays[i].active = true;
                         if (crossed) {
                             st.inside = h.frontFace;
@@ -136,8 +137,8 @@ std::uint64_t runTranslucencyPass(PassFrame& passFrame, tracer::TraceCounters& c
                 }
             });
         }
-        shadeHits(ctx, imageGrid(ctx), finals, incoming, weight, static_cast<std::uint32_t>(s), stream::kTranslucencyHit,
-                  radiance, counters);
+        shadeHits(ctx, imageGrid(ctx), finals, incoming, weight, static_cast<std::uint32_t>(s),
+                  stream::kTranslucencyHit, radiance, counters);
     }
     float* hitT = out.addChannel("translucency.hitT", 0.f);
     parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {
@@ -147,8 +148,8 @@ std::uint64_t runTranslucencyPass(PassFrame& passFrame, tracer::TraceCounters& c
         }
     });
     out.addRgbLayer("translucency", transmitted);
-    return n * (sizeof(PathState) + sizeof(SecondaryRay) + 2 * sizeof(HitPayload) + 4 * 3 * sizeof(float) +
-                sizeof(float));
+    return n *
+           (sizeof(PathState) + sizeof(SecondaryRay) + 2 * sizeof(HitPayload) + 4 * 3 * sizeof(float) + sizeof(float));
 }
 
 }  // namespace rtlab::shaders::detail

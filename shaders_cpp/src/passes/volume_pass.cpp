@@ -22,7 +22,8 @@ std::uint64_t runVolumePass(PassFrame& passFrame, tracer::TraceCounters& counter
     const PinholeCamera camera(ctx.scene.camera, w, h);
     for (int s = 0; s < spp; ++s) {
         counters.add(ctx.pipeline().dispatchCoherent(
-            w, h, ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
+            w, h,
+            ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader),
             [&](int x, int y, HitPayload&) -> std::optional<tracer::RayDesc> {
                 const std::size_t i = ctx.pixelIndex(x, y);
                 const GPixel& g = ctx.gbuffer[i];
@@ -48,15 +49,17 @@ std::uint64_t runVolumePass(PassFrame& passFrame, tracer::TraceCounters& counter
                     ctx.scene.lights,
                     [&](const ecs::LightSnapshot& l) -> float {
                         if (!emits(l)) return 0.f;
-                        if (l.light.type == ecs::LightType::Directional) return luminance(l.light.color * l.light.intensity);
+                        if (l.light.type == ecs::LightType::Directional)
+                            return luminance(l.light.color * l.light.intensity);
                         const vec3 d = vec3(l.worldFromLight[3]) - xs;
                         return luminance(l.light.color * l.light.intensity) / std::max(glm::dot(d, d), 1e-2f);
                     },
                     sampleUniform(key, 1), pickPdf);
                 if (!light || !(pickPdf > 0.f)) return std::nullopt;
-                const LightSample ls = light->light.isArea()
-                                           ? sampleAreaLight(*light, xs, vec2(sampleUniform(key, 2), sampleUniform(key, 3)))
-                                           : pointLightSample(*light, xs);
+                const LightSample ls =
+                    light->light.isArea()
+                        ? sampleAreaLight(*light, xs, vec2(sampleUniform(key, 2), sampleUniform(key, 3)))
+                        : pointLightSample(*light, xs);
                 if (!ls.valid) return std::nullopt;
                 const float camT = ctx.transmittance(cam.origin, cam.direction, t, i, sample,
                                                      stream::transmittance(stream::kVolumeScatter, 1));
@@ -64,7 +67,8 @@ std::uint64_t runVolumePass(PassFrame& passFrame, tracer::TraceCounters& counter
                                                        stream::transmittance(stream::kVolumeScatter, 2));
                 const vec3 sigmaS = m.albedo * sigmaT;
                 // L_s = sigma_s T_cam (1/4pi) Le/pdf T_light / p(t), p(t) = 1 / (t1 - t0).
-                contribution[i] = sigmaS * camT * (1.f / (4.f * kPi)) * ls.radianceOverPdf * lightT / pickPdf * (t1 - t0);
+                contribution[i] =
+                    sigmaS * camT * (1.f / (4.f * kPi)) * ls.radianceOverPdf * lightT / pickPdf * (t1 - t0);
                 if (!isFinite(contribution[i])) {
                     contribution[i] = vec3(0.f);
                     return std::nullopt;

@@ -123,7 +123,7 @@ struct ImageDifference {
     // few pixels (fireflies, a thin feature blurred away), near 0.01 it is
     // spread like noise. 0 when there is no error.
     double relMseWorstPercentShare = 0.0;
-    bool identical = false;          // every shared channel bit-identical and channel sets equal
+    bool identical = false;  // every shared channel bit-identical and channel sets equal
     std::size_t channelsCompared = 0;
     std::size_t nonFiniteValues = 0;  // NaN/Inf found in either image (excluded from the sums)
     // SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01,

@@ -38,8 +38,14 @@ struct Aabb {
     vec3 lo{kInfinity};
     vec3 hi{-kInfinity};
 
-    void extend(const vec3& p) { lo = glm::min(lo, p); hi = glm::max(hi, p); }
-    void extend(const Aabb& b) { lo = glm::min(lo, b.lo); hi = glm::max(hi, b.hi); }
+    void extend(const vec3& p) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+    void extend(const Aabb& b) {
+        lo = glm::min(lo, b.lo);
+        hi = glm::max(hi, b.hi);
+    }
     bool empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
     vec3 center() const { return 0.5f * (lo + hi); }
     vec3 extent() const { return hi - lo; }

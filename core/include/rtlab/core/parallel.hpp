@@ -21,19 +21,20 @@ inline std::vector<Tile> makeTiles(int width, int height, int tileSize = 16) {
     std::vector<Tile> tiles;
     for (int y = 0; y < height; y += tileSize)
         for (int x = 0; x < width; x += tileSize)
-            tiles.push_back({x, y, std::min(x + tileSize, width), std::min(y + tileSize, height),
-                             static_cast<int>(tiles.size())});
+            tiles.push_back(
+                {x, y, std::min(x + tileSize, width), std::min(y + tileSize, height), static_cast<int>(tiles.size())});
     return tiles;
 }
 
 // Runs body(i) for i in [0, count), in parallel, one task per index.
 template <class Body>
 void parallelForEach(std::size_t count, Body&& body) {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
-                      },
-                      tbb::simple_partitioner{});
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, count, 1),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
+        },
+        tbb::simple_partitioner{});
 }
 
 // Runs body(begin, end) over [0, count) in fixed chunks of `chunk` indices,

@@ -80,8 +80,7 @@ vec3 plotSeriesColour(std::size_t seriesIndex);
 PlotFrame computePlotFrame(const std::vector<PlotSeries>& series, const PlotOptions& options);
 
 // Draws the plot (white background; axes even when nothing is drawable).
-Image renderLogLogPlot(const std::vector<PlotSeries>& series, const PlotOptions& options,
-                       PlotReport* report = nullptr);
+Image renderLogLogPlot(const std::vector<PlotSeries>& series, const PlotOptions& options, PlotReport* report = nullptr);
 // renderLogLogPlot, then writePng (atomic). Throws InputError naming the file
 // when it cannot be written.
 PlotReport writeLogLogPlot(const std::filesystem::path& png, const std::vector<PlotSeries>& series,

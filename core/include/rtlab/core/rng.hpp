@@ -16,7 +16,7 @@ constexpr std::uint32_t pcgHash(std::uint32_t v) {
 }
 
 struct SampleKey {
-    std::uint32_t pixel = 0;   // linear pixel index y * width + x
+    std::uint32_t pixel = 0;  // linear pixel index y * width + x
     std::uint32_t frame = 0;
     std::uint32_t sample = 0;  // sample index within the pixel
     std::uint32_t bounce = 0;
@@ -124,7 +124,7 @@ constexpr void sobol2(std::uint32_t index, std::uint32_t& first, std::uint32_t& 
 // Pixels beyond 65535 in x or y wrap in the Morton order (still uniform,
 // less stratified); `sample` should be below samplesPerPixel.
 inline vec2 sampleScreenStratified2D(std::uint32_t x, std::uint32_t y, std::uint32_t sample,
-                                        std::uint32_t samplesPerPixel, const SampleKey& k, std::uint32_t dimension) {
+                                     std::uint32_t samplesPerPixel, const SampleKey& k, std::uint32_t dimension) {
     SampleKey scrambleKey = k;
     scrambleKey.pixel = 0xFFFFFFFFu;  // one scramble for the whole frame
     scrambleKey.sample = 0;

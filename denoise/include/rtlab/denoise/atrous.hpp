@@ -84,8 +84,8 @@ public:
 // Implementation: 8-wide AVX2 (picked at run time) or 4-wide SSE2 SIMD over
 // consecutive pixels of a row (lane-wise IEEE arithmetic, no FMA, so results
 // do not depend on the vector width or the thread count).
-void atrousIteration(const GuideBuffers& guides, std::span<const vec3> color, std::span<const float> variance,
-                     int step, const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
+void atrousIteration(const GuideBuffers& guides, std::span<const vec3> color, std::span<const float> variance, int step,
+                     const AtrousParams& params, std::span<vec3> colorOut, std::span<float> varianceOut,
                      std::span<const float> footprintPx = {});
 
 // params.iterations iterations with steps 1, 2, 4, ... . When `tapColor` is not

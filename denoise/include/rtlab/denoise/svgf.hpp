@@ -172,7 +172,7 @@ private:
     std::vector<float> filteredVariance_;
     std::vector<std::uint8_t> valid_;
     std::vector<std::uint8_t> static_;  // 1 where the reprojection is exact
-    std::vector<vec3> staticColor_;      // the alpha = 1/n accumulation (convergeStatic)
+    std::vector<vec3> staticColor_;     // the alpha = 1/n accumulation (convergeStatic)
     std::vector<vec2> staticMoments_;   // its luminance moments
     std::vector<float> staticLength_;
     std::vector<float> blurredVariance_;

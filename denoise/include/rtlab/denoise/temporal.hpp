@@ -23,9 +23,9 @@ struct TemporalParams {
 struct HistoryBuffers {
     int width = 0;
     int height = 0;
-    std::vector<vec3> color;    // accumulated (demodulated) colour
-    std::vector<vec2> moments;  // accumulated luminance moments (E[l], E[l^2])
-    std::vector<float> length;  // history length in frames; 0 = no history
+    std::vector<vec3> color;             // accumulated (demodulated) colour
+    std::vector<vec2> moments;           // accumulated luminance moments (E[l], E[l^2])
+    std::vector<float> length;           // history length in frames; 0 = no history
     void resize(int width, int height);  // zero-filled
     std::size_t pixelCount() const { return static_cast<std::size_t>(width) * static_cast<std::size_t>(height); }
 };

@@ -27,8 +27,8 @@ struct MorphTarget {
 // One triangle list with one material (a glTF primitive; a DXR geometry).
 struct Geometry {
     std::vector<vec3> positions;
-    std::vector<vec3> normals;   // one per vertex, unit length
-    std::vector<vec2> uv0;       // empty or one per vertex
+    std::vector<vec3> normals;           // one per vertex, unit length
+    std::vector<vec2> uv0;               // empty or one per vertex
     std::vector<std::uint32_t> indices;  // 3 per triangle, all < positions.size()
     MaterialId material = 0;
 
@@ -107,7 +107,7 @@ struct AnimationChannel {
     Entity target;
     AnimationPath path = AnimationPath::Translation;
     Interpolation interpolation = Interpolation::Linear;
-    std::vector<float> times;   // non-decreasing, seconds
+    std::vector<float> times;  // non-decreasing, seconds
     std::vector<float> values;
     std::uint32_t componentsPerKey = 3;  // 3 (T,S), 4 (R, quaternion xyzw), N (morph weights)
 };

@@ -37,8 +37,8 @@ struct WorldTransform {
 struct MeshInstance {
     static constexpr std::uint32_t kAutomatic = 0xffffffffu;
     MeshId mesh = 0;
-    std::uint8_t mask = 0xff;        // DXR InstanceMask
-    std::uint8_t flags = 0;          // DXR instance flags (tracer::InstanceFlag)
+    std::uint8_t mask = 0xff;                   // DXR InstanceMask
+    std::uint8_t flags = 0;                     // DXR instance flags (tracer::InstanceFlag)
     std::uint32_t instanceId = kAutomatic;      // DXR InstanceID() (24 bit); automatic = entity index
     std::uint32_t hitGroupOffset = kAutomatic;  // InstanceContributionToHitGroupIndex; automatic = from the SBT layout
 };
@@ -65,14 +65,14 @@ struct Light {
     float range = 0.f;      // 0 = unlimited
     float innerConeAngle = 0.f;
     float outerConeAngle = kPi / 4.f;
-    vec2 size{1.f};         // rect light width, height
-    float radius = 0.f;     // sphere light radius
+    vec2 size{1.f};      // rect light width, height
+    float radius = 0.f;  // sphere light radius
     bool isArea() const { return type == LightType::Rect || type == LightType::Sphere; }
 };
 
 // Perspective camera looking down local -Z.
 struct Camera {
-    float yfov = 0.8f;   // radians
+    float yfov = 0.8f;  // radians
     float znear = 0.01f;
     float zfar = 1000.f;
     float aspectRatio = 0.f;  // 0 = from the image

@@ -18,8 +18,8 @@ struct InstanceSnapshot {
     MeshId mesh = 0;
     mat4 worldFromObject{1.f};
     std::uint8_t mask = 0xff;
-    std::uint8_t flags = 0;                 // DXR instance flags
-    std::uint32_t instanceId = 0;           // DXR InstanceID()
+    std::uint8_t flags = 0;                                   // DXR instance flags
+    std::uint32_t instanceId = 0;                             // DXR InstanceID()
     std::uint32_t hitGroupOffset = MeshInstance::kAutomatic;  // InstanceContributionToHitGroupIndex
 };
 

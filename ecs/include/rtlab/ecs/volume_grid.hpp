@@ -25,8 +25,8 @@ public:
     static std::shared_ptr<VolumeGrid> loadVdb(const std::filesystem::path& path, const std::string& gridName = "");
 
     const std::string& name() const;
-    Aabb worldBounds() const;        // bounds of the active voxels, world space
-    float maxDensity() const;        // majorant for delta tracking
+    Aabb worldBounds() const;  // bounds of the active voxels, world space
+    float maxDensity() const;  // majorant for delta tracking
     std::size_t activeVoxelCount() const;
     // Trilinearly interpolated density at a world-space position (0 outside).
     float density(const vec3& worldPosition) const;

@@ -75,7 +75,9 @@ public:
         return alive(e) ? store<T>().find(e) : nullptr;
     }
     template <class T>
-    bool has(Entity e) const { return get<T>(e) != nullptr; }
+    bool has(Entity e) const {
+        return get<T>(e) != nullptr;
+    }
     // The one way to modify a component: edit(T&) runs, then the entity is
     // marked dirty for T. Throws std::logic_error for a stale handle or a
     // missing component.
@@ -100,7 +102,9 @@ public:
         }
     }
     template <class T>
-    std::size_t count() const { return store<T>().size(); }
+    std::size_t count() const {
+        return store<T>().size();
+    }
 
     // ---- assets -----------------------------------------------------------
     MeshId addMesh(MeshAsset mesh);  // new mesh: rebuilt on the next update
@@ -149,14 +153,18 @@ public:
     mat4 computeInstanceWorldFromObject(Entity e) const;
 
 private:
-    using Stores = std::tuple<ComponentStore<Name>, ComponentStore<Parent>, ComponentStore<LocalTransform>,
-                              ComponentStore<WorldTransform>, ComponentStore<MeshInstance>,
-                              ComponentStore<MorphWeights>, ComponentStore<Skin>, ComponentStore<Light>,
-                              ComponentStore<Camera>, ComponentStore<Volume>>;
+    using Stores =
+        std::tuple<ComponentStore<Name>, ComponentStore<Parent>, ComponentStore<LocalTransform>,
+                   ComponentStore<WorldTransform>, ComponentStore<MeshInstance>, ComponentStore<MorphWeights>,
+                   ComponentStore<Skin>, ComponentStore<Light>, ComponentStore<Camera>, ComponentStore<Volume>>;
     template <class T>
-    ComponentStore<T>& store() { return std::get<ComponentStore<T>>(stores_); }
+    ComponentStore<T>& store() {
+        return std::get<ComponentStore<T>>(stores_);
+    }
     template <class T>
-    const ComponentStore<T>& store() const { return std::get<ComponentStore<T>>(stores_); }
+    const ComponentStore<T>& store() const {
+        return std::get<ComponentStore<T>>(stores_);
+    }
 
     void requireAlive(Entity e) const {
         if (!alive(e)) throw std::logic_error("stale or invalid entity handle");

@@ -130,7 +130,7 @@ struct Triangle {
 // box index)); a leaf may hold both kinds.
 struct Blas {
     Bvh bvh;
-    std::vector<Triangle> triangles;  // one per bvh.refs entry (same order)
+    std::vector<Triangle> triangles;              // one per bvh.refs entry (same order)
     std::vector<std::uint32_t> triangleCounts;    // per geometry at build time (0 for procedural)
     std::vector<std::uint32_t> proceduralCounts;  // per geometry: AABB count at build time (0 for triangles)
     bool hasProcedural = false;                   // some geometry is procedural

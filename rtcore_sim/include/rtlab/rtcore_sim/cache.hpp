@@ -97,11 +97,11 @@ struct DeferredReads {
         std::uint64_t address;  // byte address of the node-cache line
         std::uint64_t arrive;   // end of its transfer slot on the core's port (the L2 arrival)
     };
-    std::vector<Read> reads;          // in the order made
+    std::vector<Read> reads;                          // in the order made
     std::vector<std::vector<std::uint32_t>> byClass;  // per L2 line class (SharedL2::classOf): its reads, in order
-    std::vector<LineFill> fills;      // the answers, per read, data at the core (filled between epochs)
-    std::vector<LineFill> terms;      // per-line times of fetches that wait for a deferred read
-    std::vector<std::uint32_t> ways;  // node-cache ways given a placeholder (may repeat)
+    std::vector<LineFill> fills;                      // the answers, per read, data at the core (filled between epochs)
+    std::vector<LineFill> terms;                      // per-line times of fetches that wait for a deferred read
+    std::vector<std::uint32_t> ways;                  // node-cache ways given a placeholder (may repeat)
     bool empty() const { return reads.empty(); }
     void clear() {
         reads.clear();
@@ -265,7 +265,9 @@ public:
     void prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port);
 
     void invalidate();  // every line invalid (the BVHs changed)
-    void resetStats() { accesses = hits = pendingHits = misses = evictions = prefetchRequests = prefetchLines = prefetchHits = 0; }
+    void resetStats() {
+        accesses = hits = pendingHits = misses = evictions = prefetchRequests = prefetchLines = prefetchHits = 0;
+    }
     std::uint32_t lineBytes() const { return params_.lineBytes; }
     std::uint32_t sets() const { return sets_; }
 
@@ -273,7 +275,7 @@ public:
     std::uint64_t hits = 0;         // includes pendingHits
     std::uint64_t pendingHits = 0;  // hits on a line whose data was still on its way
     std::uint64_t misses = 0;
-    std::uint64_t evictions = 0;    // valid lines replaced
+    std::uint64_t evictions = 0;  // valid lines replaced
     std::uint64_t invalidations = 0;
     std::uint64_t prefetchRequests = 0;  // prefetch() calls
     std::uint64_t prefetchLines = 0;     // lines they read (not already present)

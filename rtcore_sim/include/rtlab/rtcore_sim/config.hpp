@@ -62,7 +62,8 @@ class ParamTable {
 public:
     ParamTable& addUnsigned(std::string name, std::uint32_t Params::*member, std::string description, std::uint32_t min,
                             std::uint32_t max) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Unsigned, {}, double(min), double(max), {}, nullptr};
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Unsigned, {}, double(min), double(max), {},
+                       nullptr};
         return add(std::move(info), member);
     }
     ParamTable& addUnsignedOneOf(std::string name, std::uint32_t Params::*member, std::string description,
@@ -72,7 +73,8 @@ public:
         return add(std::move(info), member);
     }
     ParamTable& addReal(std::string name, float Params::*member, std::string description, float min, float max) {
-        ParamInfo info{std::move(name), std::move(description), ParamKind::Real, {}, double(min), double(max), {}, nullptr};
+        ParamInfo info{std::move(name), std::move(description), ParamKind::Real, {}, double(min), double(max), {},
+                       nullptr};
         return add(std::move(info), member);
     }
     // A string chosen from a registry's current names (which may grow).
@@ -133,13 +135,14 @@ enum class BuildQuality : std::uint8_t { Low, Medium, High };
 
 // The bounding volume hierarchy the model traverses (section "bvh").
 struct BvhParams {
-    std::uint32_t width = 6;             // children per internal node
-    std::uint32_t maxLeafSize = 4;       // triangles per BLAS leaf at most
-    std::uint32_t tlasMaxLeafSize = 1;   // instances per TLAS leaf at most
+    std::uint32_t width = 6;            // children per internal node
+    std::uint32_t maxLeafSize = 4;      // triangles per BLAS leaf at most
+    std::uint32_t tlasMaxLeafSize = 1;  // instances per TLAS leaf at most
     BuildQuality buildQuality = BuildQuality::Medium;
-    float sahTraversalCost = 1.f;        // builder's cost of one node step (relative)
-    float sahIntersectionCost = 1.f;     // builder's cost of one primitive test (relative)
-    float refitRebuildThreshold = 2.f;   // rebuild a refit BLAS once its SAH cost exceeds this multiple of its build cost
+    float sahTraversalCost = 1.f;     // builder's cost of one node step (relative)
+    float sahIntersectionCost = 1.f;  // builder's cost of one primitive test (relative)
+    float refitRebuildThreshold =
+        2.f;  // rebuild a refit BLAS once its SAH cost exceeds this multiple of its build cost
 };
 const ParamTable<BvhParams>& bvhParamTable();
 
@@ -235,7 +238,7 @@ enum class RayOrder : std::uint8_t {
     DirectionOrigin,  // sorted by direction octant, origin Morton code, direction Morton code
 };
 struct GpuParams {
-    std::uint32_t cores = 1;                          // RT cores
+    std::uint32_t cores = 1;                           // RT cores
     WarpDispatch dispatch = WarpDispatch::RoundRobin;  // warp -> core rule
     RayOrder rayOrder = RayOrder::Submission;          // ray reordering before warp formation
 };

@@ -43,10 +43,13 @@ public:
     // Addresses for the scene's current BVHs.
     void build(const ModelScene& scene);
 
-    MemoryRange tlasNode(std::uint32_t node) const { return {tlas_.nodeBase + std::uint64_t(node) * nodeBytes_, nodeBytes_}; }
+    MemoryRange tlasNode(std::uint32_t node) const {
+        return {tlas_.nodeBase + std::uint64_t(node) * nodeBytes_, nodeBytes_};
+    }
     MemoryRange tlasLeaf(const BvhLeaf& leaf, std::uint32_t leafIndex) const {
-        return {tlas_.leafBase + std::uint64_t(kLeafHeaderBytes) * leafIndex + std::uint64_t(kTlasRefBytes) * leaf.firstRef,
-                tlasLeafBytes(leaf.refCount)};
+        return {
+            tlas_.leafBase + std::uint64_t(kLeafHeaderBytes) * leafIndex + std::uint64_t(kTlasRefBytes) * leaf.firstRef,
+            tlasLeafBytes(leaf.refCount)};
     }
     MemoryRange instance(std::uint32_t index) const {
         return {instanceBase_ + std::uint64_t(kInstanceBytes) * index, kInstanceBytes};

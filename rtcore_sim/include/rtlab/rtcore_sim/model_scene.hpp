@@ -33,13 +33,13 @@ struct ModelInstance {
 
 // What one update() did (names as in tracer::AccelUpdateStats).
 struct ModelUpdateStats {
-    std::uint32_t blasRebuilt = 0;            // includes blasRebuiltForQuality
+    std::uint32_t blasRebuilt = 0;  // includes blasRebuiltForQuality
     std::uint32_t blasRefit = 0;
     std::uint32_t blasReused = 0;
     std::uint32_t blasRebuiltForQuality = 0;  // refits turned into rebuilds by the SAH-cost policy
     std::uint32_t tlasBuilds = 0;
     std::uint32_t instancesMoved = 0;
-    float worstRefitDegradation = 1.f;        // max over refit BLASes of SAH cost / cost at build
+    float worstRefitDegradation = 1.f;  // max over refit BLASes of SAH cost / cost at build
 };
 
 class ModelScene {

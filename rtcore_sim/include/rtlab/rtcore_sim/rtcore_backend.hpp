@@ -55,10 +55,11 @@ struct HitMismatch {
 };
 
 struct VerifyStats {
-    std::uint64_t rays = 0;        // rays traced by both back ends
-    std::uint64_t mismatches = 0;  // hits differ: hit/miss, instance, geometry, primitive, HitKind, record, or t beyond 1e-6 relative
-    std::uint64_t notBitIdentical = 0;  // closest-hit rays that match but differ in some bit of t or the attributes
-    std::uint64_t anyHitOnlyRays = 0;  // ACCEPT_FIRST_HIT_AND_END_SEARCH rays: only hit/miss compared
+    std::uint64_t rays = 0;  // rays traced by both back ends
+    std::uint64_t mismatches =
+        0;  // hits differ: hit/miss, instance, geometry, primitive, HitKind, record, or t beyond 1e-6 relative
+    std::uint64_t notBitIdentical = 0;    // closest-hit rays that match but differ in some bit of t or the attributes
+    std::uint64_t anyHitOnlyRays = 0;     // ACCEPT_FIRST_HIT_AND_END_SEARCH rays: only hit/miss compared
     double maxRelativeTDifference = 0.0;  // over rays whose ids agree
     std::vector<HitMismatch> examples;    // the first few mismatches
 };

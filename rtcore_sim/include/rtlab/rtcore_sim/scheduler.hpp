@@ -24,9 +24,10 @@ namespace rtlab::rtcore_sim {
 
 // A ray that is ready to issue its next step.
 struct ReadyRay {
-    std::uint32_t slot = 0;     // ray slot index
-    std::uint64_t age = 0;      // submission order across the core's life (smaller = older)
-    std::uint64_t address = 0;  // byte address of the node, leaf or instance its next step fetches (0 unless usesAddress())
+    std::uint32_t slot = 0;  // ray slot index
+    std::uint64_t age = 0;   // submission order across the core's life (smaller = older)
+    std::uint64_t address =
+        0;  // byte address of the node, leaf or instance its next step fetches (0 unless usesAddress())
 };
 
 // Bytes a policy asks the core to read into its node cache ahead of demand

@@ -45,8 +45,7 @@ private:
 // of each simulated cycle holds until the next change).
 class OccupancyTracker {
 public:
-    explicit OccupancyTracker(std::uint32_t capacity = 0)
-        : hist_(Histogram::Scheme::Linear, capacity + 1) {}
+    explicit OccupancyTracker(std::uint32_t capacity = 0) : hist_(Histogram::Scheme::Linear, capacity + 1) {}
 
     void set(std::uint64_t level, std::uint64_t now) {
         if (level == level_) return;

@@ -28,7 +28,8 @@ vec3 reciprocalDirection(const vec3& direction);
 // (lo > hi) are never hit. For a direction component of zero the slab is the
 // whole ray when the origin lies within it (also exactly on a face), no
 // part of it otherwise.
-std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax);
+std::optional<float> intersectBox(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin,
+                                  float tMax);
 
 // A ray with the instance inclusion mask (instance hit when ray.mask &
 // instance.mask != 0). Hits are accepted for tMin < t < tMax.
@@ -43,9 +44,9 @@ struct ModelRay {
 struct ModelHit {
     bool hit = false;
     float t = kInfinity;
-    std::uint32_t instanceIndex = 0;  // position in ModelScene::instances() (= Embree instID)
-    std::uint32_t geometryIndex = 0;  // geometry of the instance's mesh (= Embree geomID)
-    std::uint32_t primitiveIndex = 0; // triangle (or AABB) of that geometry (= Embree primID)
+    std::uint32_t instanceIndex = 0;   // position in ModelScene::instances() (= Embree instID)
+    std::uint32_t geometryIndex = 0;   // geometry of the instance's mesh (= Embree geomID)
+    std::uint32_t primitiveIndex = 0;  // triangle (or AABB) of that geometry (= Embree primID)
     // Triangle hits: barycentrics, DXR/Embree (u, v) = (b1, b2), b0 = 1 - b1 - b2
     // (all zero for a procedural hit).
     float b0 = 0.f, b1 = 0.f, b2 = 0.f;
@@ -148,9 +149,9 @@ struct StackEntry {
 enum class StepKind : std::uint8_t { Node, TlasLeaf, BlasLeaf, Instance };
 struct StepInfo {
     StepKind kind = StepKind::Node;
-    bool tlas = false;        // a TLAS node or leaf
-    std::uint32_t mesh = 0;   // BLAS steps: the mesh whose BLAS was traversed
-    std::uint32_t index = 0;  // node index, leaf index, or instance index
+    bool tlas = false;                 // a TLAS node or leaf
+    std::uint32_t mesh = 0;            // BLAS steps: the mesh whose BLAS was traversed
+    std::uint32_t index = 0;           // node index, leaf index, or instance index
     std::uint32_t boxTests = 0;        // Node: child boxes tested
     std::uint32_t primitiveTests = 0;  // BlasLeaf: triangle + procedural AABB tests
     std::uint32_t anyHitCalls = 0;     // shader round trips of this step
@@ -190,7 +191,10 @@ public:
 private:
     void push(const StackEntry& e);
     void selectNext(StepInfo& info);  // pops until a live entry; sets finished_ when none is left
-    void endSearch() { size_ = 0; finished_ = true; }
+    void endSearch() {
+        size_ = 0;
+        finished_ = true;
+    }
     void blasLeaf(const BvhLeaf& leaf, ProgrammableSide& side, std::uint32_t rayIndex, StepInfo& info);
 
     struct SpaceRay {

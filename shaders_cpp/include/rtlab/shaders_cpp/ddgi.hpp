@@ -171,11 +171,11 @@ struct DdgiUpdateStats {
     std::uint32_t relocatingProbes = 0;
     std::uint32_t insideProbes = 0;
     std::uint32_t idleProbes = 0;
-    std::uint32_t tracedProbes = 0;     // whose results this update consumed
-    std::uint32_t movedProbes = 0;      // whose offset changed in this update
-    std::uint32_t offsetProbes = 0;     // with a non-zero offset after it
+    std::uint32_t tracedProbes = 0;  // whose results this update consumed
+    std::uint32_t movedProbes = 0;   // whose offset changed in this update
+    std::uint32_t offsetProbes = 0;  // with a non-zero offset after it
     // Per ray, over the traced probes.
-    std::uint64_t rays = 0;             // results consumed
+    std::uint64_t rays = 0;  // results consumed
     std::uint64_t misses = 0;
     std::uint64_t backfaceHits = 0;
     std::uint64_t rejectedSamples = 0;  // non-finite radiance or NaN distance
@@ -300,16 +300,16 @@ private:
     std::uint32_t probeCount_ = 0;
     float normalBias_ = 0.f, viewBias_ = 0.f, maxRayDistance_ = 1.f;
 
-    std::vector<vec3> irradiance_;  // probeCount * (Ni+2)^2
-    std::vector<vec2> distance_;    // probeCount * (Nd+2)^2
+    std::vector<vec3> irradiance_;                               // probeCount * (Ni+2)^2
+    std::vector<vec2> distance_;                                 // probeCount * (Nd+2)^2
     std::vector<vec3> irradianceTexelDirs_, distanceTexelDirs_;  // interior, row-major
-    std::vector<vec3> rayDirs_;     // scratch: this frame's directions
-    std::vector<float> irradianceWeights_, distanceWeights_;  // scratch: texel x ray weights
-    std::vector<DdgiUpdateStats> probeStats_;  // scratch: per-probe counters
-    std::vector<DdgiProbeState> states_;       // per probe
-    std::vector<vec3> offsets_;                // per probe, relocation offset
-    std::vector<std::uint8_t> fresh_;          // per probe: 1 = the next blend replaces instead of blending
-    std::vector<std::uint8_t> moved_;          // scratch: offset changed in this update
+    std::vector<vec3> rayDirs_;                                  // scratch: this frame's directions
+    std::vector<float> irradianceWeights_, distanceWeights_;     // scratch: texel x ray weights
+    std::vector<DdgiUpdateStats> probeStats_;                    // scratch: per-probe counters
+    std::vector<DdgiProbeState> states_;                         // per probe
+    std::vector<vec3> offsets_;                                  // per probe, relocation offset
+    std::vector<std::uint8_t> fresh_;  // per probe: 1 = the next blend replaces instead of blending
+    std::vector<std::uint8_t> moved_;  // scratch: offset changed in this update
     std::uint64_t updates_ = 0;
     DdgiUpdateStats lastStats_;
 };

@@ -22,18 +22,19 @@ namespace rtlab::shaders {
 
 // Every pass the renderer knows, in execution order.
 enum class Pass : std::uint8_t {
-    GBuffer,           // primary visibility and the guide buffers
-    AlphaMask,         // any-hit alpha test on masked materials (all ray types)
-    Shadows,           // direct light: per-area-light visibility, importance-sampled point lights
-    Reflections,       // glossy/mirror reflections below the roughness threshold
-    AmbientOcclusion,  // cosine-hemisphere visibility within a radius
+    GBuffer,             // primary visibility and the guide buffers
+    AlphaMask,           // any-hit alpha test on masked materials (all ray types)
+    Shadows,             // direct light: per-area-light visibility, importance-sampled point lights
+    Reflections,         // glossy/mirror reflections below the roughness threshold
+    AmbientOcclusion,    // cosine-hemisphere visibility within a radius
     GlobalIllumination,  // one-bounce diffuse GI (path) or DDGI probes
-    Translucency,      // refraction through transmissive materials
-    Volumes,           // fog: transmittance on every ray + single scattering
-    PathTrace,         // multi-bounce diffuse + glossy paths with next-event estimation (only when asked for)
+    Translucency,        // refraction through transmissive materials
+    Volumes,             // fog: transmittance on every ray + single scattering
+    PathTrace,           // multi-bounce diffuse + glossy paths with next-event estimation (only when asked for)
 };
 inline constexpr std::size_t kPassCount = 9;
-std::string_view passName(Pass pass);              // "gbuffer", "alpha", "shadows", "reflections", "ao", "gi", "translucency", "volumes", "pathtrace"
+std::string_view passName(
+    Pass pass);  // "gbuffer", "alpha", "shadows", "reflections", "ao", "gi", "translucency", "volumes", "pathtrace"
 std::optional<Pass> passFromName(std::string_view name);
 
 enum class GiTechnique : std::uint8_t { Path, Ddgi };
@@ -55,12 +56,12 @@ struct PlannedPass {
 // What the scene offers the passes, counted once.
 struct SceneFacts {
     std::size_t instances = 0;
-    std::size_t maskedMaterials = 0;      // used by some instance
-    std::size_t glossyMaterials = 0;      // roughness <= reflectionMaxRoughness, used by some instance
+    std::size_t maskedMaterials = 0;  // used by some instance
+    std::size_t glossyMaterials = 0;  // roughness <= reflectionMaxRoughness, used by some instance
     std::size_t transmissiveMaterials = 0;
     std::size_t emissiveMaterials = 0;
-    std::size_t areaLights = 0;           // rect + sphere
-    std::size_t pointLights = 0;          // point + spot
+    std::size_t areaLights = 0;   // rect + sphere
+    std::size_t pointLights = 0;  // point + spot
     std::size_t directionalLights = 0;
     std::size_t volumes = 0;
 };

@@ -40,22 +40,22 @@ std::string_view rayTypeName(std::uint32_t rayType);
 struct RenderSettings {
     int width = 640;
     int height = 360;
-    int spp = 1;               // samples per pixel per effect
-    std::uint32_t frame = 0;   // frame index (random numbers, DDGI history)
+    int spp = 1;              // samples per pixel per effect
+    std::uint32_t frame = 0;  // frame index (random numbers, DDGI history)
     std::uint32_t seed = 0;
     tracer::TraversalBackend* backend = nullptr;  // nullptr = Embree
-    bool recordRayOrder = false;  // FrameOutput::primaryRayPixels (order-dependent back ends only)
-    float aoRadius = 1.0f;        // world units
+    bool recordRayOrder = false;                  // FrameOutput::primaryRayPixels (order-dependent back ends only)
+    float aoRadius = 1.0f;                        // world units
     // AO contact sampling: a pixel whose neighbourhood (5x5) saw an occluder
     // nearer than aoContactFraction x aoRadius gets this many more AO samples
     // per sample (0 = every pixel the same count). Contact creases are dark,
     // so their noise weighs most, and the denoiser's footprint there is small.
     int aoContactExtraSamples = 8;
     float aoContactFraction = 0.25f;
-    int maxTranslucencyDepth = 8; // refraction/reflection events along a translucent path
-    float throughputCutoff = 1e-3f;  // a translucent path ends below this throughput
+    int maxTranslucencyDepth = 8;           // refraction/reflection events along a translucent path
+    float throughputCutoff = 1e-3f;         // a translucent path ends below this throughput
     float areaLightUnshadowedSamples = 16;  // samples of the unshadowed area-light estimate (no rays)
-    int pathMaxDepth = 4;         // pathtrace: bounce rays after the primary hit (each with its next-event ray)
+    int pathMaxDepth = 4;  // pathtrace: bounce rays after the primary hit (each with its next-event ray)
 
     // Throws std::invalid_argument unless width, height, spp and
     // maxTranslucencyDepth are >= 1 and pathMaxDepth >= 0 (renderFrame calls
@@ -77,7 +77,7 @@ struct FrameHistory {
     // skinning) as they were, by mesh id then geometry; empty for rigid
     // meshes. Motion vectors interpolate the hit triangle's previous vertices.
     std::vector<std::vector<std::vector<vec3>>> deformedPositions;
-    std::shared_ptr<DdgiVolume> ddgi;   // created by the first DDGI frame
+    std::shared_ptr<DdgiVolume> ddgi;  // created by the first DDGI frame
     // DDGI probe classification follows the geometry (ddgi_pass.cpp): each
     // instance's world bounds at the last DDGI frame, by entity index (empty =
     // absent), and the World update that frame came from.
@@ -106,10 +106,10 @@ struct PathVertexRays {
 struct FrameOutput {
     Image image;  // beauty R,G,B + every pass's layers (docs/effects.md)
     std::array<PassReport, kPassCount> passes{};
-    tracer::TraceCounters counters;            // summed over passes (per ray type)
+    tracer::TraceCounters counters;               // summed over passes (per ray type)
     std::vector<std::uint32_t> primaryRayPixels;  // with RenderSettings::recordRayOrder
     std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
-    Image ddgiAtlas;  // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
+    Image ddgiAtlas;       // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
     DdgiUpdateStats ddgi;  // --gi ddgi: the probe update's counters (probe states, rays, back faces)
     std::vector<PathVertexRays> pathVertices;  // --effects pathtrace: RenderSettings::pathMaxDepth + 1 entries
 };

@@ -59,7 +59,7 @@ public:
 
 private:
     vec3 origin_;
-    mat3 rotation_;         // camera -> world
+    mat3 rotation_;  // camera -> world
     mat4 cameraFromWorld_;
     float tanHalf_, aspect_;
     float width_, height_;

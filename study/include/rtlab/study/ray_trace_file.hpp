@@ -34,15 +34,15 @@ struct RayTraceHeader {
     std::uint32_t headerBytes;       // sizeof(RayTraceHeader) = 128
     std::uint64_t sceneFingerprint;  // sceneFingerprint() of the frame's snapshot
     std::uint64_t batchCount;
-    std::uint64_t laneCount;         // lanes of all calls, inactive ones included
-    std::uint64_t rayCount;          // ray records (active lanes)
-    std::uint64_t bodyBytes;         // everything after the header
-    std::uint64_t bodyChecksum;      // bodyChecksum() of those bytes
-    std::uint32_t frame;             // frame index of the render
-    std::uint32_t rayTypeCount;      // the shader table's ray-type stride
-    std::uint32_t hitGroupCount;     // hit-group records in the shader table
-    std::uint32_t backend;           // RecordedBackend that traced the rays
-    std::uint32_t flags;             // kAnyHitShaders
+    std::uint64_t laneCount;      // lanes of all calls, inactive ones included
+    std::uint64_t rayCount;       // ray records (active lanes)
+    std::uint64_t bodyBytes;      // everything after the header
+    std::uint64_t bodyChecksum;   // bodyChecksum() of those bytes
+    std::uint32_t frame;          // frame index of the render
+    std::uint32_t rayTypeCount;   // the shader table's ray-type stride
+    std::uint32_t hitGroupCount;  // hit-group records in the shader table
+    std::uint32_t backend;        // RecordedBackend that traced the rays
+    std::uint32_t flags;          // kAnyHitShaders
     std::uint32_t reserved0;
     std::uint64_t instanceCount;
     std::uint64_t uniqueTriangles;
@@ -53,10 +53,10 @@ static_assert(sizeof(RayTraceHeader) == 128);
 
 // One trace call of the pipeline on the back end: its TraceRay arguments.
 struct BatchRecord {
-    std::uint32_t tag;         // kBatchTag
-    std::uint32_t lanes;       // lanes of the call (its count), inactive ones included
-    std::uint32_t rays;        // ray records that follow (its active lanes)
-    std::uint32_t depth;       // recursion depth of the TraceRay calls
+    std::uint32_t tag;    // kBatchTag
+    std::uint32_t lanes;  // lanes of the call (its count), inactive ones included
+    std::uint32_t rays;   // ray records that follow (its active lanes)
+    std::uint32_t depth;  // recursion depth of the TraceRay calls
     std::uint32_t rayFlags;
     std::uint32_t instanceInclusionMask;
     std::uint16_t rayContribution;  // RayContributionToHitGroupIndex (the ray type)
@@ -71,7 +71,7 @@ struct RayRecord {
     float tMin;
     float direction[3];
     float tMax;
-    float hitT;      // committed t (+inf on a miss)
+    float hitT;        // committed t (+inf on a miss)
     float hitU, hitV;  // barycentrics (HitAttributes::values[0..1])
     std::uint32_t instance;
     std::uint32_t primitive;
@@ -90,7 +90,9 @@ class Fnv64 {
 public:
     void add(const void* data, std::size_t bytes);
     template <class T>
-    void addValue(const T& v) { add(&v, sizeof v); }
+    void addValue(const T& v) {
+        add(&v, sizeof v);
+    }
     std::uint64_t value() const { return hash_; }
 
 private:

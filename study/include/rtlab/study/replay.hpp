@@ -25,12 +25,12 @@ struct DifferingHit {
 
 struct ReplayResult {
     std::uint64_t batches = 0;
-    std::uint64_t rays = 0;             // active lanes traced
-    tracer::TraceCounters counters;     // per ray type, as the back end counted them
-    std::uint64_t differingHits = 0;    // hit/miss, ids, HitKind, record, or t beyond 1e-6 relative
-    std::uint64_t notBitIdentical = 0;  // same hit, but some bit of t or the barycentrics differs
-    std::vector<DifferingHit> examples; // the first few differing hits
-    double milliseconds = 0.0;          // wall time of the tracing alone
+    std::uint64_t rays = 0;              // active lanes traced
+    tracer::TraceCounters counters;      // per ray type, as the back end counted them
+    std::uint64_t differingHits = 0;     // hit/miss, ids, HitKind, record, or t beyond 1e-6 relative
+    std::uint64_t notBitIdentical = 0;   // same hit, but some bit of t or the barycentrics differs
+    std::vector<DifferingHit> examples;  // the first few differing hits
+    double milliseconds = 0.0;           // wall time of the tracing alone
 };
 
 // Throws InputError when the file cannot be replayed on this scene: its
@@ -42,7 +42,7 @@ void checkReplayable(const RayTraceFile& file, std::uint64_t sceneFingerprint);
 // Embree through TraceEngine::trace8, batches spread over threads; the
 // results do not depend on the thread count). Only batches whose ray type
 // (RayContributionToHitGroupIndex & 0xf) has its bit in `rayTypeMask`.
-ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel,
-                        tracer::TraversalBackend* backend, std::uint32_t rayTypeMask = 0xffff);
+ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel, tracer::TraversalBackend* backend,
+                        std::uint32_t rayTypeMask = 0xffff);
 
 }  // namespace rtlab::study

@@ -50,8 +50,8 @@ nlohmann::json studyRenderJson(const session::FrameOptions& render);
 
 // One "section.field=value" override.
 struct Override {
-    std::string key;            // "cache.sizeBytes"
-    nlohmann::json value;       // 4096, "treelet", true
+    std::string key;       // "cache.sizeBytes"
+    nlohmann::json value;  // 4096, "treelet", true
 
     // The value as `--rtcore-set` takes it: strings bare, everything else as JSON.
     std::string valueText() const;
@@ -82,9 +82,9 @@ Study loadStudy(const std::filesystem::path& path);
 
 struct Point {
     std::size_t index = 0;
-    std::string id;          // "p0000", "p0001", ... in point order
+    std::string id;  // "p0000", "p0001", ... in point order
     Workload workload;
-    OverrideSet overrides;   // this point's grid / list overrides (without "base")
+    OverrideSet overrides;  // this point's grid / list overrides (without "base")
 };
 
 // Every point of the study, in order.

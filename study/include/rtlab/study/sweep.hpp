@@ -25,23 +25,23 @@ namespace rtlab::study {
 
 struct SweepEvent {
     enum class Kind { Started, PointDone, PointFailed } kind = Kind::Started;
-    std::size_t total = 0;    // points in the study
-    std::size_t skipped = 0;  // complete before this run
-    std::size_t done = 0;     // complete now (skipped + finished in this run)
-    std::size_t failed = 0;   // failed in this run
-    std::size_t toRun = 0;    // points this run had to do
-    double elapsedSeconds = 0.0;  // since this run started
-    const Point* point = nullptr;  // PointDone / PointFailed
+    std::size_t total = 0;                // points in the study
+    std::size_t skipped = 0;              // complete before this run
+    std::size_t done = 0;                 // complete now (skipped + finished in this run)
+    std::size_t failed = 0;               // failed in this run
+    std::size_t toRun = 0;                // points this run had to do
+    double elapsedSeconds = 0.0;          // since this run started
+    const Point* point = nullptr;         // PointDone / PointFailed
     const nlohmann::json* row = nullptr;  // PointDone
-    std::string message;      // PointFailed: why (the render's last stderr line)
-    int workers = 1;          // points run at once (jobs, or MPI ranks - 1)
+    std::string message;                  // PointFailed: why (the render's last stderr line)
+    int workers = 1;                      // points run at once (jobs, or MPI ranks - 1)
 };
 
 struct SweepOptions {
     std::filesystem::path studyFile;
     std::filesystem::path outDir;
-    int jobs = 1;             // points at once on this machine (ignored by MPI workers: one each)
-    std::string executable;   // the rtlab binary to run as `EXE render ...`
+    int jobs = 1;            // points at once on this machine (ignored by MPI workers: one each)
+    std::string executable;  // the rtlab binary to run as `EXE render ...`
     std::function<void(const SweepEvent&)> onEvent;  // on rank 0 only
 };
 

@@ -51,8 +51,8 @@ struct WatertightTriangles {
 
 // Per-geometry facts the pipeline needs during traversal.
 struct GeometryInfo {
-    bool opaque = true;      // D3D12_RAYTRACING_GEOMETRY_FLAG_OPAQUE (material is not alpha-masked/blended)
-    bool procedural = false; // AABBs + intersection shader
+    bool opaque = true;       // D3D12_RAYTRACING_GEOMETRY_FLAG_OPAQUE (material is not alpha-masked/blended)
+    bool procedural = false;  // AABBs + intersection shader
 };
 
 // What one update() did.
@@ -60,20 +60,20 @@ struct AccelUpdateStats {
     std::uint32_t blasRebuilt = 0;
     std::uint32_t blasRefit = 0;
     std::uint32_t blasReused = 0;
-    std::uint32_t tlasBuilds = 0;         // full TLAS rebuilds (instance set changed)
-    std::uint32_t tlasUpdates = 0;        // TLAS recommits for moved instances only
+    std::uint32_t tlasBuilds = 0;   // full TLAS rebuilds (instance set changed)
+    std::uint32_t tlasUpdates = 0;  // TLAS recommits for moved instances only
     std::uint32_t instancesMoved = 0;
     std::uint32_t blasRebuiltForQuality = 0;  // refits turned into rebuilds by the quality policy
     std::uint32_t blasRepadded = 0;  // untouched BLASes whose cluster boxes grew because ray origins grew in magnitude
-    float worstRefitDegradation = 1.f;        // max over BLASes checked this frame of refit cost / rebuild cost
+    float worstRefitDegradation = 1.f;  // max over BLASes checked this frame of refit cost / rebuild cost
     double buildMs = 0.0;
 };
 
 // Facts about one TLAS instance that traversal needs per hit.
 struct InstanceFacts {
-    mat3 normalFromObject{1.f};  // inverse transpose of worldFromObject's 3x3
+    mat3 normalFromObject{1.f};       // inverse transpose of worldFromObject's 3x3
     glm::dmat4 objectFromWorld{1.0};  // objectFromWorldOf(worldFromObject) (instance_transform.hpp)
-    bool mayBeNonOpaque = false; // some geometry is non-opaque after instance flags
+    bool mayBeNonOpaque = false;      // some geometry is non-opaque after instance flags
     bool hasProcedural = false;
     bool frontCounterClockwise = false;  // InstanceFlag::TriangleFrontCounterClockwise
     std::uint32_t geometrySlotBase = 0;  // geometrySlotBase(instance's mesh)

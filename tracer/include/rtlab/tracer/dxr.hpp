@@ -64,9 +64,9 @@ struct HitAttributes {
 };
 
 enum class AnyHitResult : std::uint8_t {
-    Accept,               // commit; t becomes the new TMax; traversal goes on
-    Ignore,               // IgnoreHit(): as if this candidate did not exist (payload changes stay)
-    AcceptAndEndSearch,   // AcceptHitAndEndSearch(): commit and stop traversal
+    Accept,              // commit; t becomes the new TMax; traversal goes on
+    Ignore,              // IgnoreHit(): as if this candidate did not exist (payload changes stay)
+    AcceptAndEndSearch,  // AcceptHitAndEndSearch(): commit and stop traversal
 };
 
 // Errors that the pipeline reports instead of undefined behaviour.

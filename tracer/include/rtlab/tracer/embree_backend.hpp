@@ -34,18 +34,20 @@ public:
                 RayCoherence coherence = RayCoherence::Coherent) const;
 
     // The hit-group record for a hit; throws PipelineError when out of range.
-    std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex, std::uint32_t geometryIndex) const {
+    std::uint32_t hitGroupRecord(const TraceArgs& args, std::uint32_t instanceIndex,
+                                 std::uint32_t geometryIndex) const {
         const InstanceFacts& facts = accel_.instanceFacts(instanceIndex);
         const std::uint64_t instanceContribution = facts.hitGroupOffset == ecs::MeshInstance::kAutomatic
                                                        ? std::uint64_t(facts.geometrySlotBase) * rayTypeCount_
                                                        : facts.hitGroupOffset;
-        const std::uint64_t record = (args.rayContribution & 0xf) +
-                                     std::uint64_t(args.multiplier & 0xf) * geometryIndex + instanceContribution;
+        const std::uint64_t record =
+            (args.rayContribution & 0xf) + std::uint64_t(args.multiplier & 0xf) * geometryIndex + instanceContribution;
         if (record >= hitGroupCount_) [[unlikely]]
             throwRecordOutOfRange(record, instanceIndex, geometryIndex);
         return static_cast<std::uint32_t>(record);
     }
-    HitContext hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit, std::uint32_t depth) const {
+    HitContext hitContext(const TraceArgs& args, const RayDesc& ray, const CommittedHit& hit,
+                          std::uint32_t depth) const {
         HitContext hc;
         hc.worldRayOrigin = ray.origin;
         hc.worldRayDirection = ray.direction;

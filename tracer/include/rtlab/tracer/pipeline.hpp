@@ -65,8 +65,7 @@ public:
     // RT-core model; it must outlive the pipeline.
     Pipeline(const AccelManager& accel, Desc desc, TraversalBackend* backend = nullptr)
         : desc_(std::move(desc)), backend_(backend), engine_(accel, *this, desc_.rayTypeCount) {
-        if (desc_.rayTypeCount == 0 || desc_.rayTypeCount > 16)
-            throw PipelineError("rayTypeCount must be in [1, 16]");
+        if (desc_.rayTypeCount == 0 || desc_.rayTypeCount > 16) throw PipelineError("rayTypeCount must be in [1, 16]");
         if (desc_.maxRecursionDepth == 0 || desc_.maxRecursionDepth > 31)
             throw PipelineError("maxRecursionDepth must be in [1, 31] (DXR limit)");
         for (const HitGroup& g : desc_.hitGroups) anyHitShaders_ = anyHitShaders_ || static_cast<bool>(g.anyHit);
@@ -78,8 +77,8 @@ public:
         TraceScope& scope = currentTraceScope();
         const std::uint32_t depth = scope.depth + 1;
         if (depth > desc_.maxRecursionDepth)
-            throw PipelineError("TraceRay recursion depth " + std::to_string(depth) + " exceeds the pipeline's maximum of " +
-                                std::to_string(desc_.maxRecursionDepth));
+            throw PipelineError("TraceRay recursion depth " + std::to_string(depth) +
+                                " exceeds the pipeline's maximum of " + std::to_string(desc_.maxRecursionDepth));
         if (args.missIndex >= desc_.missShaders.size())
             throw PipelineError("miss shader index " + std::to_string(args.missIndex) + " out of range (table has " +
                                 std::to_string(desc_.missShaders.size()) + ")");
@@ -139,7 +138,8 @@ public:
                     for (int lane = 0; lane < 8; ++lane) {
                         payloads[lane] = Payload{};
                         rays[lane] = RayDesc{};
-                        active[lane] = x0 + lane < tile.x1 && generate(makeRay, x0 + lane, y, payloads[lane], rays[lane]);
+                        active[lane] =
+                            x0 + lane < tile.x1 && generate(makeRay, x0 + lane, y, payloads[lane], rays[lane]);
                         any = any || active[lane];
                     }
                     if (!any) continue;
@@ -251,8 +251,7 @@ private:
         // order, on this thread.
         if (backend_ && backend_->orderDependent())
             for (std::size_t i = 0; i < tiles.size(); ++i) runTile(i);
-        else
-            parallelForEach(tiles.size(), runTile);
+        else parallelForEach(tiles.size(), runTile);
         TraceCounters total;
         for (const TraceCounters& c : perTile) total.add(c);
         return total;
@@ -286,9 +285,9 @@ private:
 // returns the shaders of one record.
 template <class Payload, class MakeHitGroup>
 std::vector<typename Pipeline<Payload>::HitGroup> buildMaterialShaderTable(const AccelManager& accel,
-                                                                          const ecs::SceneSnapshot& scene,
-                                                                          std::uint32_t rayTypeCount,
-                                                                          MakeHitGroup&& makeHitGroup) {
+                                                                           const ecs::SceneSnapshot& scene,
+                                                                           std::uint32_t rayTypeCount,
+                                                                           MakeHitGroup&& makeHitGroup) {
     std::vector<typename Pipeline<Payload>::HitGroup> table(std::size_t(accel.geometrySlotCount()) * rayTypeCount);
     static const ecs::Material kDefaultMaterial{};
     for (std::size_t mesh = 0; mesh < scene.meshes->size(); ++mesh) {

@@ -63,7 +63,10 @@ public:
         return report_(state_, t, hitKind, attributes);
     }
     using ReportFn = bool (*)(void* state, float t, std::uint32_t hitKind, const HitAttributes& attributes);
-    void bind(void* state, ReportFn fn) { state_ = state; report_ = fn; }
+    void bind(void* state, ReportFn fn) {
+        state_ = state;
+        report_ = fn;
+    }
 
 private:
     void* state_ = nullptr;

@@ -46,9 +46,8 @@ WatertightRay makeWatertightRay(const vec3& origin, const vec3& direction);
 // Hit with tMin < t < tMax, or nothing. Degenerate triangles never hit.
 std::optional<TriangleHit> intersectTriangleWatertight(const WatertightRay& ray, const vec3& p0, const vec3& p1,
                                                        const vec3& p2, float tMin, float tMax);
-inline std::optional<TriangleHit> intersectTriangleWatertight(const vec3& origin, const vec3& direction,
-                                                              const vec3& p0, const vec3& p1, const vec3& p2,
-                                                              float tMin, float tMax) {
+inline std::optional<TriangleHit> intersectTriangleWatertight(const vec3& origin, const vec3& direction, const vec3& p0,
+                                                              const vec3& p1, const vec3& p2, float tMin, float tMax) {
     return intersectTriangleWatertight(makeWatertightRay(origin, direction), p0, p1, p2, tMin, tMax);
 }
 
