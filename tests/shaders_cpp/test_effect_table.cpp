@@ -1,12 +1,10 @@
 // The effect table: one row per pass, the names every command uses, and
 // the denoise module's per-layer stacks keyed by the same rows.
+#include "shaders_cpp/static_view.hpp"
+
 #include <rtlab/denoise/effect_layers.hpp>
-#include <rtlab/ecs/load/scene_loader.hpp>
-#include <rtlab/ecs/snapshot.hpp>
-#include <rtlab/ecs/world.hpp>
 #include <rtlab/shaders_cpp/effect_table.hpp>
 #include <rtlab/shaders_cpp/frame_renderer.hpp>
-#include <rtlab/tracer/accel_manager.hpp>
 
 #include <gtest/gtest.h>
 
@@ -49,16 +47,12 @@ TEST(EffectTable, DenoisedRowsAreTheDenoisersEffects) {
 // Each denoised row's stack is the one the denoise module runs on its
 // layers, on a frame of showcase (which plans every effect but the path tracer).
 TEST(EffectTable, EachRowsStackFiltersItsLayers) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:showcase");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
-    tracer::AccelManager accel;
-    accel.update(scene);
-    const FramePlan plan = planFrame(scene);
+    const test::StaticView view("builtin:showcase");
+    const FramePlan plan = planFrame(view.scene);
     RenderSettings settings;
     settings.width = 32;
     settings.height = 18;
-    const Image frame = renderFrame(accel, scene, plan, settings).image;
+    const Image frame = renderFrame(view.accel, view.scene, plan, settings).image;
     for (const EffectRow& row : effectTable()) {
         if (row.denoiseStack.empty()) continue;
         ASSERT_TRUE(plan.has(row.pass)) << row.name;
