@@ -13,9 +13,10 @@ Each generated table is marked in its file by a comment on the line before it:
     scripts/check_doc_figures.py RTLAB --check-markers    every marker has a block and every block a marker
 
 RTLAB is the rtlab executable; `make test` runs the check of every block
-but rtcore-work-per-ray (ctest docs.figures.*; that one's twelve 640x480
-renders would add a tenth to the suite: run it here, or `make doc-figures`),
-`make doc-figures` the rewrite of all. Each block's commands are in
+but readme-arch-study and rtcore-work-per-ray (ctest docs.figures.*; their
+renders, two 640x360 frames of every effect on the model and twelve 640x480
+frames, would add a sixth to the suite: run them here), `make doc-figures`
+the rewrite of all. Each block's commands are in
 BLOCKS below; they are what the surrounding text of each table quotes.
 """
 import csv

@@ -22,14 +22,23 @@ void addFrameOptions(CLI::App& cmd, session::FrameOptions& o, unsigned use, bool
                     cmd.add_option(f.flag, value, f.help)->allow_extra_args(false);
                 } else {
                     CLI::Option* option = cmd.add_option(f.flag, value, f.help);
-                    if constexpr (std::is_same_v<T, int>) option->check(CLI::Range(int(f.min), int(f.max)));
-                    if constexpr (std::is_same_v<T, float>) option->check(CLI::Range(float(f.min), float(f.max)));
+                    if constexpr (std::is_same_v<T, int>) {
+                        if (f.ranged) option->check(CLI::Range(int(f.min), int(f.max)));
+                    }
+                    if constexpr (std::is_same_v<T, float>) {
+                        if (f.ranged) option->check(CLI::Range(float(f.min), float(f.max)));
+                    }
                     if constexpr (std::is_same_v<T, std::string>) {
                         if (!f.choices.empty()) option->check(CLI::IsMember(f.choices));
+                    }
+                    if (f.flag == "--scene" && sceneRequired) {
+                        option->required();
+                        return;
+                    }
+                    if constexpr (std::is_same_v<T, std::string>) {
                         if (value.empty()) return;  // no default to show
                     }
-                    if (f.flag == "--scene" && sceneRequired) option->required();
-                    else option->capture_default_str();
+                    option->capture_default_str();
                 }
             },
             f.member);

@@ -22,13 +22,16 @@
 #include <functional>
 #include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
 
 namespace rtlab::app {
 
 void addConvergeCommand(CLI::App& app, ConvergeOptions& o) {
     CLI::App* cmd = app.add_subcommand(
-        "converge", "Error against run time for one effect: raw accumulation vs its denoisers, on a cached reference");
+        "converge",
+        "Error against run time for one effect: raw accumulation vs its denoisers, on a cached reference (rendered "
+        "with a seed derived from --seed)");
     cmd->add_option("--effect", o.effect, shaders::effectNames(shaders::EffectFilter::Denoised, ", "))->required();
     cmd->add_option("--out", o.out, "Output directory (default out/converge/<scene>-<effect>)");
     cmd->add_option("--cache", o.cache, "Directory of cached references")->capture_default_str();
@@ -238,10 +241,16 @@ void ConvergeRun::reference() {
     key << "v" << kEstimatorVersion << "|" << sceneIdentity(f.scene) << "|" << o_.effect << "|" << w_ << "x" << h_
         << "|" << o_.referenceSpp << "|" << f.seed << "|" << formatDouble(f.reflectionRoughness, "%.9g") << "|"
         << formatDouble(f.aoRadius, "%.9g");
-    // Options added since version 3 join the key only where they differ from
-    // their defaults, so that existing cached references stay valid.
-    if (f.maxTranslucencyDepth != session::FrameOptions{}.maxTranslucencyDepth)
-        key << "|maxTranslucencyDepth=" << f.maxTranslucencyDepth;
+    // Every other option converge takes (session::kUseConverge) joins the key
+    // where it differs from its default, so that the references cached under
+    // version 3 stay valid and a new option can never reuse a reference
+    // rendered without it.
+    static const std::set<std::string> inKey = {
+        "scene", "width", "height", "seed", "reflectionRoughness", "aoRadius", "aoContactSamples", "threads"};
+    const nlohmann::json now = f.toJson(session::kUseConverge),
+                         defaults = session::FrameOptions{}.toJson(session::kUseConverge);
+    for (const auto& [name, value] : now.items())
+        if (!inKey.count(name) && value != defaults.at(name)) key << "|" << name << "=" << value.dump();
     char hash[17];
     std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fingerprint(key.str())));
     cacheFile_ = std::filesystem::path(o_.cache) /
@@ -425,19 +434,14 @@ void ConvergeRun::writeResults() {
     nlohmann::json j;
     j["scene"] = o_.frame.scene;
     j["effect"] = o_.effect;
-    j["settings"] = {{"width", w_},
-                     {"height", h_},
-                     {"referenceSpp", o_.referenceSpp},
-                     {"maxSpp", o_.maxSpp},
-                     {"denoiseMaxSpp", o_.denoiseMaxSpp},
-                     {"frames", o_.frames},
-                     {"threads", o_.frame.threads},
-                     {"threadsUsed", static_cast<int>(tbb::this_task_arena::max_concurrency())},
-                     {"seed", o_.frame.seed},
-                     {"reflectionRoughness", o_.frame.reflectionRoughness},
-                     {"aoRadius", o_.frame.aoRadius},
-                     {"aoContactSamples", o_.frame.aoContactSamples},
-                     {"maxTranslucencyDepth", o_.frame.maxTranslucencyDepth}};
+    // The render options converge takes (the table's kUseConverge rows), and its own.
+    j["settings"] = o_.frame.toJson(session::kUseConverge);
+    j["settings"].erase("scene");  // at the top level
+    j["settings"].update({{"referenceSpp", o_.referenceSpp},
+                          {"maxSpp", o_.maxSpp},
+                          {"denoiseMaxSpp", o_.denoiseMaxSpp},
+                          {"frames", o_.frames},
+                          {"threadsUsed", static_cast<int>(tbb::this_task_arena::max_concurrency())}});
     j["reference"] = {{"file", cacheFile_.string()},
                       {"cached", referenceCached_},
                       {"ms", referenceMs_},

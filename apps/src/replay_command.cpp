@@ -75,9 +75,9 @@ void addReplayCommand(CLI::App& app, ReplayOptions& o) {
 
 int runReplay(const ReplayOptions& options) {
     const session::FrameOptions& o = options.frame;
-    // Step: options and files, checked before the scene is loaded.
-    session::FrameSession s(o);
+    // Step: options and files, checked before the scene is loaded (--ray-types first, as always).
     const std::uint32_t typeMask = rayTypeMask(options.rayTypes);
+    session::FrameSession s(o);
     std::map<std::uint32_t, study::RayTraceFile> byFrame;
     for (const std::filesystem::path& path : rayFiles(options.rays)) {
         study::RayTraceFile file = study::RayTraceFile::read(path);

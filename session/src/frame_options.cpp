@@ -133,7 +133,8 @@ void FrameOptions::validate() const {
                 using T = std::remove_cvref_t<decltype(this->*member)>;
                 const T& v = this->*member;
                 if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
-                    if (!(double(v) >= f.min && double(v) <= f.max))
+                    // In the member's own type: a float option's bound is the float nearest to it.
+                    if (f.ranged && !(v >= static_cast<T>(f.min) && v <= static_cast<T>(f.max)))
                         throw InputError(f.flag, "must be in " + formatNumber(f.min) + ".." + formatNumber(f.max) +
                                                      " (got " + formatNumber(double(v)) + ")");
                 } else if constexpr (std::is_same_v<T, std::string>) {
@@ -220,12 +221,14 @@ void FrameOptions::setFromJson(std::string_view key, const nlohmann::json& value
             T& v = this->*member;
             if constexpr (std::is_same_v<T, int> || std::is_same_v<T, std::uint32_t>) {
                 const bool ok = std::is_same_v<T, int> ? value.is_number_integer() : value.is_number_unsigned();
-                if (!ok || double(value.get<long long>()) < f->min || double(value.get<long long>()) > f->max)
+                if (!ok ||
+                    (f->ranged && (double(value.get<long long>()) < f->min || double(value.get<long long>()) > f->max)))
                     throw InputError(where, path + ": must be an integer in " + formatNumber(f->min) + ".." +
                                                 formatNumber(f->max) + " (got " + value.dump() + ")");
                 v = value.get<T>();
             } else if constexpr (std::is_same_v<T, float>) {
-                if (!value.is_number() || !(value.get<double>() >= f->min && value.get<double>() <= f->max))
+                if (!value.is_number() ||
+                    (f->ranged && !(value.get<double>() >= f->min && value.get<double>() <= f->max)))
                     throw InputError(where, path + ": must be a number in " + formatNumber(f->min) + ".." +
                                                 formatNumber(f->max) + " (got " + value.dump() + ")");
                 v = value.get<float>();

@@ -97,6 +97,13 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
     return workload;
 }
 
+// "--effects: unknown effect ..." (an option's check) as "render.effects: unknown effect ...".
+std::string asStudyKey(const std::string& message) {
+    for (const session::FrameOptionField& f : session::frameOptionFields())
+        if (message.rfind(f.flag + ": ", 0) == 0) return "render." + f.key + message.substr(f.flag.size());
+    return "render: " + message;
+}
+
 std::string hex64(std::uint64_t v) {
     char buf[17];
     std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
@@ -123,9 +130,18 @@ session::FrameOptions defaultStudyRender() {
 }
 
 json studyRenderJson(const session::FrameOptions& render) {
+    // The keys a study had before the options' table: always written (the
+    // fingerprint of a study directory made then stays the same); any other
+    // only when it differs from its default, so that a new option does not
+    // change the fingerprint of studies that leave it alone.
+    static const std::set<std::string> always = {"width",   "height",  "spp", "frames", "backend",
+                                                 "effects", "denoise", "gi",  "seed"};
+    const json defaults = defaultStudyRender().toJson(session::kUseStudy);
     json j = render.toJson(session::kUseStudy);
-    j.erase("threads");
-    if (render.rtcoreConfig.empty()) j.erase("rtcoreConfig");
+    for (auto it = j.begin(); it != j.end();) {
+        const bool keep = it.key() != "threads" && (always.count(it.key()) || *it != defaults.at(it.key()));
+        it = keep ? std::next(it) : j.erase(it);
+    }
     return j;
 }
 
@@ -175,7 +191,8 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
     if (j.contains("render")) {
         const json& r = j.at("render");
         if (!r.is_object()) throw InputError(where, "render: must be an object");
-        // Every option a study may set is a row of session::frameOptionFields().
+        // Every option a study may set is a row of session::frameOptionFields():
+        // unknown keys first, then each value, then the checks across them.
         for (const auto& [key, value] : r.items()) {
             const session::FrameOptionField* field = session::frameOptionByKey(key);
             if (!field || !(field->uses & session::kUseStudy)) {
@@ -184,16 +201,14 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
                     if (f.uses & session::kUseStudy) known += (known.empty() ? "" : ", ") + f.key;
                 throw InputError(where, "render." + key + ": unknown key (known: " + known + ")");
             }
-            study.render.setFromJson(key, value, where, "render.");
         }
-        // Cross-field checks and the effect list, as rtlab render makes them
-        // (RT-core options without the model are checked below, with their own message).
+        for (const auto& [key, value] : r.items()) study.render.setFromJson(key, value, where, "render.");
         try {
             if (study.render.backend == "rtcore") study.render.validate();
             study.render.planOptions();
             if (study.render.denoises()) study.render.denoiseList();
         } catch (const InputError& e) {
-            throw InputError(where, std::string("render: ") + e.what());
+            throw InputError(where, asStudyKey(e.what()));
         }
     }
 

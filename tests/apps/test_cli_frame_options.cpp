@@ -45,5 +45,13 @@ TEST(CliFrameOptions, ConvergeRefusesRenderOnlyOptions) {
     }
 }
 
+TEST(CliFrameOptions, PlanAndReplayRequireAScene) {
+    for (const char* command : {"plan", "replay --rays /nonexistent"}) {
+        const CliRun r = runCli(command);
+        EXPECT_EQ(r.exitCode, 2) << command << ": " << r.out;
+        EXPECT_NE(r.out.find("--scene is required"), std::string::npos) << command << ": " << r.out;
+    }
+}
+
 }  // namespace
 }  // namespace rtlab::test

@@ -104,6 +104,8 @@ TEST(FrameOptions, ValidateChecksRangesAndRtCoreOnlyOptions) {
     o.spp = 0;
     EXPECT_THROW(o.validate(), InputError);
     o.spp = 1;
+    o.aoRadius = 1e30f;  // the top of its range, as a float (the command line has always taken it)
+    EXPECT_NO_THROW(o.validate());
     o.rtcoreSet = {"gpu.cores=2"};
     try {
         o.validate();

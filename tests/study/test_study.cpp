@@ -104,6 +104,15 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
          "s.json: workloads[0].rays: t.rtrays: no such file"},
         {R"({"workloads": ["builtin:cornell"], "render": {"width": 0}})", "s.json: render.width: must be an integer"},
         {R"({"workloads": ["builtin:cornell"], "render": {"gi": "x"}})", "s.json: render.gi: must be one of"},
+        // Unknown keys before any value; the effect lists checked as rtlab render checks them.
+        {R"({"workloads": ["builtin:cornell"], "render": {"height": 0, "widht": 64}})",
+         "s.json: render.widht: unknown key (known: width, height, spp"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"effects": "ao,glitter"}})",
+         "s.json: render.effects: unknown effect 'glitter'"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"denoise": "pathtrace"}})",
+         "s.json: render.denoise: unknown effect 'pathtrace'"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"maxDepth": 65}})",
+         "s.json: render.maxDepth: must be an integer in 0..64"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": []}})",
          "s.json: grid.cache.ways: must be a non-empty list"},
         {R"({"workloads": ["builtin:cornell"], "grid": {"cache.ways": [2, 2]}})",
@@ -118,6 +127,25 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
     };
     for (const auto& [text, expected] : cases)
         EXPECT_EQ(errorOf(json::parse(text)).rfind(expected, 0), 0u) << errorOf(json::parse(text));
+}
+
+// A study directory made before the options' table (22fb75e) resumes: the
+// fingerprint of a study that sets no new render key is the one that build
+// wrote (its results.jsonl for this study file), and a new key left at its
+// default does not change it.
+TEST(StudyParse, FingerprintsOfOlderStudiesStayTheSame) {
+    const json older = json::parse(R"({"workloads": ["builtin:cornell"], "render": {"width": 8, "height": 8,
+        "effects": "gbuffer"}, "grid": {"cache.sizeBytes": [4096]}})");
+    EXPECT_EQ(parseStudy(older, "s.json").fingerprint(), "8aed1cd3eb8d38aa");
+    json withDefault = older, withOther = older;
+    withDefault["render"]["maxDepth"] = 4;
+    withOther["render"]["maxDepth"] = 2;
+    EXPECT_EQ(parseStudy(withDefault, "s.json").fingerprint(), "8aed1cd3eb8d38aa");
+    EXPECT_NE(parseStudy(withOther, "s.json").fingerprint(), "8aed1cd3eb8d38aa");
+    // A point renders with the option.
+    const Study s = parseStudy(withOther, "s.json");
+    const std::string line = shellCommand(renderArguments(s, expandPoints(s).at(0), "o", 0));
+    EXPECT_NE(line.find("--max-depth 2"), std::string::npos) << line;
 }
 
 TEST(StudyParse, CanonicalFormIgnoresFormattingButNotContent) {

@@ -61,7 +61,7 @@ std::uint64_t runPathTracePass(PassFrame& passFrame, tracer::TraceCounters& coun
     std::vector<PathVertexRays>& vertices = passFrame.out.pathVertices;
     const std::size_t n = ctx.gbuffer.size();
     const int spp = ctx.settings.spp;
-    const int maxDepth = std::max(ctx.settings.pathMaxDepth, 0);
+    const int maxDepth = ctx.settings.pathMaxDepth;  // >= 0: RenderSettings::validate
     const RayGrid grid = imageGrid(ctx);
     vertices.assign(std::size_t(maxDepth) + 1, PathVertexRays{});
     std::vector<vec3> radiance(n, vec3(0.f)), throughput(n), incoming(n);

@@ -71,7 +71,7 @@ std::uint64_t runTranslucencyPass(PassFrame& passFrame, tracer::TraceCounters& c
     const std::size_t n = ctx.gbuffer.size();
     std::vector<vec3> transmitted(n, vec3(0.f));
     const int spp = ctx.settings.spp;
-    const int maxDepth = std::max(ctx.settings.maxTranslucencyDepth, 1);
+    const int maxDepth = ctx.settings.maxTranslucencyDepth;  // >= 1: RenderSettings::validate
     std::vector<PathState> state(n);
     std::vector<SecondaryRay> rays(n);
     std::vector<HitPayload> hits, finals(n);

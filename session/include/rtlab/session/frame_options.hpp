@@ -90,11 +90,13 @@ struct FrameOptionField {
     std::string key;   // "maxTranslucencyDepth" (stats.json settings, study render object)
     std::string help;
     Member member;
-    double min = 0, max = 0;           // numeric fields: the accepted range
+    bool ranged = false;  // numeric fields: checked against [min, max] (range())
+    double min = 0, max = 0;
     std::vector<std::string> choices;  // string fields: the accepted values (empty = any)
     unsigned uses = 0;                 // OptionUse bits
 
     FrameOptionField& range(double lo, double hi) {
+        ranged = true;
         min = lo;
         max = hi;
         return *this;
