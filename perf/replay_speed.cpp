@@ -162,33 +162,15 @@ void BM_QueryApiSameRays(benchmark::State& state) {
     state.counters["rays_per_s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
 }
 
-BENCHMARK(BM_ReplayEmbree)
-    ->Arg(-1)
-    ->Arg(0)
-    ->Arg(1)
-    ->Arg(3)
-    ->Arg(6)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(1.0);
-BENCHMARK(BM_QueryApiSameRays)
-    ->Arg(-1)
-    ->Arg(0)
-    ->Arg(1)
-    ->Arg(3)
-    ->Arg(6)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(1.0);
-BENCHMARK(BM_RawEmbreeSameRays)
-    ->Arg(-1)
-    ->Arg(0)
-    ->Arg(1)
-    ->Arg(3)
-    ->Arg(6)
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(1.0);
+// Every ray, then primary, shadow, AO and path-bounce rays alone (shaders::RayType).
+void rayTypeArguments(benchmark::internal::Benchmark* b) {
+    for (const int type : {-1, 0, 1, 3, 6}) b->Arg(type);
+    b->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+}
+
+BENCHMARK(BM_ReplayEmbree)->Apply(rayTypeArguments);
+BENCHMARK(BM_QueryApiSameRays)->Apply(rayTypeArguments);
+BENCHMARK(BM_RawEmbreeSameRays)->Apply(rayTypeArguments);
 
 }  // namespace
 

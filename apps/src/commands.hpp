@@ -16,13 +16,16 @@ namespace rtlab::app {
 void addRenderCommand(CLI::App& app, session::FrameOptions& options);
 int runRender(const session::FrameOptions& options);
 
+// The frame options of a command whose --scene has no default (replay, plan).
+inline session::FrameOptions frameOptionsWithoutScene(std::string out = "out") {
+    session::FrameOptions o;
+    o.scene.clear();
+    o.out = std::move(out);
+    return o;
+}
+
 struct ReplayOptions {
-    session::FrameOptions frame = [] {
-        session::FrameOptions o;
-        o.scene.clear();
-        o.out = "out/replay";
-        return o;
-    }();
+    session::FrameOptions frame = frameOptionsWithoutScene("out/replay");
     std::string rays;              // a .rays file or a directory of frame_NNNN.rays
     std::string rayTypes = "all";  // --ray-types all|LIST (primary,shadow,...)
 };
@@ -30,11 +33,7 @@ void addReplayCommand(CLI::App& app, ReplayOptions& options);
 int runReplay(const ReplayOptions& options);
 
 struct PlanOptions {
-    session::FrameOptions frame = [] {
-        session::FrameOptions o;
-        o.scene.clear();
-        return o;
-    }();
+    session::FrameOptions frame = frameOptionsWithoutScene();
     bool json = false;
 };
 void addPlanCommand(CLI::App& app, PlanOptions& options);
