@@ -82,7 +82,10 @@ def arch_study(rtlab, tmp):
 
 
 # Block(s): the example study docs/studies/cache-policy.json.
-def cache_policy_rows(rtlab, tmp, cache={}):
+SWEEP_ROWS = {}  # the cache-policy sweep's rows, run once for both of its tables
+
+
+def cache_policy_rows(rtlab, tmp, cache=SWEEP_ROWS):
     if "rows" not in cache:
         out = os.path.join(tmp, "study")
         run([rtlab, "sweep", os.path.join(ROOT, "docs/studies/cache-policy.json"), "--out", out, "--jobs", "2"])
@@ -127,7 +130,7 @@ def rtcore_examples(rtlab, tmp):
              "|---|---|---|---|---|---|---|---|"]
     for name, scene in EXAMPLE_SCENES:
         out = os.path.join(tmp, "example-" + name)
-        run([rtlab, *EXAMPLE_ARGS(scene), "--out", out])
+        run([rtlab, *example_args(scene), "--out", out])
         r = frame_model(os.path.join(out, "stats.json"))
         util = " / ".join(f"{r[k]['utilization']:.2f}" for k in
                           ("traversalUnits", "triangleUnits", "transformUnits", "scheduler", "memory"))
@@ -143,7 +146,7 @@ def rtcore_policies(rtlab, tmp):
         cells = []
         for policy in POLICIES:
             out = os.path.join(tmp, f"policy-{name}-{policy}")
-            run([rtlab, *POLICY_ARGS(scene, policy), "--out", out])
+            run([rtlab, *policy_args(scene, policy), "--out", out])
             r = frame_model(os.path.join(out, "stats.json"))
             cells.append(f"{thousands(r['frame']['cycles'])} (hit rate {r['cache']['hitRate']:.3f})")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
@@ -153,16 +156,15 @@ def rtcore_policies(rtlab, tmp):
 POLICIES = ["fifo", "oldestFirst", "treelet"]
 
 
-def POLICY_ARGS(scene, policy):
-    return EXAMPLE_ARGS(scene) + ["--rtcore-set", "cache.sizeBytes=8192", "--rtcore-set", "scheduler.policy=" + policy]
+def policy_args(scene, policy):
+    return example_args(scene) + ["--rtcore-set", "cache.sizeBytes=8192", "--rtcore-set", "scheduler.policy=" + policy]
 
 
 # Block: docs/rtcore-model.md's work per ray by BVH width (primary rays, 640x480).
 WIDTHS = [2, 4, 6, 8]
-WORK_SCENES = [("showcase", "builtin:showcase"), ("cornell", "builtin:cornell"), ("2CylinderEngine", ENGINE)]
 
 
-def WORK_ARGS(scene, width):
+def work_args(scene, width):
     return ["render", "--scene", scene, "--width", "640", "--height", "480", "--effects", "gbuffer", "--backend",
             "rtcore", "--denoise", "none", "--rtcore-set", f"bvh.width={width}"]
 
@@ -170,11 +172,11 @@ def WORK_ARGS(scene, width):
 def work_per_ray(rtlab, tmp):
     lines = ["| scene (triangles) | width | nodes/ray | boxes/ray | triangles/ray | instances/ray | max stack |",
              "|---|---|---|---|---|---|---|"]
-    for name, scene in WORK_SCENES:
+    for name, scene in EXAMPLE_SCENES:
         rays, triangles = [], 0
         for width in WIDTHS:
             out = os.path.join(tmp, f"work-{name}-{width}")
-            run([rtlab, *WORK_ARGS(scene, width), "--out", out])
+            run([rtlab, *work_args(scene, width), "--out", out])
             with open(os.path.join(out, "stats.json")) as f:
                 frame = json.load(f)["frames"][0]
             rays.append(frame["rtcore"]["rays"])
@@ -189,7 +191,7 @@ def work_per_ray(rtlab, tmp):
     return lines
 
 
-def EXAMPLE_ARGS(scene):
+def example_args(scene):
     return ["render", "--scene", scene, "--width", "320", "--height", "240", "--effects", "gbuffer",
             "--backend", "rtcore", "--denoise", "none"]
 
@@ -204,12 +206,12 @@ BLOCKS = {
     "studies-cache-policy": ("docs/studies.md", lambda r, t: cache_policy_table(r, t, True),
                              ["rtlab sweep docs/studies/cache-policy.json --out out/study --jobs 2"]),
     "rtcore-examples": ("docs/rtcore-model.md", rtcore_examples,
-                        ["rtlab " + " ".join(EXAMPLE_ARGS(s)) + " --out out/example" for _, s in EXAMPLE_SCENES]),
+                        ["rtlab " + " ".join(example_args(s)) + " --out out/example" for _, s in EXAMPLE_SCENES]),
     "rtcore-work-per-ray": ("docs/rtcore-model.md", work_per_ray,
-                            ["rtlab " + " ".join(WORK_ARGS(s, w)) + " --out out/work"
-                             for _, s in WORK_SCENES for w in WIDTHS]),
+                            ["rtlab " + " ".join(work_args(s, w)) + " --out out/work"
+                             for _, s in EXAMPLE_SCENES for w in WIDTHS]),
     "rtcore-policies": ("docs/rtcore-model.md", rtcore_policies,
-                        ["rtlab " + " ".join(POLICY_ARGS(s, p)) + " --out out/policy"
+                        ["rtlab " + " ".join(policy_args(s, p)) + " --out out/policy"
                          for _, s in (EXAMPLE_SCENES[0], EXAMPLE_SCENES[2]) for p in POLICIES]),
 }
 

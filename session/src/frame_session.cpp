@@ -102,8 +102,7 @@ std::vector<denoise::DenoisedLayer> FrameSession::denoise(shaders::FrameOutput& 
 
 std::uint64_t uniqueTriangles(const ecs::SceneSnapshot& scene) {
     std::uint64_t triangles = 0;
-    for (const ecs::MeshAsset& mesh : *scene.meshes)
-        for (const ecs::Geometry& g : mesh.geometries) triangles += g.triangleCount();
+    for (const ecs::MeshAsset& mesh : *scene.meshes) triangles += mesh.triangleCount();
     return triangles;
 }
 
