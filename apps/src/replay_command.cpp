@@ -109,7 +109,7 @@ int runReplay(const ReplayOptions& options) {
         const auto found = byFrame.find(f);
         if (found == byFrame.end()) continue;
         const study::RayTraceFile& file = found->second;
-        study::checkReplayable(file, study::sceneFingerprint(scene));
+        study::checkReplayable(file, study::sceneFingerprint(scene), rtcore);
         progress("replaying frame " + std::to_string(f) + " (" + std::to_string(file.header().rayCount) + " rays)");
         if (rtcore) rtcore->beginFrame();
         const study::ReplayResult r = study::replayRays(file, s.accel(), rtcore, typeMask);

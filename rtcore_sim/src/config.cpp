@@ -245,6 +245,10 @@ const ParamTable<ShaderParams>& shaderParamTable() {
                       "cycles of one any-hit shader round trip to the programmable side", 0, 100000);
         t.addUnsigned("intersectionLatency", &ShaderParams::intersectionLatency,
                       "cycles of one intersection shader round trip to the programmable side", 0, 100000);
+        t.addUnsigned("nextTraceLatency", &ShaderParams::nextTraceLatency,
+                      "gpu.launch = launch: cycles from the last result of a warp's TraceRay to the warp's next "
+                      "TraceRay (the closest-hit, miss or ray-generation code in between)",
+                      0, 1000000);
         return t;
     }();
     return table;
@@ -298,10 +302,21 @@ std::string toString(WarpDispatch dispatch) {
 std::string toString(L2Mode mode) { return mode == L2Mode::Ideal ? "ideal" : "cache"; }
 
 std::string toString(RayOrder order) { return order == RayOrder::Submission ? "submission" : "directionOrigin"; }
+std::string toString(LaunchMode mode) { return mode == LaunchMode::Launch ? "launch" : "tile"; }
 
 const ParamTable<GpuParams>& gpuParamTable() {
     static const ParamTable<GpuParams> table = [] {
         ParamTable<GpuParams> t;
+        t.addChoice("launch", &GpuParams::launch,
+                    "how the pipeline's trace calls reach the model: launch = each dispatch is one launch (its "
+                    "threads' rays in flight together, a thread's next ray after its previous result); tile = each "
+                    "trace call is one batch, simulated before the call returns (the model before launches)",
+                    std::vector<std::pair<std::string, LaunchMode>>{{"launch", LaunchMode::Launch},
+                                                                    {"tile", LaunchMode::Tile}});
+        t.addUnsigned("residentWarps", &GpuParams::residentWarps,
+                      "gpu.launch = launch: warps of a launch resident on one core at once (a warp stays resident "
+                      "from its first TraceRay until its threads' last result)",
+                      1, 4096);
         t.addUnsigned("cores", &GpuParams::cores,
                       "RT cores, each with its own queues, units, node cache (L1) and memory port, sharing l2 and dram",
                       1, 256);

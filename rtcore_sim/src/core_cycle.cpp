@@ -34,10 +34,7 @@ inline void Core::resetSlots() {
 }
 
 // The batch index of the k-th ray of this core's sequence.
-inline std::uint32_t Core::rayAt(std::uint32_t k) const {
-    const std::uint32_t w = config.core.warpWidth;
-    return warps[k / w] * w + k % w;
-}
+inline std::uint32_t Core::rayAt(std::uint32_t k) const { return sequence[k]; }
 
 // ---- addresses ----------------------------------------------------------
 
@@ -237,15 +234,14 @@ inline void Core::finish(std::uint32_t slot, std::uint64_t c) {
 inline void Core::enterCompletion(std::uint32_t slot, std::uint64_t c) {
     Slot& s = slots[slot];
     stats.completionBlocked += c - s.finishCycle;
-    completionQueue.push_back(Delivery{s.rayIndex, c});
+    completionQueue.push_back(Delivery{s.rayIndex, s.group, c});
     completionOcc.set(completionQueue.size(), c);
     freeSlots.push_back(slot);
     slotOcc.set(slots.size() - freeSlots.size(), c);
 }
 
 inline void Core::deliver(const Delivery& d, std::uint64_t c) {
-    const std::uint32_t warp = d.rayIndex / config.core.warpWidth;
-    const std::uint64_t latency = c - batch.warpSubmit[warp];
+    const std::uint64_t latency = c - batch.groupSubmit[d.group];
     stats.completionQueue += c - d.enterCycle;
     batch.results[d.rayIndex].cycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(latency, UINT32_MAX));
     stats.latency.add(latency);
@@ -256,7 +252,7 @@ inline void Core::deliver(const Delivery& d, std::uint64_t c) {
     type.latency.add(latency);
     logActivity(c, rayType, -1);
     ++delivered;
-    if (--warpRemaining[batch.warpLocal[warp]] == 0) warpDone(warp);
+    if (--batch.groupRemaining[d.group] == 0) groupDone(d.group, c);
 }
 
 inline void Core::logActivity(std::uint64_t c, std::uint32_t rayType, std::int32_t delta) {
@@ -270,14 +266,15 @@ inline void Core::logActivity(std::uint64_t c, std::uint32_t rayType, std::int32
     activity.push_back(Activity{c, rayType, delta});
 }
 
-// SIMD efficiency of a lockstep traversal of this warp: warp step k has
-// the rays with more than k steps active.
-inline void Core::warpDone(std::uint32_t warp) {
+// A group's last result is back. SIMD efficiency of a lockstep traversal of
+// the group: warp step k has the rays with more than k steps active. Then
+// the warp's next group is ready after the shader latency, or, when it has
+// none, the warp leaves and the core's next warp becomes resident.
+inline void Core::groupDone(std::uint32_t group, std::uint64_t c) {
     const std::uint32_t width = config.core.warpWidth;
-    const std::uint32_t first = warp * width;
-    const std::uint32_t last = std::min<std::uint32_t>(first + width, static_cast<std::uint32_t>(batch.rays.size()));
+    const std::uint32_t first = batch.groupFirst[group];
     std::array<std::uint32_t, 64> steps;
-    const std::uint32_t m = last - first;
+    const std::uint32_t m = batch.groupSize[group];
     for (std::uint32_t i = 0; i < m; ++i) steps[i] = batch.results[first + i].work.steps;
     std::sort(steps.begin(), steps.begin() + m);
     std::uint32_t previous = 0;
@@ -291,6 +288,29 @@ inline void Core::warpDone(std::uint32_t warp) {
     ++stats.warpsCompleted;
     stats.warpSteps += previous;
     stats.warpLanes += std::uint64_t(width) * previous;
+
+    const std::uint32_t warp = batch.groupWarp[group];
+    const std::uint32_t slot = residentOfWarp[batch.warpLocal[warp]];
+    if (group + 1 < batch.warpGroups[warp + 1]) {
+        resident[slot].group = group + 1;
+        if (batch.nextTraceLatency == 0) readyGroups.push_back(group + 1);
+        else wheel.schedule(c + batch.nextTraceLatency, makeEvent(slot, kGroupReady));
+        return;
+    }
+    freeResident.push_back(slot);
+    becomeResident(c);
+}
+
+// The core's next warp takes a free residency slot; its first group is ready at once.
+inline void Core::becomeResident(std::uint64_t c) {
+    (void)c;
+    if (nextWarp == warps.size() || freeResident.empty()) return;
+    const std::uint32_t slot = freeResident.back();
+    freeResident.pop_back();
+    const std::uint32_t warp = warps[nextWarp];
+    residentOfWarp[nextWarp++] = slot;
+    resident[slot] = Resident{warp, batch.warpGroups[warp]};
+    readyGroups.push_back(resident[slot].group);
 }
 
 // ---- one cycle -----------------------------------------------------------
@@ -304,6 +324,7 @@ inline void Core::processEvents(std::uint64_t c) {
             case kFetchDone: onFetchDone(slot, c); break;
             case kStackTraffic: onStackTraffic(slot, c); break;
             case kStepDone: makeReady(slot, c); break;
+            case kGroupReady: readyGroups.push_back(resident[slot].group); break;
         }
     }
     wheel.clearBucket(c);
@@ -323,47 +344,46 @@ inline void Core::completion(std::uint64_t c) {
     completionOcc.set(completionQueue.size(), c);
 }
 
-inline std::uint32_t Core::pendingWarpSize() const {
-    const std::uint32_t first = warps[submitted / config.core.warpWidth] * config.core.warpWidth;
-    return std::min<std::uint32_t>(config.core.warpWidth, static_cast<std::uint32_t>(batch.rays.size()) - first);
-}
+inline std::uint32_t Core::pendingWarpSize() const { return batch.groupSize[readyGroups.front()]; }
 inline bool Core::pendingWarpFits() const {
-    return submitted < rayCount && config.core.inputQueueRays - (submitted - admitted) >= pendingWarpSize();
+    return !readyGroups.empty() && config.core.inputQueueRays - (submitted() - admitted) >= pendingWarpSize();
 }
 
 inline void Core::submission(std::uint64_t c) {
-    if (submitted == rayCount) return;
+    if (readyGroups.empty()) return;
     if (!pendingWarpFits()) {
         ++stats.inputQueueFull;
         return;
     }
-    const std::uint32_t size = pendingWarpSize();
-    const std::uint32_t warp = warps[submitted / config.core.warpWidth];
-    batch.warpSubmit[warp] = c;
-    for (std::uint32_t i = warp * config.core.warpWidth; i < warp * config.core.warpWidth + size; ++i)
+    const std::uint32_t group = readyGroups.front();
+    readyGroups.pop_front();
+    const std::uint32_t first = batch.groupFirst[group], size = batch.groupSize[group];
+    batch.groupSubmit[group] = c;
+    for (std::uint32_t i = first; i < first + size; ++i) {
         logActivity(c, batch.rays[i].rayType, +1);
-    submitted += size;
+        sequence.push_back(i);
+    }
     ++stats.warps;
     stats.raysSubmitted += size;
-    inputQueueOcc.set(submitted - admitted, c);
+    inputQueueOcc.set(submitted() - admitted, c);
 }
 
 inline void Core::admission(std::uint64_t c) {
-    for (std::uint32_t k = 0; k < config.core.admitPerCycle && admitted < submitted && !freeSlots.empty(); ++k) {
+    for (std::uint32_t k = 0; k < config.core.admitPerCycle && admitted < submitted() && !freeSlots.empty(); ++k) {
         const std::uint32_t slot = freeSlots.back();
         freeSlots.pop_back();
         Slot& s = slots[slot];
         s.rayIndex = rayAt(admitted++);
-        s.warp = s.rayIndex / config.core.warpWidth;
+        s.group = batch.rayGroup[s.rayIndex];
         s.age = nextAge++;
         s.admitCycle = c;
         s.onChip = s.spilled = s.spills = s.refills = 0;
         s.trav.begin(scene, batch.rays[s.rayIndex]);
-        stats.inputQueue += c - batch.warpSubmit[s.warp];
+        stats.inputQueue += c - batch.groupSubmit[s.group];
         slotOcc.set(slots.size() - freeSlots.size(), c);
         makeReady(slot, c);
     }
-    inputQueueOcc.set(submitted - admitted, c);
+    inputQueueOcc.set(submitted() - admitted, c);
 }
 
 inline void Core::issueRays(std::uint64_t c) {
@@ -396,20 +416,25 @@ inline void Core::cycle(std::uint64_t c) {
 }
 // Whether one of phases 2-5 can act in the next cycle.
 inline bool Core::busy() const {
-    return readyCount > 0 || !completionQueue.empty() || (admitted < submitted && !freeSlots.empty()) ||
+    return readyCount > 0 || !completionQueue.empty() || (admitted < submitted() && !freeSlots.empty()) ||
            pendingWarpFits();
 }
 // Conditions that hold through the cycles after c up to next (exclusive), skipped or not.
 inline void Core::accountUntil(std::uint64_t c, std::uint64_t next) {
-    if (submitted < rayCount && !pendingWarpFits()) stats.inputQueueFull += next - c - 1;
-    if (admitted < submitted && freeSlots.empty()) stats.noFreeRaySlot += next - c;
+    if (!readyGroups.empty() && !pendingWarpFits()) stats.inputQueueFull += next - c - 1;
+    if (admitted < submitted() && freeSlots.empty()) stats.noFreeRaySlot += next - c;
     if (!blockedFinishers.empty()) stats.completionQueueFull += next - c;
 }
 
 void Core::beginBatch(std::size_t rayTypes) {
     warps.clear();
-    warpRemaining.clear();
-    rayCount = submitted = admitted = delivered = 0;
+    nextWarp = 0;
+    resident.clear();
+    freeResident.clear();
+    residentOfWarp.clear();
+    readyGroups.clear();
+    sequence.clear();
+    rayCount = admitted = delivered = 0;
     if (typeWork.size() < rayTypes) typeWork.resize(rayTypes);
     activity.clear();
     deferredReads.clear();
@@ -417,12 +442,18 @@ void Core::beginBatch(std::size_t rayTypes) {
     deferredReady = kNever;
     error = nullptr;
 }
-// Returns the warp's position in this core's list.
-std::uint32_t Core::addWarp(std::uint32_t warp, std::uint32_t size) {
+void Core::addWarp(std::uint32_t warp) {
+    batch.warpLocal[warp] = static_cast<std::uint32_t>(warps.size());
     warps.push_back(warp);
-    warpRemaining.push_back(size);
-    rayCount += size;
-    return static_cast<std::uint32_t>(warps.size() - 1);
+    for (std::uint32_t g = batch.warpGroups[warp]; g < batch.warpGroups[warp + 1]; ++g) rayCount += batch.groupSize[g];
+}
+void Core::start(std::uint64_t c) {
+    const std::size_t slotsNow = std::min<std::size_t>(batch.residentWarps, warps.size());
+    resident.assign(slotsNow, Resident{});
+    residentOfWarp.assign(warps.size(), 0);
+    sequence.reserve(rayCount);
+    for (std::size_t i = slotsNow; i-- > 0;) freeResident.push_back(static_cast<std::uint32_t>(i));
+    while (!freeResident.empty() && nextWarp < warps.size()) becomeResident(c);
 }
 
 // ---- the GPU loop --------------------------------------------------------

@@ -22,16 +22,30 @@
 
 namespace rtlab::rtcore_sim {
 
-// The batch being simulated and what the cores share about it.
+// The batch or launch being simulated and what the cores share about it.
+// Rays reach a core in submission groups: the rays one warp submits with one
+// TraceRay instruction. A group's rays are consecutive in `rays`. In a tile
+// batch (RtCore::run) every warp is one group; in a launch
+// (RtCore::runLaunch) a warp's group k holds its threads' k-th rays, and
+// group k+1 is ready shader.nextTraceLatency cycles after group k's last
+// result (docs/rtcore-model.md, "Launches").
 struct BatchState {
     std::span<const SimRay> rays;
     ProgrammableSide* side = nullptr;
     std::span<SimRayResult> results;
-    std::vector<std::uint64_t> warpSubmit;
-    std::vector<std::uint32_t> warpLocal;  // per warp: its position in its core's warp list
-    std::vector<RayTypeStats> rayTypes;    // over the whole GPU (a type's activity is a union over cores)
-    // gpu.rayOrder other than submission: rays/results above are the reordered
-    // copies; order[i] = index in the caller's batch (side callbacks get it).
+    std::vector<std::uint32_t> groupFirst;      // per group: its first ray
+    std::vector<std::uint32_t> groupSize;       // per group: its rays
+    std::vector<std::uint32_t> groupWarp;       // per group: its warp
+    std::vector<std::uint64_t> groupSubmit;     // per group: the cycle it entered the input queue
+    std::vector<std::uint32_t> groupRemaining;  // per group: rays not yet returned
+    std::vector<std::uint32_t> warpGroups;      // per warp w: its groups are [warpGroups[w], warpGroups[w + 1])
+    std::vector<std::uint32_t> rayGroup;        // per ray: its group
+    std::vector<std::uint32_t> warpLocal;       // per warp: its position in its core's warp list
+    std::vector<RayTypeStats> rayTypes;         // over the whole GPU (a type's activity is a union over cores)
+    std::uint32_t residentWarps = ~0u;          // warps resident per core at once (tile batches: all)
+    std::uint32_t nextTraceLatency = 0;         // cycles from a group's last result to the warp's next group
+    // A reordered batch (gpu.rayOrder, or a launch's groups): rays/results above
+    // are the reordered copies; order[i] = index in the caller's rays (side callbacks get it).
     std::vector<std::uint32_t> order;
     std::uint32_t sideIndex(std::uint32_t i) const { return order.empty() ? i : order[i]; }
 };
@@ -51,7 +65,7 @@ struct alignas(64) Core {
     struct Slot {
         StepInfo step;
         std::uint32_t rayIndex = 0;
-        std::uint32_t warp = 0;
+        std::uint32_t group = 0;
         std::uint64_t age = 0;
         std::uint64_t readyCycle = 0;  // became ready (waits for the scheduler from here)
         std::uint64_t admitCycle = 0;  // entered the ray slot
@@ -63,6 +77,7 @@ struct alignas(64) Core {
     };
     struct Delivery {
         std::uint32_t rayIndex;
+        std::uint32_t group;
         std::uint64_t enterCycle;
     };
 
@@ -84,11 +99,23 @@ struct alignas(64) Core {
     std::deque<std::uint32_t> blockedFinishers;  // finished rays waiting for a completion-queue entry (slots)
     std::uint64_t nextAge = 0;
 
-    // This core's share of the batch: its warps (indices into the batch) in order.
+    // This core's share of the batch: its warps (indices into the batch) in
+    // order; at most batch.residentWarps of them resident at once, each in a
+    // residency slot; groups ready to submit in the order they became ready.
+    struct Resident {
+        std::uint32_t warp = 0;
+        std::uint32_t group = 0;  // its group being submitted or in flight
+    };
     std::vector<std::uint32_t> warps;
-    std::vector<std::uint32_t> warpRemaining;                 // per entry of `warps`: rays not yet returned
-    std::uint32_t rayCount = 0, submitted = 0, admitted = 0;  // positions in the core's ray sequence
-    std::uint32_t delivered = 0;                              // rays returned
+    std::uint32_t nextWarp = 0;                 // the next of `warps` to become resident
+    std::vector<Resident> resident;             // residency slots
+    std::vector<std::uint32_t> freeResident;    // LIFO
+    std::vector<std::uint32_t> residentOfWarp;  // per entry of `warps`: its residency slot
+    std::deque<std::uint32_t> readyGroups;      // groups waiting to enter the input queue
+    std::vector<std::uint32_t> sequence;        // the core's rays in submission order
+    std::uint32_t rayCount = 0, admitted = 0;   // rays of the core's warps; positions in `sequence`
+    std::uint32_t delivered = 0;                // rays returned
+    std::uint32_t submitted() const { return static_cast<std::uint32_t>(sequence.size()); }
 
     CoreStats stats;
     OccupancyTracker inputQueueOcc, slotOcc, readyOcc, completionOcc;
@@ -137,7 +164,8 @@ struct alignas(64) Core {
     inline void enterCompletion(std::uint32_t slot, std::uint64_t c);
     inline void deliver(const Delivery& d, std::uint64_t c);
     inline void logActivity(std::uint64_t c, std::uint32_t rayType, std::int32_t delta);
-    inline void warpDone(std::uint32_t warp);
+    inline void groupDone(std::uint32_t group, std::uint64_t c);
+    inline void becomeResident(std::uint64_t c);
 
     // ---- one cycle -----------------------------------------------------------
     inline void processEvents(std::uint64_t c);
@@ -152,7 +180,9 @@ struct alignas(64) Core {
     inline void accountUntil(std::uint64_t c, std::uint64_t next);
 
     void beginBatch(std::size_t rayTypes);
-    std::uint32_t addWarp(std::uint32_t warp, std::uint32_t size);
+    void addWarp(std::uint32_t warp);
+    // After the warps are added: the first batch.residentWarps become resident at cycle c.
+    void start(std::uint64_t c);
     bool done() const { return delivered == rayCount; }
 
     // ---- the GPU loop --------------------------------------------------------

@@ -17,7 +17,8 @@ namespace rtlab::rtcore_sim {
 // read, host-parallel epochs) takes its number when the serial model would
 // have scheduled it (reserve()) and is inserted at its place (scheduleAt()).
 
-enum Phase : std::uint32_t { kFetchDone = 0, kStackTraffic = 1, kStepDone = 2 };
+// kGroupReady: `slot` is a residency slot whose warp's next group is ready.
+enum Phase : std::uint32_t { kFetchDone = 0, kStackTraffic = 1, kStepDone = 2, kGroupReady = 3 };
 constexpr std::uint32_t makeEvent(std::uint32_t slot, Phase phase) { return slot << 2 | phase; }
 
 class EventWheel {

@@ -22,22 +22,42 @@ RtCore::Impl::Impl(const RtCoreConfig& cfg, const ModelScene& s) : config(cfg), 
         cores.push_back(std::make_unique<Core>(config, scene, layout, batch, l2.get()));
 }
 
-// The dispatch rule: which core each warp of the batch goes to.
+// The dispatch rule: which core each warp goes to. Warps without rays
+// (a launch's threads that traced nothing) go nowhere.
 void RtCore::Impl::dispatch(std::uint32_t warpCount) {
     const std::uint32_t n = static_cast<std::uint32_t>(cores.size());
-    const std::uint32_t w = config.core.warpWidth;
-    const auto size = [&](std::uint32_t warp) {
-        return std::min<std::uint32_t>(w, static_cast<std::uint32_t>(batch.rays.size()) - warp * w);
-    };
     for (auto& core : cores) core->beginBatch(batch.rayTypes.size());
-    batch.warpLocal.resize(warpCount);
+    batch.warpLocal.assign(warpCount, 0);
     for (std::uint32_t warp = 0; warp < warpCount; ++warp) {
+        if (batch.warpGroups[warp] == batch.warpGroups[warp + 1]) continue;
         const std::uint32_t k =
             config.gpu.dispatch == WarpDispatch::RoundRobin
                 ? warp % n
                 : static_cast<std::uint32_t>((std::uint64_t(warp) * n) / warpCount);  // contiguous runs
-        batch.warpLocal[warp] = cores[k]->addWarp(warp, size(warp));
+        cores[k]->addWarp(warp);
     }
+    for (auto& core : cores) core->start(now);
+}
+
+// A tile batch: warp w = rays [w * warpWidth, ...) is one group.
+void RtCore::Impl::tileGroups(std::uint32_t warps) {
+    const std::uint32_t w = config.core.warpWidth;
+    const auto n = static_cast<std::uint32_t>(batch.rays.size());
+    batch.groupFirst.resize(warps);
+    batch.groupSize.resize(warps);
+    batch.groupWarp.resize(warps);
+    batch.warpGroups.resize(warps + 1);
+    batch.rayGroup.resize(n);
+    for (std::uint32_t g = 0; g < warps; ++g) {
+        batch.groupFirst[g] = g * w;
+        batch.groupSize[g] = std::min(w, n - g * w);
+        batch.groupWarp[g] = g;
+        batch.warpGroups[g] = g;
+        for (std::uint32_t i = g * w; i < g * w + batch.groupSize[g]; ++i) batch.rayGroup[i] = g;
+    }
+    batch.warpGroups[warps] = warps;
+    batch.residentWarps = ~0u;
+    batch.nextTraceLatency = 0;
 }
 
 // The host threads the process allows (TBB's arena and any global limit).
@@ -244,12 +264,12 @@ std::uint64_t RtCore::Impl::portsFree(std::uint64_t c) const {
     return c;
 }
 
-void RtCore::Impl::run(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out) {
-    if (rays.size() != out.size()) throw std::invalid_argument("RtCore::run: rays and results differ in size");
-    if (rays.size() > UINT32_MAX / 2) throw std::invalid_argument("RtCore::run: batch too large");
+void RtCore::Impl::checkRays(std::span<const SimRay> rays, std::size_t results, const char* what) {
+    if (rays.size() != results) throw std::invalid_argument(std::string(what) + ": rays and results differ in size");
+    if (rays.size() > UINT32_MAX / 2) throw std::invalid_argument(std::string(what) + ": too many rays");
     for (const SimRay& r : rays)
         if (r.rayType >= kMaxRayTypes)
-            throw std::invalid_argument("RtCore::run: rayType " + std::to_string(r.rayType) +
+            throw std::invalid_argument(std::string(what) + ": rayType " + std::to_string(r.rayType) +
                                         " >= " + std::to_string(kMaxRayTypes));
     if (scene.generation() != layoutGeneration) {
         if (layoutGeneration != ~std::uint64_t(0)) {
@@ -259,22 +279,98 @@ void RtCore::Impl::run(std::span<const SimRay> rays, ProgrammableSide& programma
         layout.build(scene);
         layoutGeneration = scene.generation();
     }
+}
+
+void RtCore::Impl::run(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out) {
+    checkRays(rays, out.size(), "RtCore::run");
     if (rays.empty()) return;
     // Step: the ray order before warp formation (gpu.rayOrder).
     batch.order.clear();
-    if (config.gpu.rayOrder == RayOrder::DirectionOrigin) {
-        batch.order = directionOriginOrder(rays);
+    if (config.gpu.rayOrder == RayOrder::DirectionOrigin) batch.order = directionOriginOrder(rays);
+    const std::uint32_t w = config.core.warpWidth;
+    const std::uint32_t warps = static_cast<std::uint32_t>((rays.size() + w - 1) / w);
+    simulateBatch(rays, programmable, out, warps, [&] { tileGroups(warps); });
+}
+
+// Groups of a launch: warp w = threads [w * warpWidth, ...); its group k =
+// the k-th rays of its threads, in thread order. batch.order maps the
+// grouped rays back to the launch's.
+void RtCore::Impl::launchGroups(std::span<const std::uint32_t> threads, std::uint32_t threadCount) {
+    const std::uint32_t w = config.core.warpWidth;
+    const auto n = static_cast<std::uint32_t>(threads.size());
+    const std::uint32_t warps = (threadCount + w - 1) / w;
+    // Per thread, its rays in launch order (a counting sort by thread).
+    std::vector<std::uint32_t> start(std::size_t(threadCount) + 1, 0);
+    for (std::uint32_t t : threads) ++start[t + 1];
+    for (std::uint32_t t = 0; t < threadCount; ++t) start[t + 1] += start[t];
+    std::vector<std::uint32_t> byThread(n), fill(start.begin(), start.end() - 1);
+    for (std::uint32_t i = 0; i < n; ++i) byThread[fill[threads[i]]++] = i;
+    batch.groupFirst.clear();
+    batch.groupSize.clear();
+    batch.groupWarp.clear();
+    batch.warpGroups.assign(std::size_t(warps) + 1, 0);
+    batch.order.clear();
+    batch.order.reserve(n);
+    batch.rayGroup.resize(n);
+    for (std::uint32_t warp = 0; warp < warps; ++warp) {
+        batch.warpGroups[warp] = static_cast<std::uint32_t>(batch.groupFirst.size());
+        const std::uint32_t t0 = warp * w, t1 = std::min(threadCount, t0 + w);
+        std::uint32_t rounds = 0;
+        for (std::uint32_t t = t0; t < t1; ++t) rounds = std::max(rounds, start[t + 1] - start[t]);
+        for (std::uint32_t k = 0; k < rounds; ++k) {
+            const auto group = static_cast<std::uint32_t>(batch.groupFirst.size());
+            const auto first = static_cast<std::uint32_t>(batch.order.size());
+            for (std::uint32_t t = t0; t < t1; ++t)
+                if (start[t + 1] - start[t] > k) {
+                    batch.rayGroup[batch.order.size()] = group;
+                    batch.order.push_back(byThread[start[t] + k]);
+                }
+            batch.groupFirst.push_back(first);
+            batch.groupSize.push_back(static_cast<std::uint32_t>(batch.order.size()) - first);
+            batch.groupWarp.push_back(warp);
+        }
+    }
+    batch.warpGroups[warps] = static_cast<std::uint32_t>(batch.groupFirst.size());
+    batch.residentWarps = config.gpu.residentWarps;
+    batch.nextTraceLatency = config.shader.nextTraceLatency;
+}
+
+void RtCore::Impl::runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads,
+                             std::uint32_t threadCount, ProgrammableSide& programmable, std::span<SimRayResult> out) {
+    checkRays(rays, out.size(), "RtCore::runLaunch");
+    if (threads.size() != rays.size())
+        throw std::invalid_argument("RtCore::runLaunch: rays and threads differ in size");
+    for (std::uint32_t t : threads)
+        if (t >= threadCount)
+            throw std::invalid_argument("RtCore::runLaunch: thread " + std::to_string(t) + " >= the launch's " +
+                                        std::to_string(threadCount) + " threads");
+    if (config.gpu.rayOrder != RayOrder::Submission)
+        throw InputError("RtCore::runLaunch", "gpu.rayOrder " + toString(config.gpu.rayOrder) +
+                                                  " is not modelled in launch mode (use gpu.launch=tile)");
+    if (rays.empty()) return;
+    const std::uint32_t w = config.core.warpWidth;
+    const std::uint32_t warps = (threadCount + w - 1) / w;
+    batch.order.clear();
+    simulateBatch(rays, programmable, out, warps, [&] { launchGroups(threads, threadCount); });
+}
+
+// The common part of a batch and a launch: batch.order is set (empty = the
+// caller's order), `makeGroups` fills the groups; then dispatch, simulation, results.
+template <class MakeGroups>
+void RtCore::Impl::simulateBatch(std::span<const SimRay> rays, ProgrammableSide& programmable,
+                                 std::span<SimRayResult> out, std::uint32_t warps, MakeGroups&& makeGroups) {
+    batch.rays = rays;
+    makeGroups();
+    if (!batch.order.empty()) {
         orderedRays.resize(rays.size());
         for (std::size_t i = 0; i < rays.size(); ++i) orderedRays[i] = rays[batch.order[i]];
         orderedResults.assign(rays.size(), SimRayResult{});
-        rays = orderedRays;
+        batch.rays = orderedRays;
     }
-    batch.rays = rays;
     batch.side = &programmable;
     batch.results = batch.order.empty() ? out : std::span<SimRayResult>(orderedResults);
-    const std::uint32_t w = config.core.warpWidth;
-    const std::uint32_t warps = static_cast<std::uint32_t>((rays.size() + w - 1) / w);
-    batch.warpSubmit.assign(warps, 0);
+    batch.groupSubmit.assign(batch.groupFirst.size(), 0);
+    batch.groupRemaining = batch.groupSize;
     std::uint32_t maxType = 0;
     for (const SimRay& r : rays) maxType = std::max(maxType, r.rayType);
     if (batch.rayTypes.size() <= maxType) batch.rayTypes.resize(maxType + 1);

@@ -46,6 +46,12 @@ struct RtCore::Impl {
     Impl(const RtCoreConfig& cfg, const ModelScene& s);
 
     void dispatch(std::uint32_t warpCount);
+    void tileGroups(std::uint32_t warps);
+    void launchGroups(std::span<const std::uint32_t> threads, std::uint32_t threadCount);
+    void checkRays(std::span<const SimRay> rays, std::size_t results, const char* what);
+    template <class MakeGroups>
+    void simulateBatch(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out,
+                       std::uint32_t warps, MakeGroups&& makeGroups);
     static unsigned hostThreads();
     template <class CycleOf, class SizeOf, class Visitor>
     void mergeByCycle(std::vector<std::size_t>& cursor, const CycleOf& cycleOf, const SizeOf& sizeOf,
@@ -57,6 +63,8 @@ struct RtCore::Impl {
     std::uint64_t portsFree(std::uint64_t c) const;
 
     void run(std::span<const SimRay> rays, ProgrammableSide& programmable, std::span<SimRayResult> out);
+    void runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads, std::uint32_t threadCount,
+                   ProgrammableSide& programmable, std::span<SimRayResult> out);
     void abortBatch();
     void resetStats();
     void reset();

@@ -48,6 +48,11 @@ void RtCore::run(std::span<const SimRay> rays, ProgrammableSide& side, std::span
     impl_->run(rays, side, results);
 }
 
+void RtCore::runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads, std::uint32_t threadCount,
+                       ProgrammableSide& side, std::span<SimRayResult> results) {
+    impl_->runLaunch(rays, threads, threadCount, side, results);
+}
+
 nlohmann::json RtCore::statsJson() const { return impl_->statsJson(); }
 void RtCore::resetStats() { impl_->resetStats(); }
 void RtCore::reset() { impl_->reset(); }

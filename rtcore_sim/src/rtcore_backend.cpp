@@ -1,8 +1,13 @@
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 
+#include <rtlab/core/error.hpp>
+
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
+#include <string>
 
 namespace rtlab::rtcore_sim {
 namespace {
@@ -60,6 +65,169 @@ private:
     const std::vector<std::uint32_t>& laneOf_;
 };
 
+// Words of a verdict (LaunchLog).
+void appendTriangleVerdict(std::vector<std::uint32_t>& words, const CandidateVerdict& v) {
+    words.push_back((v.commit ? LaunchLog::kCommit : 0u) | (v.endSearch ? LaunchLog::kEndSearch : 0u) |
+                    (v.shaderRan ? LaunchLog::kShaderRan : 0u));
+}
+void appendProceduralVerdict(std::vector<std::uint32_t>& words, const ProceduralVerdict& v) {
+    words.push_back((v.commit ? LaunchLog::kCommit : 0u) | (v.endSearch ? LaunchLog::kEndSearch : 0u) |
+                    (v.shaderRan ? LaunchLog::kShaderRan : 0u) | LaunchLog::kProcedural);
+    words.push_back(std::bit_cast<std::uint32_t>(v.t));
+}
+
+[[noreturn]] void verdictMismatch(std::uint32_t ray, const char* what) {
+    throw InputError("recorded verdicts", "ray " + std::to_string(ray) + " " + what +
+                                              " (the recording does not match this scene, configuration or bvh)");
+}
+
+// Reads verdicts from a word stream, one ray at a time.
+struct VerdictReader {
+    const std::uint32_t* words;
+    std::uint64_t at, end;
+    std::uint32_t ray;
+    CandidateVerdict triangle() {
+        if (at >= end || (words[at] & LaunchLog::kProcedural))
+            verdictMismatch(ray, "met a triangle candidate the recording does not have");
+        const std::uint32_t w = words[at++];
+        return CandidateVerdict{(w & LaunchLog::kCommit) != 0, (w & LaunchLog::kEndSearch) != 0,
+                                (w & LaunchLog::kShaderRan) != 0};
+    }
+    ProceduralVerdict procedural() {
+        if (at + 1 >= end || !(words[at] & LaunchLog::kProcedural))
+            verdictMismatch(ray, "met a procedural candidate the recording does not have");
+        const std::uint32_t w = words[at];
+        ProceduralVerdict v;
+        v.commit = (w & LaunchLog::kCommit) != 0;
+        v.endSearch = (w & LaunchLog::kEndSearch) != 0;
+        v.shaderRan = (w & LaunchLog::kShaderRan) != 0;
+        v.t = std::bit_cast<float>(words[at + 1]);
+        at += 2;
+        return v;
+    }
+};
+
+// The functional pass of launch mode: every verdict of `inner` (the DXR
+// filter, or recorded verdicts) appended to the launch's log.
+class LoggingSide final : public ProgrammableSide {
+public:
+    LoggingSide(ProgrammableSide& inner, std::vector<std::uint32_t>& words) : inner_(inner), words_(words) {}
+    CandidateVerdict triangle(std::uint32_t rayIndex, const TriangleCandidate& c) override {
+        const CandidateVerdict v = inner_.triangle(rayIndex, c);
+        appendTriangleVerdict(words_, v);
+        return v;
+    }
+    ProceduralVerdict procedural(std::uint32_t rayIndex, const ProceduralCandidate& c) override {
+        const ProceduralVerdict v = inner_.procedural(rayIndex, c);
+        appendProceduralVerdict(words_, v);
+        return v;
+    }
+
+private:
+    ProgrammableSide& inner_;
+    std::vector<std::uint32_t>& words_;
+};
+
+// Recorded verdicts of one trace call (rtlab replay), ray by ray in call order.
+class RecordedCallSide final : public ProgrammableSide {
+public:
+    explicit RecordedCallSide(const RecordedVerdicts& v) : v_(v) {}
+    // The call's k-th traced ray starts.
+    void beginRay(std::uint32_t k) {
+        if (k >= v_.counts.size()) verdictMismatch(k, "has no recorded verdict count");
+        reader_.words = v_.words.data();
+        reader_.at = next_;
+        reader_.end = next_ + v_.counts[k];
+        reader_.ray = k;
+        if (reader_.end > v_.words.size()) verdictMismatch(k, "has more verdict words than recorded");
+        next_ = reader_.end;
+    }
+    void endRay() {
+        if (reader_.at != reader_.end) verdictMismatch(reader_.ray, "left recorded verdicts unused");
+    }
+    CandidateVerdict triangle(std::uint32_t, const TriangleCandidate&) override { return reader_.triangle(); }
+    ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return reader_.procedural(); }
+
+private:
+    const RecordedVerdicts& v_;
+    VerdictReader reader_{};
+    std::uint64_t next_ = 0;
+};
+
+// The timing pass: each ray's verdicts, in order, from words where ray i's
+// are [ends[i-1], ends[i]) (a launch's log, or one recorded tile batch). A
+// ray's callbacks touch only its own cursor: concurrent.
+class VerdictReplaySide final : public ProgrammableSide {
+public:
+    VerdictReplaySide(const std::uint32_t* words, std::span<const std::uint64_t> ends, bool recorded)
+        : words_(words), ends_(ends), cursor_(ends.size()), recorded_(recorded) {
+        for (std::size_t i = 1; i < cursor_.size(); ++i) cursor_[i] = ends[i - 1];
+    }
+    CandidateVerdict triangle(std::uint32_t i, const TriangleCandidate&) override {
+        VerdictReader r = reader(i);
+        const CandidateVerdict v = r.triangle();
+        cursor_[i] = r.at;
+        return v;
+    }
+    ProceduralVerdict procedural(std::uint32_t i, const ProceduralCandidate&) override {
+        VerdictReader r = reader(i);
+        const ProceduralVerdict v = r.procedural();
+        cursor_[i] = r.at;
+        return v;
+    }
+    bool concurrent() const override { return true; }
+    // Every ray used every verdict of its own (the timing pass traversed as the functional one did).
+    void checkConsumed() const {
+        for (std::size_t i = 0; i < cursor_.size(); ++i)
+            if (cursor_[i] != ends_[i]) {
+                if (recorded_) verdictMismatch(static_cast<std::uint32_t>(i), "left recorded verdicts unused");
+                throw std::logic_error("rtcore_sim: the timing pass of ray " + std::to_string(i) +
+                                       " left logged verdicts unused");
+            }
+    }
+
+private:
+    VerdictReader reader(std::uint32_t i) const { return VerdictReader{words_, cursor_[i], ends_[i], i}; }
+    const std::uint32_t* words_;
+    std::span<const std::uint64_t> ends_;
+    std::vector<std::uint64_t> cursor_;
+    bool recorded_;
+};
+
+// Tile mode, recording: each ray's verdicts logged on their own (the rays of
+// a batch interleave), flattened after the batch.
+class TileLoggingSide final : public ProgrammableSide {
+public:
+    TileLoggingSide(ProgrammableSide& inner, std::vector<std::vector<std::uint32_t>>& perRay)
+        : inner_(inner), perRay_(perRay) {}
+    CandidateVerdict triangle(std::uint32_t i, const TriangleCandidate& c) override {
+        const CandidateVerdict v = inner_.triangle(i, c);
+        appendTriangleVerdict(perRay_[i], v);
+        return v;
+    }
+    ProceduralVerdict procedural(std::uint32_t i, const ProceduralCandidate& c) override {
+        const ProceduralVerdict v = inner_.procedural(i, c);
+        appendProceduralVerdict(perRay_[i], v);
+        return v;
+    }
+
+private:
+    ProgrammableSide& inner_;
+    std::vector<std::vector<std::uint32_t>>& perRay_;
+};
+
+// A hit found with recorded verdicts: no shader ran to say HitKind and record (0); t, ids and barycentrics.
+void finishReplayed(const tracer::CandidateFilter& filter, std::uint32_t lane, const ModelHit& h,
+                    tracer::CommittedHit& out) {
+    filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out);
+    if (!h.hit) return;
+    out.hitKind = 0;
+    out.hitGroupRecord = 0;
+    out.attributes.values.fill(0.f);
+    out.attributes.values[0] = h.b1;
+    out.attributes.values[1] = h.b2;
+}
+
 // The thread inside a trace call, to refuse TraceRay from an any-hit or
 // intersection shader (DXR forbids it; here it would deadlock).
 thread_local const RtCoreBackend* tTracing = nullptr;
@@ -103,6 +271,7 @@ void RtCoreBackend::beginFrame() {
     const std::lock_guard lock(mutex_);
     core_->resetStats();
     primary_.clear();
+    launches_.clear();
     verifyStats_ = VerifyStats{};
     traceCalls_ = 0;
     invalidRays_ = 0;
@@ -110,7 +279,13 @@ void RtCoreBackend::beginFrame() {
 
 nlohmann::json RtCoreBackend::statsJson() const {
     nlohmann::json j = core_->statsJson();
-    j["backend"] = {{"traceCalls", traceCalls_}, {"invalidRaysCountedAsMisses", invalidRays_}};
+    j["backend"] = {{"traceCalls", traceCalls_},
+                    {"invalidRaysCountedAsMisses", invalidRays_},
+                    {"launch", toString(config_.gpu.launch)}};
+    nlohmann::json launches = nlohmann::json::array();
+    for (const LaunchRecord& l : launches_)
+        launches.push_back({{"rays", l.rays}, {"threads", l.threads}, {"cycles", l.cycles}});
+    j["backend"]["launches"] = std::move(launches);
     return j;
 }
 
@@ -150,12 +325,44 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
         laneOf_.push_back(lane);
     }
 
-    // Step: simulate the batch; candidates go through the shared DXR filter.
+    if (launchMode()) {
+        traceFunctional(engine, args, rays, payloads, active, count, depth, out, counters);
+        if (verify_) verifyBatch(engine, args, rays, payloads, active, count, depth, out);
+        return;
+    }
+    const bool replaying = replaying_;
+    replaying_ = false;
+
+    // Step: simulate the batch; candidates go through the shared DXR filter
+    // (or take recorded verdicts; or are logged for a recording).
     lanes_.assign(count, tracer::LaneCommitState{});
     tracer::CandidateFilter filter(engine, args, depth, counters, rays, payloads, lanes_.data());
     results_.resize(simRays_.size());
-    FilterSide side(filter, laneOf_);
-    core_->run(simRays_, side, results_);
+    FilterSide filterSide(filter, laneOf_);
+    if (replaying) {
+        if (replay_.counts.size() != simRays_.size())
+            verdictMismatch(0, "batch has another number of traced rays than recorded verdict counts");
+        std::vector<std::uint64_t> ends(simRays_.size());
+        std::uint64_t sum = 0;
+        for (std::size_t i = 0; i < ends.size(); ++i) ends[i] = sum += replay_.counts[i];
+        if (sum != replay_.words.size()) verdictMismatch(0, "batch's verdict counts do not add up");
+        VerdictReplaySide side(replay_.words.data(), ends, true);
+        core_->run(simRays_, side, results_);
+        side.checkConsumed();
+    } else if (keepCallVerdicts_) {
+        tileVerdicts_.assign(simRays_.size(), {});
+        TileLoggingSide side(filterSide, tileVerdicts_);
+        core_->run(simRays_, side, results_);
+        callCounts_.clear();
+        callWords_.clear();
+        for (const auto& v : tileVerdicts_) {
+            callCounts_.push_back(static_cast<std::uint32_t>(v.size()));
+            callWords_.insert(callWords_.end(), v.begin(), v.end());
+        }
+        callVerdicts_ = RecordedVerdicts{callCounts_, callWords_};
+    } else {
+        core_->run(simRays_, filterSide, results_);
+    }
     filter.rethrowIfFailed();
 
     // Step: committed hits (HitKind, record and attributes come from the filter).
@@ -166,7 +373,8 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
         if (!active[lane]) continue;
         if (next < laneOf_.size() && laneOf_[next] == lane) {
             const ModelHit& h = results_[next++].hit;
-            filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
+            if (replaying) finishReplayed(filter, lane, h, out[lane]);
+            else filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
         } else {
             filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
         }
@@ -189,6 +397,158 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     }
 
     if (verify_) verifyBatch(engine, args, rays, payloads, active, count, depth, out);
+}
+
+// Launch mode: the call's rays answered by the functional traversal now,
+// appended with their threads, parents and verdicts to the launch's log.
+void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tracer::TraceArgs& args,
+                                    const tracer::RayDesc* rays, void* const* payloads, const bool* active,
+                                    std::size_t count, std::uint32_t depth, tracer::CommittedHit* out,
+                                    tracer::TraceCounters& counters) {
+    // A call outside any launch is a launch of its own.
+    const bool implicit = launchDepth_ == 0;
+    if (implicit) beginLaunchLocked(static_cast<std::uint32_t>(count));
+    struct Abort {
+        RtCoreBackend* self;
+        bool armed;
+        ~Abort() {
+            if (armed) self->abortLaunchLocked();
+        }
+    } abort{this, implicit};
+    const std::uint32_t base = implicit ? 0 : tracer::currentTraceScope().thread;
+    const bool replaying = replaying_;
+    replaying_ = false;
+
+    lanes_.assign(count, tracer::LaneCommitState{});
+    tracer::CandidateFilter filter(engine, args, depth, counters, rays, payloads, lanes_.data());
+    FilterSide filterSide(filter, laneOf_);
+    RecordedCallSide recorded(replay_);
+    LoggingSide logging(replaying ? static_cast<ProgrammableSide&>(recorded) : filterSide, launch_.verdicts);
+    lastCallFirst_ = launch_.rays.size();
+    results_.resize(simRays_.size());
+    for (std::uint32_t k = 0; k < simRays_.size(); ++k) {
+        // Step: the ray's thread and parent (its thread's previous ray).
+        const std::uint64_t thread64 = std::uint64_t(base) + laneOf_[k];
+        if (thread64 >= UINT32_MAX) throw tracer::PipelineError("launch thread index out of range");
+        const auto thread = static_cast<std::uint32_t>(thread64);
+        if (thread >= launch_.lastOfThread.size()) launch_.lastOfThread.resize(thread + 1, LaunchLog::kNoParent);
+        launch_.threads = std::max(launch_.threads, thread + 1);
+        const auto index = static_cast<std::uint32_t>(launch_.rays.size());
+        launch_.parent.push_back(launch_.lastOfThread[thread]);
+        launch_.lastOfThread[thread] = index;
+        launch_.thread.push_back(thread);
+        launch_.rays.push_back(simRays_[k]);
+        // Step: its hit, every verdict logged.
+        if (replaying) recorded.beginRay(k);
+        TraversalCounters work;
+        results_[k].hit = traceRay(model_, simRays_[k], logging, k, work);
+        if (replaying) recorded.endRay();
+        launch_.verdictEnd.push_back(launch_.verdicts.size());
+    }
+    filter.rethrowIfFailed();
+    if (keepCallVerdicts_) {
+        callCounts_.clear();
+        for (std::size_t i = lastCallFirst_; i < launch_.rays.size(); ++i)
+            callCounts_.push_back(static_cast<std::uint32_t>(launch_.verdictEnd[i] - launch_.verdictBegin(i)));
+        const std::uint64_t begin = launch_.verdictBegin(lastCallFirst_);
+        callWords_.assign(launch_.verdicts.begin() + static_cast<std::ptrdiff_t>(begin), launch_.verdicts.end());
+        callVerdicts_ = RecordedVerdicts{callCounts_, callWords_};
+    }
+
+    // Step: committed hits, as in tile mode.
+    std::size_t next = 0;
+    for (std::uint32_t lane = 0; lane < count; ++lane) {
+        if (!active[lane]) continue;
+        if (next < laneOf_.size() && laneOf_[next] == lane) {
+            const ModelHit& h = results_[next++].hit;
+            if (replaying) finishReplayed(filter, lane, h, out[lane]);
+            else filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
+        } else {
+            filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
+        }
+    }
+    recordPrimary(args, depth, active, count, lastCallFirst_);
+    abort.armed = false;
+    if (implicit) endLaunchLocked();
+}
+
+// Launch mode: primary rays' records are filled when their launch is simulated.
+void RtCoreBackend::recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active,
+                                  std::size_t count, std::size_t first) {
+    if (!recordPrimary_ || depth != 1 || (args.rayContribution & 0xf) != 0) return;
+    std::size_t i = 0;
+    for (std::uint32_t lane = 0; lane < count; ++lane) {
+        if (!active[lane]) continue;
+        if (i < laneOf_.size() && laneOf_[i] == lane) launchPrimary_.emplace_back(primary_.size(), first + i++);
+        primary_.push_back(PrimaryRayRecord{});
+    }
+}
+
+void LaunchLog::clear() {
+    threads = 0;
+    rays.clear();
+    thread.clear();
+    parent.clear();
+    verdictEnd.clear();
+    verdicts.clear();
+    lastOfThread.clear();
+}
+
+void RtCoreBackend::beginLaunch(std::uint32_t threads) {
+    const std::lock_guard lock(mutex_);
+    beginLaunchLocked(threads);
+}
+void RtCoreBackend::endLaunch() {
+    const std::lock_guard lock(mutex_);
+    endLaunchLocked();
+}
+void RtCoreBackend::abortLaunch() {
+    const std::lock_guard lock(mutex_);
+    abortLaunchLocked();
+}
+
+void RtCoreBackend::beginLaunchLocked(std::uint32_t threads) {
+    if (launchDepth_++ > 0) return;  // joins the open launch
+    launch_.clear();
+    launch_.threads = threads;
+    launch_.lastOfThread.assign(threads, LaunchLog::kNoParent);
+    launchPrimary_.clear();
+}
+
+void RtCoreBackend::abortLaunchLocked() {
+    if (launchDepth_ == 0) return;
+    launchDepth_ = 0;
+    launch_.clear();
+    launchPrimary_.clear();
+}
+
+// The launch's timing: the whole log simulated, the verdicts replayed.
+void RtCoreBackend::endLaunchLocked() {
+    if (launchDepth_ == 0) throw std::logic_error("RtCoreBackend::endLaunch without beginLaunch");
+    if (--launchDepth_ > 0) return;
+    if (!launchMode() || launch_.rays.empty()) {
+        launch_.clear();
+        return;
+    }
+    struct Clear {
+        RtCoreBackend* self;
+        ~Clear() {
+            self->launch_.clear();
+            self->launchPrimary_.clear();
+        }
+    } clear{this};
+    results_.assign(launch_.rays.size(), SimRayResult{});
+    VerdictReplaySide side(launch_.verdicts.data(), launch_.verdictEnd, false);
+    const std::uint64_t before = core_->cycle();
+    core_->runLaunch(launch_.rays, launch_.thread, launch_.threads, side, results_);
+    side.checkConsumed();
+    launches_.push_back(LaunchRecord{launch_.rays.size(), launch_.threads, core_->cycle() - before});
+    for (const auto& [record, ray] : launchPrimary_) {
+        PrimaryRayRecord& rec = primary_[record];
+        rec.cycles = results_[ray].cycles;
+        rec.slotCycles = results_[ray].slotCycles;
+        rec.nodeVisits = results_[ray].work.nodeVisits;
+    }
 }
 
 void RtCoreBackend::verifyBatch(const tracer::TraceEngine& engine, const tracer::TraceArgs& args,

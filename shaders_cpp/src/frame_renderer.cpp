@@ -193,7 +193,11 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
         const Stopwatch clock;
         tracer::TraceCounters counters;
         PassReport& report = out.passes[static_cast<std::size_t>(row.pass)];
+        // A pass is one launch over the frame's pixels: its dispatches (a
+        // path's bounces, a light's shadow rays) are the same threads.
+        tracer::LaunchScope launch(settings.backend, std::uint64_t(settings.width) * std::uint64_t(settings.height));
         report.bytesAllocated = row.run(frame, counters);
+        launch.end();
         report.rays = counters.totalRays();
         report.milliseconds = clock.elapsedMs();
         out.counters.add(counters);

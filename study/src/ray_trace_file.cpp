@@ -85,7 +85,8 @@ void RayTraceWriter::write(const void* data, std::size_t bytes) {
 }
 
 void RayTraceWriter::append(const tracer::TraceArgs& args, std::uint32_t depth, const tracer::RayDesc* rays,
-                            const bool* active, const tracer::CommittedHit* hits, std::size_t count) {
+                            const bool* active, const tracer::CommittedHit* hits, std::size_t count,
+                            const BatchLaunch& launch) {
     scratch_.clear();
     for (std::size_t i = 0; i < count; ++i) {
         if (!active[i]) continue;
@@ -124,6 +125,30 @@ void RayTraceWriter::append(const tracer::TraceArgs& args, std::uint32_t depth, 
     write(&batch, sizeof batch);
     checksum_.add(scratch_.data(), scratch_.size() * sizeof(RayRecord));
     write(scratch_.data(), scratch_.size() * sizeof(RayRecord));
+    if (launch.parents.size() != scratch_.size() ||
+        (!launch.verdictCounts.empty() && launch.verdictCounts.size() != scratch_.size()))
+        throw std::logic_error("RayTraceWriter::append: one parent and verdict count per active lane");
+    std::uint64_t words = 0;
+    links_.resize(scratch_.size());
+    for (std::size_t i = 0; i < scratch_.size(); ++i) {
+        links_[i].parent = launch.parents[i];
+        links_[i].verdicts = launch.verdictCounts.empty() ? 0 : launch.verdictCounts[i];
+        words += links_[i].verdicts;
+    }
+    if (words != launch.verdictWords.size() || words > UINT32_MAX)
+        throw std::logic_error("RayTraceWriter::append: verdict counts do not add up to the words");
+    const BatchLaunchRecord where{launch.launch, launch.launchThreads, launch.threadBase,
+                                  static_cast<std::uint32_t>(words)};
+    checksum_.add(&where, sizeof where);
+    write(&where, sizeof where);
+    checksum_.add(links_.data(), links_.size() * sizeof(RayLinkRecord));
+    write(links_.data(), links_.size() * sizeof(RayLinkRecord));
+    // Verdict words, zero-padded to 8 bytes (the checksum reads 8-byte words).
+    std::vector<std::uint32_t> padded(launch.verdictWords.begin(), launch.verdictWords.end());
+    if (padded.size() % 2) padded.push_back(0);
+    checksum_.add(padded.data(), padded.size() * sizeof(std::uint32_t));
+    write(padded.data(), padded.size() * sizeof(std::uint32_t));
+    launches_ = std::max(launches_, launch.launch + 1);
     ++batches_;
     lanes_ += count;
     rays_ += scratch_.size();
@@ -144,7 +169,9 @@ void RayTraceWriter::finish(const RayTraceInfo& info) {
     h.rayTypeCount = info.rayTypeCount;
     h.hitGroupCount = info.hitGroupCount;
     h.backend = static_cast<std::uint32_t>(info.backend);
-    h.flags = info.anyHitShaders ? RayTraceHeader::kAnyHitShaders : 0;
+    h.flags =
+        (info.anyHitShaders ? RayTraceHeader::kAnyHitShaders : 0) | (info.verdicts ? RayTraceHeader::kVerdicts : 0);
+    h.launchCount = launches_;
     h.instanceCount = info.instanceCount;
     h.uniqueTriangles = info.uniqueTriangles;
     const bool ok =
@@ -178,13 +205,18 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
     const RayTraceHeader& h = f.header_;
     if (std::memcmp(h.magic, kRayTraceMagic, sizeof h.magic) != 0)
         throw InputError(where, "not a ray-trace file (bad magic; docs/ray-trace-format.md)");
-    if (h.version != kRayTraceVersion)
+    if (h.version < kRayTraceOldestVersion || h.version > kRayTraceVersion)
         throw InputError(where, "ray-trace format version " + std::to_string(h.version) +
-                                    ", this rtlab reads version " + std::to_string(kRayTraceVersion));
+                                    ", this rtlab reads versions " + std::to_string(kRayTraceOldestVersion) + " to " +
+                                    std::to_string(kRayTraceVersion));
+    const bool v2 = h.version >= 2;
     if (h.headerBytes != sizeof(RayTraceHeader)) throw InputError(where, "corrupt header (header size)");
-    const std::uint64_t expected = h.batchCount * sizeof(BatchRecord) + h.rayCount * sizeof(RayRecord);
-    if (h.bodyBytes != expected || h.batchCount > (std::uint64_t(1) << 40) || h.rayCount > (std::uint64_t(1) << 40) ||
-        h.rayCount > h.laneCount)
+    // Version 2 adds per batch 16 bytes and per ray 8, plus the verdict words.
+    const std::uint64_t least = h.batchCount * (sizeof(BatchRecord) + (v2 ? sizeof(BatchLaunchRecord) : 0)) +
+                                h.rayCount * (sizeof(RayRecord) + (v2 ? sizeof(RayLinkRecord) : 0));
+    if ((v2 ? h.bodyBytes < least : h.bodyBytes != least) || h.batchCount > (std::uint64_t(1) << 40) ||
+        h.rayCount > (std::uint64_t(1) << 40) || h.rayCount > h.laneCount ||
+        (!v2 && (h.flags & RayTraceHeader::kVerdicts)))
         throw InputError(where, "corrupt header (batch and ray counts do not add up to the body size)");
     if (std::uint64_t(size) - sizeof(RayTraceHeader) != h.bodyBytes)
         throw InputError(where, "truncated or padded: the header announces " +
@@ -221,8 +253,35 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
             if (span[i].lane >= record->lanes || (i > 0 && span[i].lane <= span[i - 1].lane))
                 throw InputError(where, "corrupt: " + batchName + " has a ray on lane " + std::to_string(span[i].lane) +
                                             " out of order or beyond its " + std::to_string(record->lanes) + " lanes");
-        f.batches_.push_back(Batch{record, span});
         offset += std::uint64_t(record->rays) * sizeof(RayRecord);
+        Batch batch{record, span};
+        if (v2) {
+            const std::uint64_t linkBytes = std::uint64_t(record->rays) * sizeof(RayLinkRecord);
+            if (offset + sizeof(BatchLaunchRecord) + linkBytes > h.bodyBytes)
+                throw InputError(where, "corrupt: " + batchName + " runs past the end");
+            batch.launch = reinterpret_cast<const BatchLaunchRecord*>(bytes + offset);
+            offset += sizeof(BatchLaunchRecord);
+            batch.links = std::span(reinterpret_cast<const RayLinkRecord*>(bytes + offset), record->rays);
+            offset += linkBytes;
+            const std::uint64_t words = batch.launch->verdictWords;
+            const std::uint64_t wordBytes = (words + (words & 1)) * sizeof(std::uint32_t);
+            if (offset + wordBytes > h.bodyBytes)
+                throw InputError(where, "corrupt: " + batchName + " runs past the end");
+            batch.verdicts = std::span(reinterpret_cast<const std::uint32_t*>(bytes + offset), words);
+            offset += wordBytes;
+            // Links: parents earlier in the launch, verdict counts adding up.
+            std::uint64_t sum = 0;
+            for (const RayLinkRecord& l : batch.links) sum += l.verdicts;
+            if (sum != words) throw InputError(where, "corrupt: " + batchName + "'s verdict counts do not add up");
+            if (batch.launch->launch >= h.launchCount || batch.launch->launchThreads == 0 ||
+                std::uint64_t(batch.launch->threadBase) + record->lanes > batch.launch->launchThreads)
+                throw InputError(where, "corrupt: " + batchName + " lies outside its launch's threads");
+            if (!f.batches_.empty() && f.batches_.back().launch->launch > batch.launch->launch)
+                throw InputError(where, "corrupt: " + batchName + "'s launch is out of order");
+            if (!(h.flags & RayTraceHeader::kVerdicts) && words != 0)
+                throw InputError(where, "corrupt: " + batchName + " has verdicts the header does not announce");
+        }
+        f.batches_.push_back(batch);
         lanes += record->lanes;
         rays += record->rays;
     }
@@ -251,6 +310,9 @@ RayTraceInfo RayTraceFile::info() const {
     i.anyHitShaders = (header_.flags & RayTraceHeader::kAnyHitShaders) != 0;
     i.instanceCount = header_.instanceCount;
     i.uniqueTriangles = header_.uniqueTriangles;
+    i.version = header_.version;
+    i.launches = header_.version >= 2 ? header_.launchCount : 0;
+    i.verdicts = (header_.flags & RayTraceHeader::kVerdicts) != 0;
     return i;
 }
 

@@ -6,6 +6,7 @@
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 #include <rtlab/tracer/embree_backend.hpp>
 
+#include <algorithm>
 #include <cstring>
 #include <sstream>
 
@@ -45,7 +46,7 @@ struct BatchOutcome {
 // from the call as submitted); otherwise the recorded rays are packed densely
 // (Embree's hits do not depend on the lane a ray sits in, its packets do).
 void replayBatch(const tracer::TraceEngine& engine, tracer::TraversalBackend& backend, const RayTraceFile::Batch& batch,
-                 std::uint64_t index, bool keepLanes, BatchOutcome& o) {
+                 std::uint64_t index, bool keepLanes, BatchOutcome& o, bool verdictsReplayed = false) {
     const std::size_t n = keepLanes ? batch.record->lanes : batch.rays.size();
     std::vector<tracer::RayDesc> rays(n);
     std::unique_ptr<bool[]> active(new bool[n]());
@@ -65,6 +66,11 @@ void replayBatch(const tracer::TraceEngine& engine, tracer::TraversalBackend& ba
         const RayRecord& record = batch.rays[k];
         const std::uint32_t i = keepLanes ? record.lane : std::uint32_t(k);
         const tracer::CommittedHit recorded = hitOf(record);
+        if (verdictsReplayed && hits[i].hit) {
+            // No shader ran to say HitKind and record (RtCoreBackend::replayVerdicts): the recording's.
+            hits[i].hitKind = recorded.hitKind;
+            hits[i].hitGroupRecord = recorded.hitGroupRecord;
+        }
         if (!rtcore_sim::sameHit(recorded, hits[i], hitOnly)) {
             ++o.differing;
             if (o.examples.size() < kExamples)
@@ -79,9 +85,45 @@ void replayBatch(const tracer::TraceEngine& engine, tracer::TraversalBackend& ba
     }
 }
 
+// The recorded verdicts of the rays the model traces (valid ones), in lane
+// order, for the model's next trace call. `counts` is scratch.
+void giveVerdicts(rtcore_sim::RtCoreBackend& model, const RayTraceFile::Batch& batch,
+                  std::vector<std::uint32_t>& counts) {
+    counts.clear();
+    for (std::size_t k = 0; k < batch.rays.size(); ++k)
+        if (tracer::isValidRay(rayOf(batch.rays[k]))) counts.push_back(batch.links[k].verdicts);
+        else if (batch.links[k].verdicts != 0)
+            throw InputError("ray-trace file", "an invalid ray carries verdicts (corrupt recording)");
+    model.replayVerdicts(rtcore_sim::RecordedVerdicts{counts, batch.verdicts});
+}
+
+// Launch mode on the model: the recorded launches in order, each call with
+// its threads and (when recorded) its verdicts, every launch simulated at its end.
+void replayLaunches(const tracer::TraceEngine& engine, rtcore_sim::RtCoreBackend& model,
+                    const std::vector<RayTraceFile::Batch>& batches, bool verdicts,
+                    std::vector<BatchOutcome>& outcomes) {
+    std::vector<std::uint32_t> counts;
+    for (std::size_t b = 0; b < batches.size();) {
+        // Step: the launch's batches and its threads.
+        const std::uint32_t launch = batches[b].launch->launch;
+        std::size_t end = b;
+        std::uint32_t threads = 0;
+        while (end < batches.size() && batches[end].launch->launch == launch)
+            threads = std::max(threads, batches[end++].launch->launchThreads);
+        tracer::LaunchScope scope(&model, threads);
+        for (; b < end; ++b) {
+            const RayTraceFile::Batch& batch = batches[b];
+            tracer::currentTraceScope().thread = batch.launch->threadBase;
+            if (verdicts) giveVerdicts(model, batch, counts);
+            replayBatch(engine, model, batch, b, true, outcomes[b], verdicts);
+        }
+        scope.end();
+    }
+}
+
 }  // namespace
 
-void checkReplayable(const RayTraceFile& file, std::uint64_t fingerprint) {
+void checkReplayable(const RayTraceFile& file, std::uint64_t fingerprint, const tracer::TraversalBackend* backend) {
     const RayTraceInfo info = file.info();
     if (info.sceneFingerprint != fingerprint) {
         std::ostringstream s;
@@ -90,10 +132,17 @@ void checkReplayable(const RayTraceFile& file, std::uint64_t fingerprint) {
           << " (recorded from another scene, scene parameters or frame)";
         throw InputError(file.path().string(), s.str());
     }
-    if (info.anyHitShaders)
+    const auto* model = dynamic_cast<const rtcore_sim::RtCoreBackend*>(backend);
+    const bool launchMode = model && model->launchMode();
+    if (launchMode && info.version < 2)
         throw InputError(file.path().string(),
-                         "recorded with any-hit shaders (alpha-masked materials); replay runs no shader, so record "
-                         "with --effects that leave out alpha");
+                         "recorded before launches (ray-trace format version 1: no launches, threads or verdicts); "
+                         "replay it with --rtcore-set gpu.launch=tile, or record it again with this rtlab");
+    if (info.anyHitShaders && !(model && info.verdicts))
+        throw InputError(file.path().string(),
+                         "recorded with any-hit shaders (alpha-masked materials) and replay runs no shader: only a "
+                         "recording made on --backend rtcore carries every any-hit verdict, and only --backend "
+                         "rtcore replays them; or record with --effects that leave out alpha");
 }
 
 ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel, tracer::TraversalBackend* backend,
@@ -106,10 +155,19 @@ ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& ac
         if (rayTypeMask >> (b.record->rayContribution & 0xf) & 1) batches.push_back(b);
     std::vector<BatchOutcome> outcomes(batches.size());
     const Stopwatch clock;
-    if (backend) {
-        // Step: order-dependent back ends get the batches in recorded order.
-        for (std::size_t b = 0; b < batches.size(); ++b)
-            replayBatch(engine, *backend, batches[b], b, true, outcomes[b]);
+    auto* model = dynamic_cast<rtcore_sim::RtCoreBackend*>(backend);
+    if (model && model->launchMode()) {
+        // Step: the model in launch mode gets the recorded launches.
+        replayLaunches(engine, *model, batches, info.verdicts, outcomes);
+    } else if (backend) {
+        // Step: order-dependent back ends get the batches in recorded order
+        // (the model in tile mode with the recorded verdicts, when there are some).
+        const bool verdicts = model && info.verdicts;
+        std::vector<std::uint32_t> counts;
+        for (std::size_t b = 0; b < batches.size(); ++b) {
+            if (verdicts) giveVerdicts(*model, batches[b], counts);
+            replayBatch(engine, *backend, batches[b], b, true, outcomes[b], verdicts);
+        }
     } else {
         // Step: Embree: batches in parallel, outcomes reduced in order below.
         // Ray type 0 (rtlab's primary rays) as coherent packets, the rest

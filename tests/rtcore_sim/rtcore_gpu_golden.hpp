@@ -111,7 +111,16 @@ inline GoldenRun gpuGoldenRun(RtCore& core, const std::vector<SimRay>& rays, Pro
         h = fnv1a(h, &r.hit.t, sizeof r.hit.t);
     }
     g.rayDigest = h;
-    const std::string dump = core.statsJson().dump();  // the whole tree: per core, l2, dram, config
+    // The whole tree: per core, l2, dram, config (less the launch parameters,
+    // added after the goldens and unread by RtCore::run).
+    nlohmann::json tree = core.statsJson();
+    for (nlohmann::json* config : {&tree["config"]}) {
+        if (!config->is_object()) continue;
+        (*config)["gpu"].erase("launch");
+        (*config)["gpu"].erase("residentWarps");
+        (*config)["shader"].erase("nextTraceLatency");
+    }
+    const std::string dump = tree.dump();
     g.statsDigest = fnv1a(14695981039346656037ull, dump.data(), dump.size());
     if (resultsOut) *resultsOut = std::move(results);
     return g;

@@ -131,9 +131,20 @@ TEST(RtCoreBackend, FrameStatsAndPrimaryRayRecordsCoverEveryPixel) {
     EXPECT_EQ(s["rays"]["submitted"].get<std::uint64_t>(), s["rays"]["completed"].get<std::uint64_t>());
     EXPECT_GT(s["frame"]["cycles"].get<std::uint64_t>(), 0u);
     EXPECT_EQ(s["config"], RtCoreConfig{}.toJson());
-    // One batch per 16x16 tile: ceil(64/16) x ceil(40/16) = 4 x 3.
+    // One trace call per 16x16 tile: ceil(64/16) x ceil(40/16) = 4 x 3; the
+    // preview's dispatch is one launch (launch mode), or a batch per call (tile mode).
     EXPECT_EQ(s["backend"]["traceCalls"].get<std::uint64_t>(), 12u);
-    EXPECT_EQ(s["frame"]["batches"].get<std::uint64_t>(), 12u);
+    EXPECT_EQ(s["frame"]["batches"].get<std::uint64_t>(), 1u);
+    ASSERT_EQ(s["backend"]["launches"].size(), 1u);
+    EXPECT_EQ(s["backend"]["launches"][0]["rays"], std::uint64_t(w) * h);
+    EXPECT_EQ(s["backend"]["launches"][0]["threads"], std::uint64_t(w) * h);
+    EXPECT_EQ(s["backend"]["launches"][0]["cycles"], s["frame"]["cycles"]);
+    RtCoreConfig tile;
+    tile.gpu.launch = LaunchMode::Tile;
+    const nlohmann::json t = renderBoth("builtin:showcase", 1, w, h, tile, false).rtcore.stats;
+    EXPECT_EQ(t["frame"]["batches"].get<std::uint64_t>(), 12u);
+    EXPECT_TRUE(t["backend"]["launches"].empty());
+    EXPECT_EQ(t["frame"]["rays"], s["frame"]["rays"]);
     EXPECT_EQ(r.rtcore.records, std::size_t(w) * h);
     ASSERT_EQ(r.rtcore.preview.primaryRayPixels.size(), std::size_t(w) * h);
     // Every pixel exactly once.

@@ -1,6 +1,7 @@
 // Invariants of the timing model on real scenes: resource bounds,
 // utilizations, conservation of rays, the latency breakdown adding up, and
 // determinism across runs and thread limits.
+#include "rtcore_invariants.hpp"
 #include "rtcore_timing_helpers.hpp"
 
 #include <gtest/gtest.h>
@@ -30,62 +31,6 @@ json runShowcase(const RtCoreConfig& config, std::vector<SimRayResult>* resultsO
     }
     if (resultsOut) *resultsOut = results;
     return core.statsJson();
-}
-
-void expectInvariants(const json& s, const RtCoreConfig& config) {
-    const double cycles = s["frame"]["cycles"].get<double>();
-    ASSERT_GT(cycles, 0.0);
-    // Rays in = rays out.
-    EXPECT_EQ(s["rays"]["submitted"], s["rays"]["completed"]);
-    EXPECT_EQ(s["rays"]["latency"]["count"], s["rays"]["completed"]);
-    // Every unit's work fits in the cycles: cycles >= busy / units.
-    for (const char* unit : {"traversalUnits", "triangleUnits", "transformUnits"}) {
-        const double busy = s[unit]["busyCycles"].get<double>(), units = s[unit]["units"].get<double>();
-        EXPECT_GE(cycles, busy / units) << unit;
-        const double u = s[unit]["utilization"].get<double>();
-        EXPECT_GE(u, 0.0) << unit;
-        EXPECT_LE(u, 1.0) << unit;
-    }
-    // Throughput bounds: boxes, tests, issues, memory bytes.
-    EXPECT_GE(cycles, s["traversalUnits"]["boxTests"].get<double>() /
-                          (config.traversal.units * config.traversal.boxesPerCycle));
-    EXPECT_GE(cycles, (s["triangleUnits"]["triangleTests"].get<double>() +
-                       s["triangleUnits"]["proceduralTests"].get<double>()) /
-                          (config.triangle.units * config.triangle.testsPerCycle));
-    EXPECT_GE(cycles, s["scheduler"]["issued"].get<double>() / config.scheduler.issueWidth);
-    EXPECT_GE(cycles, (s["memory"]["readBytes"].get<double>() + s["memory"]["writeBytes"].get<double>()) /
-                          config.memory.bytesPerCycle);
-    for (const char* rate : {"utilization"}) {
-        for (const char* unit : {"scheduler", "memory"}) {
-            EXPECT_GE(s[unit][rate].get<double>(), 0.0) << unit;
-            EXPECT_LE(s[unit][rate].get<double>(), 1.0) << unit;
-        }
-    }
-    EXPECT_LE(s["raySlots"]["utilization"].get<double>(), 1.0);
-    EXPECT_LE(s["cache"]["hitRate"].get<double>(), 1.0);
-    EXPECT_EQ(s["cache"]["accesses"],
-              s["cache"]["hits"].get<std::uint64_t>() + s["cache"]["misses"].get<std::uint64_t>());
-    EXPECT_LE(s["simd"]["efficiency"].get<double>(), 1.0);
-    EXPECT_GT(s["simd"]["efficiency"].get<double>(), 0.0);
-    // Queue occupancies stay within capacity; their histograms cover every cycle.
-    EXPECT_LE(s["submission"]["inputQueue"]["occupancy"]["max"].get<double>(), config.core.inputQueueRays);
-    EXPECT_LE(s["completion"]["occupancy"]["max"].get<double>(), config.core.completionQueueRays);
-    EXPECT_LE(s["raySlots"]["occupancy"]["max"].get<double>(), config.core.raySlots);
-    EXPECT_EQ(s["raySlots"]["occupancy"]["count"].get<double>(), cycles);
-    EXPECT_EQ(s["scheduler"]["readyRays"]["count"].get<double>(), cycles);
-    // The latency breakdown adds up to the rays' latencies.
-    std::uint64_t parts = 0;
-    for (const auto& [name, value] : s["rays"]["latencyBreakdown"].items()) parts += value.get<std::uint64_t>();
-    EXPECT_EQ(double(parts), s["rays"]["latency"]["mean"].get<double>() * s["rays"]["latency"]["count"].get<double>());
-    // Per ray type: counts add up, active cycles within the frame.
-    std::uint64_t typed = 0;
-    for (const auto& [type, t] : s["rayTypes"].items()) {
-        typed += t["rays"].get<std::uint64_t>();
-        EXPECT_LE(t["activeCycles"].get<double>(), cycles) << type;
-    }
-    EXPECT_EQ(typed, s["rays"]["completed"].get<std::uint64_t>());
-    // The resolved configuration is echoed.
-    EXPECT_EQ(s["config"], config.toJson());
 }
 
 }  // namespace

@@ -6,7 +6,9 @@
 #include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
+#include <rtlab/rtcore_sim/rtcore_backend.hpp>
 #include <rtlab/study/ray_trace_file.hpp>
+#include <rtlab/study/replay.hpp>
 
 #include <gtest/gtest.h>
 #include "temp_dir.hpp"
@@ -36,6 +38,7 @@ struct Written {
     std::vector<std::vector<bool>> active;
     std::vector<std::vector<tracer::CommittedHit>> hits;
     std::vector<tracer::TraceArgs> args;
+    std::vector<std::vector<std::uint32_t>> parents, counts, words;
 };
 
 Written writeSample(const fs::path& path, std::uint32_t seed = 7) {
@@ -71,7 +74,27 @@ Written writeSample(const fs::path& path, std::uint32_t seed = 7) {
         a.rayContribution = std::uint32_t(call) + 1;
         a.multiplier = 7;
         a.missIndex = std::uint32_t(call);
-        writer.append(a, 1 + std::uint32_t(call), rays.data(), active.get(), hits.data(), n);
+        // Launch `call`, its active lanes' parents (every second one has the
+        // previous active lane's ray), i % 3 verdict words each.
+        std::vector<std::uint32_t> parents, counts, words;
+        for (std::size_t i = 0, k = 0; i < n; ++i) {
+            if (!active[i]) continue;
+            parents.push_back(k % 2 ? std::uint32_t(k - 1) : RayLinkRecord::kNoParent);
+            counts.push_back(std::uint32_t(i % 3));
+            for (std::size_t v = 0; v < i % 3; ++v) words.push_back(std::uint32_t(i * 10 + v));
+            ++k;
+        }
+        BatchLaunch where;
+        where.launch = std::uint32_t(call);
+        where.launchThreads = std::uint32_t(n) + 5;
+        where.threadBase = 5;
+        where.parents = parents;
+        where.verdictCounts = counts;
+        where.verdictWords = words;
+        writer.append(a, 1 + std::uint32_t(call), rays.data(), active.get(), hits.data(), n, where);
+        w.parents.push_back(parents);
+        w.counts.push_back(counts);
+        w.words.push_back(words);
         w.rays.push_back(rays);
         w.active.push_back(activeCopy);
         w.hits.push_back(hits);
@@ -85,6 +108,7 @@ Written writeSample(const fs::path& path, std::uint32_t seed = 7) {
     info.backend = RecordedBackend::RtCore;
     info.instanceCount = 5;
     info.uniqueTriangles = 1234;
+    info.verdicts = true;
     writer.finish(info);
     return w;
 }
@@ -124,7 +148,7 @@ TEST(RayTraceFile, RoundTripKeepsEveryBitAndLane) {
     EXPECT_EQ(info.uniqueTriangles, 1234u);
     ASSERT_EQ(f.batches().size(), 2u);
     EXPECT_EQ(f.header().laneCount, 257u);
-    std::uint64_t expectedRays = 0;
+    std::uint64_t expectedRays = 0, wordBytes = 0;
     for (std::size_t b = 0; b < 2; ++b) {
         const RayTraceFile::Batch& batch = f.batches()[b];
         EXPECT_EQ(batch.record->lanes, w.rays[b].size());
@@ -156,10 +180,86 @@ TEST(RayTraceFile, RoundTripKeepsEveryBitAndLane) {
             EXPECT_EQ(h.attributes.values[1], e.attributes.values[1]);
         }
         EXPECT_EQ(next, batch.rays.size());
+        // Version 2: the launch, links and verdicts as written.
+        ASSERT_NE(batch.launch, nullptr);
+        EXPECT_EQ(batch.launch->launch, b);
+        EXPECT_EQ(batch.launch->threadBase, 5u);
+        EXPECT_EQ(batch.launch->launchThreads, w.rays[b].size() + 5);
+        ASSERT_EQ(batch.links.size(), batch.rays.size());
+        for (std::size_t k = 0; k < batch.links.size(); ++k) {
+            EXPECT_EQ(batch.links[k].parent, w.parents[b][k]);
+            EXPECT_EQ(batch.links[k].verdicts, w.counts[b][k]);
+        }
+        EXPECT_EQ(std::vector<std::uint32_t>(batch.verdicts.begin(), batch.verdicts.end()), w.words[b]);
+        wordBytes += (w.words[b].size() + w.words[b].size() % 2) * 4;
     }
     EXPECT_EQ(f.header().rayCount, expectedRays);
-    // 64 bytes per ray plus 32 per call.
-    EXPECT_EQ(fs::file_size(path), 128 + 2 * 32 + expectedRays * 64);
+    EXPECT_EQ(info.version, kRayTraceVersion);
+    EXPECT_EQ(info.launches, 2u);
+    EXPECT_TRUE(info.verdicts);
+    // 128 bytes of header, 32 + 16 per call, 64 + 8 per ray, the verdict words padded to 8 bytes.
+    EXPECT_EQ(fs::file_size(path), 128 + 2 * (32 + 16) + expectedRays * (64 + 8) + wordBytes);
+}
+
+// The same file in format version 1 (before launches): batch and ray
+// records only, no launches, links or verdicts.
+std::vector<char> asVersion1(const RayTraceFile& f) {
+    std::vector<char> body;
+    const auto put = [&](const void* p, std::size_t n) {
+        body.insert(body.end(), static_cast<const char*>(p), static_cast<const char*>(p) + n);
+    };
+    for (const RayTraceFile::Batch& b : f.batches()) {
+        put(b.record, sizeof(BatchRecord));
+        put(b.rays.data(), b.rays.size_bytes());
+    }
+    RayTraceHeader h = f.header();
+    h.version = 1;
+    h.flags &= ~RayTraceHeader::kVerdicts;
+    h.launchCount = 0;
+    h.bodyBytes = body.size();
+    Fnv64 sum;
+    sum.add(body.data(), body.size());
+    h.bodyChecksum = sum.value();
+    std::vector<char> out(sizeof h);
+    std::memcpy(out.data(), &h, sizeof h);
+    out.insert(out.end(), body.begin(), body.end());
+    return out;
+}
+
+TEST(RayTraceFile, Version1FilesAreReadAndReplayOnlyInTileMode) {
+    const fs::path v2 = scratch("v2.rays"), v1 = scratch("v1.rays");
+    writeSample(v2);
+    const RayTraceFile now = RayTraceFile::read(v2);
+    writeBytes(v1, asVersion1(now));
+    const RayTraceFile old = RayTraceFile::read(v1);
+    EXPECT_EQ(old.info().version, 1u);
+    EXPECT_EQ(old.info().launches, 0u);
+    EXPECT_FALSE(old.info().verdicts);
+    ASSERT_EQ(old.batches().size(), now.batches().size());
+    for (std::size_t b = 0; b < old.batches().size(); ++b) {
+        EXPECT_EQ(old.batches()[b].launch, nullptr);
+        EXPECT_TRUE(old.batches()[b].links.empty());
+        ASSERT_EQ(old.batches()[b].rays.size(), now.batches()[b].rays.size());
+        EXPECT_EQ(
+            std::memcmp(old.batches()[b].rays.data(), now.batches()[b].rays.data(), now.batches()[b].rays.size_bytes()),
+            0);
+    }
+    // On the model in launch mode it is refused, saying how to go on; in tile mode (and on Embree) it replays.
+    rtcore_sim::RtCoreConfig config;
+    const std::uint64_t fingerprint = old.info().sceneFingerprint;
+    rtcore_sim::RtCoreBackend launch(config);
+    try {
+        checkReplayable(old, fingerprint, &launch);
+        ADD_FAILURE() << "a version 1 file replayed in launch mode";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("gpu.launch=tile"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find(v1.string()), std::string::npos) << e.what();
+    }
+    config.gpu.launch = rtcore_sim::LaunchMode::Tile;
+    rtcore_sim::RtCoreBackend tile(config);
+    EXPECT_NO_THROW(checkReplayable(old, fingerprint, &tile));
+    EXPECT_NO_THROW(checkReplayable(old, fingerprint, nullptr));
+    EXPECT_NO_THROW(checkReplayable(now, fingerprint, &launch));
 }
 
 TEST(RayTraceFile, DamagedFilesAreInputErrorsNamingTheFile) {
@@ -190,7 +290,7 @@ TEST(RayTraceFile, DamagedFilesAreInputErrorsNamingTheFile) {
     EXPECT_NE(damaged("flipped.rays", flipped).find("checksum"), std::string::npos);
     std::vector<char> counts = bytes;
     counts[24] ^= 1;  // batchCount
-    EXPECT_NE(damaged("counts.rays", counts).find("corrupt header"), std::string::npos);
+    EXPECT_NE(damaged("counts.rays", counts).find("corrupt"), std::string::npos);
     EXPECT_NE(readError(scratch("missing.rays")).find("cannot open"), std::string::npos);
     // Random garbage of every length up to 300 bytes never crashes.
     std::mt19937 rng(11);
@@ -209,7 +309,11 @@ TEST(RayTraceFile, AnUnfinishedWriterLeavesNoFile) {
         const tracer::RayDesc ray;
         const bool active = true;
         const tracer::CommittedHit hit;
-        writer.append(tracer::TraceArgs{}, 1, &ray, &active, &hit, 1);
+        const std::uint32_t parent = RayLinkRecord::kNoParent;
+        BatchLaunch where;
+        where.launchThreads = 1;
+        where.parents = std::span(&parent, 1);
+        writer.append(tracer::TraceArgs{}, 1, &ray, &active, &hit, 1, where);
         EXPECT_TRUE(fs::exists(path.string() + ".tmp"));
     }
     EXPECT_FALSE(fs::exists(path));

@@ -197,6 +197,7 @@ const ParamTable<TransformUnitParams>& transformParamTable();
 struct ShaderParams {
     std::uint32_t anyHitLatency = 100;        // cycles per any-hit shader invocation
     std::uint32_t intersectionLatency = 100;  // cycles per intersection shader invocation
+    std::uint32_t nextTraceLatency = 100;     // launch mode: cycles from a warp's results to its next TraceRay
 };
 const ParamTable<ShaderParams>& shaderParamTable();
 
@@ -237,7 +238,14 @@ enum class RayOrder : std::uint8_t {
     Submission,       // as submitted
     DirectionOrigin,  // sorted by direction octant, origin Morton code, direction Morton code
 };
+// How the pipeline's trace calls reach the model (docs/rtcore-model.md, "Launches").
+enum class LaunchMode : std::uint8_t {
+    Tile,    // every trace call is one RtCore::run batch, simulated before the call returns
+    Launch,  // every dispatch is one launch: hits answered functionally, the launch simulated at its end
+};
 struct GpuParams {
+    LaunchMode launch = LaunchMode::Launch;            // how trace calls reach the model
+    std::uint32_t residentWarps = 32;                  // launch mode: warps of a launch resident per core at once
     std::uint32_t cores = 1;                           // RT cores
     WarpDispatch dispatch = WarpDispatch::RoundRobin;  // warp -> core rule
     RayOrder rayOrder = RayOrder::Submission;          // ray reordering before warp formation
@@ -318,5 +326,6 @@ std::string toString(BuildQuality quality);
 std::string toString(WarpDispatch dispatch);
 std::string toString(L2Mode mode);
 std::string toString(RayOrder order);
+std::string toString(LaunchMode mode);
 
 }  // namespace rtlab::rtcore_sim

@@ -62,6 +62,18 @@ public:
     // clock at the cycle reached).
     void run(std::span<const SimRay> rays, ProgrammableSide& side, std::span<SimRayResult> results);
 
+    // Simulates one launch (docs/rtcore-model.md, "Launches"): rays[i] was
+    // traced by thread threads[i] < threadCount; a thread's rays are in the
+    // order it traced them. Warps are threadCount / core.warpWidth runs of
+    // consecutive threads, dispatched to cores by gpu.dispatch, at most
+    // gpu.residentWarps resident per core; a warp submits its threads' k-th
+    // rays together, shader.nextTraceLatency cycles after its (k-1)-th rays'
+    // last result. Side callbacks receive the index into `rays`. Continues
+    // the clock like run(); gpu.launch is not read (the caller chose).
+    // InputError when gpu.rayOrder is not submission.
+    void runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads, std::uint32_t threadCount,
+                   ProgrammableSide& side, std::span<SimRayResult> results);
+
     // The stats tree, with "config" = the resolved configuration; derived
     // rates are computed here. Top level = all cores; "cores" = one tree per
     // core; "l2", "dram" = the shared memory.

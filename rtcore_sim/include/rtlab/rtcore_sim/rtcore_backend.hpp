@@ -11,10 +11,17 @@
 //               ... pipeline dispatches ...
 //               backend.statsJson()          // the stats tree of the frame
 //
-// One trace call is one RtCore::run batch (a 16x16 tile of dispatchCoherent,
-// or one ray of traceRay), submitted in warps. The back end is
-// order-dependent (a simulated clock), so the pipeline feeds it tiles in
-// order on one thread and results are identical for any thread count.
+// gpu.launch = launch (the default; docs/rtcore-model.md, "Launches"): the
+// trace calls of one launch (a pass of the renderer, or one dispatch) are
+// answered at once by the functional traversal (the model's own, so the hits
+// are the model's), their any-hit / intersection verdicts logged; at
+// endLaunch the timing model simulates the whole launch from that log
+// (RtCore::runLaunch), the verdicts replayed in order. gpu.launch = tile:
+// every trace call is one RtCore::run batch (a 16x16 tile of
+// dispatchCoherent, or one ray of traceRay), simulated before it returns.
+// The back end is order-dependent (a simulated clock), so the pipeline feeds
+// it tiles in order on one thread and results are identical for any thread
+// count.
 //
 // Verification (setVerify): every ray is traced a second time through
 // Embree (TraceEngine::trace) and the two committed hits are compared; any-hit
@@ -32,7 +39,9 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace rtlab::rtcore_sim {
@@ -52,6 +61,37 @@ struct HitMismatch {
     tracer::RayDesc ray;
     tracer::CommittedHit model;
     tracer::CommittedHit embree;
+};
+
+// A launch as the timing model simulates it (gpu.launch = launch): every
+// ray its threads traced, in trace order, with the verdicts of its
+// candidates. Verdict words per candidate: bit 0 commit, bit 1 end search,
+// bit 2 a shader ran, bit 3 procedural (then one more word: the committed
+// t's bits).
+struct LaunchLog {
+    static constexpr std::uint32_t kNoParent = ~0u;
+    static constexpr std::uint32_t kCommit = 1, kEndSearch = 2, kShaderRan = 4, kProcedural = 8;
+    std::uint32_t threads = 0;
+    std::vector<SimRay> rays;
+    std::vector<std::uint32_t> thread;        // per ray
+    std::vector<std::uint32_t> parent;        // per ray: its thread's previous ray, or kNoParent
+    std::vector<std::uint64_t> verdictEnd;    // per ray: end of its words (its start is the previous ray's end)
+    std::vector<std::uint32_t> verdicts;      // the words
+    std::vector<std::uint32_t> lastOfThread;  // per thread: its latest ray (building the log)
+    std::uint64_t verdictBegin(std::size_t ray) const { return ray == 0 ? 0 : verdictEnd[ray - 1]; }
+    void clear();
+};
+
+// Verdicts of one trace call from a recording (rtlab replay): per traced ray
+// of the call, in lane order, its number of words, and the words.
+struct RecordedVerdicts {
+    std::span<const std::uint32_t> counts;
+    std::span<const std::uint32_t> words;
+};
+
+// What one launch cost (the frame's stats tree's "launches").
+struct LaunchRecord {
+    std::uint64_t rays = 0, threads = 0, cycles = 0;
 };
 
 struct VerifyStats {
@@ -104,14 +144,40 @@ public:
     const ModelScene& model() const { return model_; }
     RtCore& core() { return *core_; }
 
+    // The next trace call's candidates take these verdicts instead of the
+    // shaders' (rtlab replay of a recording; both modes). The hits it
+    // returns then carry the model's t, ids and barycentrics; HitKind and
+    // record are 0 (no shader ran to say them).
+    void replayVerdicts(const RecordedVerdicts& verdicts) {
+        replay_ = verdicts;
+        replaying_ = true;
+    }
+    // For a recording: keep the verdicts of each trace call's traced rays
+    // (valid active lanes, in lane order) until the next call (both modes).
+    void keepCallVerdicts(bool on) { keepCallVerdicts_ = on; }
+    const RecordedVerdicts& callVerdicts() const { return callVerdicts_; }
+    bool launchMode() const { return config_.gpu.launch == LaunchMode::Launch; }
+    const std::vector<LaunchRecord>& launches() const { return launches_; }
+
     // tracer::TraversalBackend
     std::string_view name() const override { return "rtcore"; }
     bool orderDependent() const override { return true; }
     void trace(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                tracer::CommittedHit* out, tracer::TraceCounters& counters) override;
+    void beginLaunch(std::uint32_t threads) override;
+    void endLaunch() override;
+    void abortLaunch() override;
 
 private:
+    void traceFunctional(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
+                         void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
+                         tracer::CommittedHit* out, tracer::TraceCounters& counters);
+    void beginLaunchLocked(std::uint32_t threads);
+    void endLaunchLocked();
+    void abortLaunchLocked();
+    void recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active, std::size_t count,
+                       std::size_t first);
     void verifyBatch(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                      void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                      const tracer::CommittedHit* out);
@@ -127,6 +193,19 @@ private:
     VerifyStats verifyStats_;
     std::uint64_t traceCalls_ = 0;
     std::uint64_t invalidRays_ = 0;
+
+    LaunchLog launch_;
+    std::uint32_t launchDepth_ = 0;
+    std::size_t lastCallFirst_ = 0;
+    // Launch mode: (record in primary_, ray of the launch) filled when the launch is simulated.
+    std::vector<std::pair<std::size_t, std::size_t>> launchPrimary_;
+    std::vector<LaunchRecord> launches_;
+    RecordedVerdicts replay_;
+    bool replaying_ = false;
+    bool keepCallVerdicts_ = false;
+    std::vector<std::uint32_t> callCounts_, callWords_;
+    std::vector<std::vector<std::uint32_t>> tileVerdicts_;
+    RecordedVerdicts callVerdicts_;
 
     // Scratch reused across trace calls.
     std::vector<SimRay> simRays_;

@@ -1,12 +1,21 @@
 #pragma once
 // Ray-trace files (docs/ray-trace-format.md): every ray of one frame exactly
 // as the pipeline submitted it to the traversal back end, batch by batch,
-// with its committed hit. Version 1 layout, little-endian, every record
-// naturally aligned so a reader can map the file and use the records in place:
+// with its committed hit, its launch, thread and parent, and (recorded on the
+// RT-core model in launch mode) the verdicts of its candidates. Version 2
+// layout, little-endian, every record naturally aligned so a reader can map
+// the file and use the records in place:
 //
 //   RayTraceHeader (128 bytes)
-//   per batch: BatchRecord (32 bytes), then BatchRecord::rays RayRecords (64 bytes each),
-//              one per active lane of the call, in lane order (inactive lanes are not stored)
+//   per batch: BatchRecord (32 bytes), BatchLaunchRecord (16 bytes),
+//              BatchRecord::rays RayRecords (64 bytes each), one per active lane
+//              of the call, in lane order (inactive lanes are not stored),
+//              as many RayLinkRecords (8 bytes each),
+//              BatchLaunchRecord::verdictWords verdict words (4 bytes each),
+//              zero-padded to a multiple of 8 bytes
+//
+// Version 1 (before launches) had no BatchLaunchRecord, links or verdicts;
+// it is still read (RayTraceInfo::version), and replays in tile mode only.
 //
 // Writing goes to "<path>.tmp", renamed on finish(); reading checks the
 // magic, version, sizes, every batch tag and the body checksum, and throws
@@ -23,7 +32,8 @@
 namespace rtlab::study {
 
 inline constexpr char kRayTraceMagic[8] = {'R', 'T', 'L', 'A', 'B', 'R', 'A', 'Y'};
-inline constexpr std::uint32_t kRayTraceVersion = 1;
+inline constexpr std::uint32_t kRayTraceVersion = 2;
+inline constexpr std::uint32_t kRayTraceOldestVersion = 1;
 inline constexpr std::uint32_t kBatchTag = 0x48435442u;  // "BTCH"
 
 enum class RecordedBackend : std::uint32_t { Embree = 0, RtCore = 1 };
@@ -42,12 +52,13 @@ struct RayTraceHeader {
     std::uint32_t rayTypeCount;   // the shader table's ray-type stride
     std::uint32_t hitGroupCount;  // hit-group records in the shader table
     std::uint32_t backend;        // RecordedBackend that traced the rays
-    std::uint32_t flags;          // kAnyHitShaders
-    std::uint32_t reserved0;
+    std::uint32_t flags;          // kAnyHitShaders, kVerdicts
+    std::uint32_t launchCount;    // version 2: launches of the frame (version 1: 0)
     std::uint64_t instanceCount;
     std::uint64_t uniqueTriangles;
     std::uint8_t reserved[24];
     static constexpr std::uint32_t kAnyHitShaders = 1;  // some hit group had an any-hit shader
+    static constexpr std::uint32_t kVerdicts = 2;       // every batch carries its rays' candidate verdicts
 };
 static_assert(sizeof(RayTraceHeader) == 128);
 
@@ -64,6 +75,23 @@ struct BatchRecord {
     std::uint32_t missIndex;
 };
 static_assert(sizeof(BatchRecord) == 32);
+
+// Version 2: which launch a call belongs to (docs/rtcore-model.md, "Launches").
+struct BatchLaunchRecord {
+    std::uint32_t launch;         // index of the launch in the frame (launches in order)
+    std::uint32_t launchThreads;  // threads of that launch
+    std::uint32_t threadBase;     // lane i of the call is thread threadBase + i
+    std::uint32_t verdictWords;   // verdict words after the call's RayLinkRecords
+};
+static_assert(sizeof(BatchLaunchRecord) == 16);
+
+// Version 2, per ray record: its parent and its verdicts.
+struct RayLinkRecord {
+    std::uint32_t parent;    // index among its launch's recorded rays of its thread's previous ray; ~0 for none
+    std::uint32_t verdicts;  // its verdict words (rtcore_sim::LaunchLog encoding), in the batch's verdict block
+    static constexpr std::uint32_t kNoParent = ~0u;
+};
+static_assert(sizeof(RayLinkRecord) == 8);
 
 // One lane of a call: the ray as submitted and its committed hit.
 struct RayRecord {
@@ -113,6 +141,18 @@ struct RayTraceInfo {
     bool anyHitShaders = false;
     std::uint64_t instanceCount = 0;
     std::uint64_t uniqueTriangles = 0;
+    std::uint32_t version = kRayTraceVersion;  // as read
+    std::uint32_t launches = 0;                // version 2
+    bool verdicts = false;                     // every batch carries its verdicts (recorded on rtcore, launch mode)
+};
+
+// Where a trace call sits in its launch, and its rays' links and verdicts
+// (RayTraceWriter::append). parents/verdictCounts: one per active lane.
+struct BatchLaunch {
+    std::uint32_t launch = 0, launchThreads = 0, threadBase = 0;
+    std::span<const std::uint32_t> parents;
+    std::span<const std::uint32_t> verdictCounts;  // empty: no verdicts
+    std::span<const std::uint32_t> verdictWords;
 };
 
 // Streams batches to "<path>.tmp"; finish() writes the header and renames
@@ -125,7 +165,7 @@ public:
     RayTraceWriter& operator=(const RayTraceWriter&) = delete;
 
     void append(const tracer::TraceArgs& args, std::uint32_t depth, const tracer::RayDesc* rays, const bool* active,
-                const tracer::CommittedHit* hits, std::size_t count);
+                const tracer::CommittedHit* hits, std::size_t count, const BatchLaunch& launch);
     void finish(const RayTraceInfo& info);
     const std::filesystem::path& path() const { return path_; }
     std::uint64_t rays() const { return rays_; }
@@ -137,7 +177,9 @@ private:
     std::FILE* file_ = nullptr;
     Fnv64 checksum_;
     std::uint64_t batches_ = 0, lanes_ = 0, rays_ = 0, bodyBytes_ = 0;
+    std::uint32_t launches_ = 0;
     std::vector<RayRecord> scratch_;
+    std::vector<RayLinkRecord> links_;
 };
 
 // A whole ray-trace file in memory, validated. Batches are views into it.
@@ -148,7 +190,10 @@ public:
 
     struct Batch {
         const BatchRecord* record;
-        std::span<const RayRecord> rays;  // the active lanes
+        std::span<const RayRecord> rays;            // the active lanes
+        const BatchLaunchRecord* launch = nullptr;  // version 2
+        std::span<const RayLinkRecord> links;       // version 2: one per ray
+        std::span<const std::uint32_t> verdicts;    // version 2 with verdicts
         tracer::TraceArgs args() const;
     };
     const RayTraceHeader& header() const { return header_; }

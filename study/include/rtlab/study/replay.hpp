@@ -1,8 +1,9 @@
 #pragma once
 // `rtlab replay`: the recorded rays of a frame traced again, without shading
 // (no closest-hit, miss or any-hit shader runs), on Embree or on the RT-core
-// model, batch by batch as they were recorded, and every committed hit
-// compared with the recorded one. On the model, the same batches in the same
+// model, batch by batch as they were recorded (on the model in launch mode:
+// launch by launch, the recorded any-hit / intersection verdicts replayed),
+// and every committed hit compared with the recorded one. On the model, the same batches in the same
 // order give the render's cycle count and stats exactly (from the same model
 // state: replay the frames from frame 0 in order, as rtlab replay does).
 #include <rtlab/study/ray_trace_file.hpp>
@@ -33,10 +34,13 @@ struct ReplayResult {
     double milliseconds = 0.0;           // wall time of the tracing alone
 };
 
-// Throws InputError when the file cannot be replayed on this scene: its
-// fingerprint is not `sceneFingerprint`, or its rays ran any-hit shaders
-// (alpha-masked materials: replay runs no shader, so its hits would differ).
-void checkReplayable(const RayTraceFile& file, std::uint64_t sceneFingerprint);
+// Throws InputError when the file cannot be replayed on this scene and back
+// end (nullptr = Embree): its fingerprint is not `sceneFingerprint`; it is
+// a version 1 file (no launches) and the back end is the model in launch
+// mode; or its rays ran any-hit shaders (alpha-masked materials) and their
+// verdicts cannot be replayed (only a recording made on the model carries
+// them, and only the model replays them).
+void checkReplayable(const RayTraceFile& file, std::uint64_t sceneFingerprint, const tracer::TraversalBackend* backend);
 
 // Traces every batch of `file` on `backend` in recorded order (nullptr =
 // Embree through TraceEngine::trace8, batches spread over threads; the

@@ -21,6 +21,7 @@
 #include <rtlab/tracer/embree_backend.hpp>
 #include <rtlab/tracer/traversal_backend.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -34,10 +35,16 @@
 namespace rtlab::tracer {
 
 // Per-thread state of the ray-tracing call stack (recursion depth and the
-// counters of the tile being worked on).
+// counters of the tile being worked on). `thread` is the launch thread
+// (pixel) whose shader is running, for back ends that time launches
+// (TraversalBackend::beginLaunch): a dispatch numbers its pixels tile by
+// tile (16x16 tiles in row-major order, pixels row-major inside a tile), so
+// that a warp of 32 threads is two rows of a tile.
 struct TraceScope {
     std::uint32_t depth = 0;
     TraceCounters* counters = nullptr;
+    std::uint32_t threadBase = 0;  // the first thread of the tile being worked on
+    std::uint32_t thread = 0;      // the thread of lane 0 of the next trace call
 };
 TraceScope& currentTraceScope();
 
@@ -98,12 +105,22 @@ public:
 
     // Ray generation over a width x height grid: raygen(x, y) runs once per
     // pixel, in parallel over fixed 16x16 tiles; returns the summed counters.
+    // With a back end the dispatch is a launch (TraversalBackend::beginLaunch),
+    // or part of the one the caller opened.
     template <class RayGen>
     TraceCounters dispatchRays(int width, int height, RayGen&& raygen) const {
-        return forEachTile(width, height, [&](const Tile& tile) {
+        LaunchScope launch(backend_, std::uint64_t(std::max(width, 0)) * std::uint64_t(std::max(height, 0)));
+        const TraceCounters counters = forEachTile(width, height, [&](const Tile& tile) {
+            TraceScope& scope = currentTraceScope();
+            std::uint32_t thread = scope.threadBase;
             for (int y = tile.y0; y < tile.y1; ++y)
-                for (int x = tile.x0; x < tile.x1; ++x) raygen(x, y);
+                for (int x = tile.x0; x < tile.x1; ++x) {
+                    scope.thread = thread++;
+                    raygen(x, y);
+                }
         });
+        launch.end();
+        return counters;
     }
 
     // Coherent ray generation through 8-wide packets: makeRay(x, y, payload)
@@ -120,7 +137,12 @@ public:
                                    RayCoherence coherence = RayCoherence::Coherent) const {
         if (args.missIndex >= desc_.missShaders.size())
             throw PipelineError("miss shader index " + std::to_string(args.missIndex) + " out of range");
-        if (backend_) return dispatchBatches(width, height, args, makeRay, done);
+        if (backend_) {
+            LaunchScope launch(backend_, std::uint64_t(std::max(width, 0)) * std::uint64_t(std::max(height, 0)));
+            const TraceCounters counters = dispatchBatches(width, height, args, makeRay, done);
+            launch.end();
+            return counters;
+        }
         return forEachTile(width, height, [&](const Tile& tile) {
             TraceScope& scope = currentTraceScope();
             TraceCounters& counters = *scope.counters;
@@ -195,12 +217,14 @@ private:
                     traced += active[i];
                 }
             if (traced == 0) return;
+            scope.thread = scope.threadBase;
             backend_->trace(engine_, args, rays.data(), payloadPtrs.data(), active.get(), n, 1, hits.data(), counters);
             const DepthGuard guard(scope, 1);
             i = 0;
             for (int y = tile.y0; y < tile.y1; ++y)
                 for (int x = tile.x0; x < tile.x1; ++x, ++i) {
                     if (!active[i]) continue;
+                    scope.thread = scope.threadBase + static_cast<std::uint32_t>(i);
                     finish(args, rays[i], hits[i], payloads[i], 1, counters);
                     done(x, y, payloads[i]);
                 }
@@ -235,10 +259,14 @@ private:
     TraceCounters forEachTile(int width, int height, TileFn&& fn) const {
         const std::vector<Tile> tiles = makeTiles(width, height, 16);
         std::vector<TraceCounters> perTile(tiles.size());
+        std::vector<std::uint32_t> threadBase(tiles.size(), 0);  // tile order numbers the launch's threads
+        for (std::size_t i = 1; i < tiles.size(); ++i)
+            threadBase[i] = threadBase[i - 1] + static_cast<std::uint32_t>((tiles[i - 1].x1 - tiles[i - 1].x0) *
+                                                                           (tiles[i - 1].y1 - tiles[i - 1].y0));
         const auto runTile = [&](std::size_t i) {
             TraceScope& scope = currentTraceScope();
             const TraceScope saved = scope;
-            scope = TraceScope{0, &perTile[i]};
+            scope = TraceScope{0, &perTile[i], threadBase[i], threadBase[i]};
             try {
                 fn(tiles[i]);
             } catch (...) {

@@ -142,6 +142,41 @@ public:
     // the pipeline then runs dispatches on the calling thread in tile order,
     // so that results are identical for any thread count.
     virtual bool orderDependent() const = 0;
+
+    // Launches (docs/rtcore-model.md, "Launches"): the trace calls between
+    // beginLaunch and endLaunch are one launch of `threads` threads, as one
+    // DispatchRays on a GPU; lane i of a call belongs to thread
+    // currentTraceScope().thread + i (the pipeline sets it), and a thread's
+    // rays depend on each other in the order it traces them. Calls nest: an
+    // inner begin/end pair joins the outer launch. abortLaunch drops the
+    // launch (a shader threw). Back ends without a clock ignore them.
+    virtual void beginLaunch(std::uint32_t threads) { (void)threads; }
+    virtual void endLaunch() {}
+    virtual void abortLaunch() {}
+};
+
+// A launch for the lifetime of the scope: end() ends it (and may throw what
+// the back end's simulation throws); leaving the scope without end() (an
+// exception) aborts it. No back end: nothing.
+class LaunchScope {
+public:
+    LaunchScope(TraversalBackend* backend, std::uint64_t threads) : backend_(backend) {
+        if (threads > UINT32_MAX) throw PipelineError("a launch has at most 2^32 - 1 threads");
+        if (backend_) backend_->beginLaunch(static_cast<std::uint32_t>(threads));
+    }
+    ~LaunchScope() {
+        if (backend_) backend_->abortLaunch();
+    }
+    LaunchScope(const LaunchScope&) = delete;
+    LaunchScope& operator=(const LaunchScope&) = delete;
+    void end() {
+        TraversalBackend* b = backend_;
+        backend_ = nullptr;
+        if (b) b->endLaunch();
+    }
+
+private:
+    TraversalBackend* backend_;
 };
 
 }  // namespace rtlab::tracer
