@@ -53,7 +53,8 @@ def thousands(v):
 
 
 # Block: README's architecture study in two commands.
-ARCH_DEFAULT = ["render", "--scene", "builtin:showcase", "--backend", "rtcore", "--denoise", "none"]
+ARCH_DEFAULT = ["render", "--scene", "builtin:showcase", "--backend", "rtcore", "--rtcore-config", "single-core",
+                "--denoise", "none"]
 ARCH_SMALL = ARCH_DEFAULT + ["--rtcore-set", "cache.sizeBytes=4096", "--rtcore-set", "traversal.units=1"]
 
 
@@ -193,7 +194,7 @@ def work_per_ray(rtlab, tmp):
 
 def example_args(scene):
     return ["render", "--scene", scene, "--width", "320", "--height", "240", "--effects", "gbuffer",
-            "--backend", "rtcore", "--denoise", "none"]
+            "--backend", "rtcore", "--rtcore-config", "single-core", "--denoise", "none"]
 
 
 # name -> (file, generator, the commands it runs, as the docs quote them)

@@ -1,6 +1,8 @@
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/scheduler.hpp>
 
+#include <algorithm>
+
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -428,6 +430,16 @@ RtCoreConfig RtCoreConfig::loadFile(const std::filesystem::path& path) {
 void RtCoreConfig::applyJson(const nlohmann::json& json, const std::string& where) {
     if (!json.is_object()) throw InputError(where, "RT-core configuration must be a JSON object of sections");
     for (const auto& [section, fields] : json.items()) {
+        // A file's documentation: its description and each number's source.
+        if (section == "description") {
+            if (!fields.is_string()) fail(where, section, "must be a string");
+            continue;
+        }
+        if (section == "sources") {
+            if (!fields.is_object())
+                fail(where, section, "must be an object \"section.field\": \"where the value comes from\"");
+            continue;
+        }
         bool sectionExists = false;
         forEachSection([&](const char* name, auto, const auto&) { sectionExists = sectionExists || section == name; });
         if (!sectionExists) fail(where, section, "unknown section (known: " + knownSections() + ")");
@@ -453,6 +465,46 @@ void RtCoreConfig::set(const std::string& assignment, const std::string& where) 
 
     if (!setField(*this, section, field, value, where))
         fail(where, section + "." + field, "unknown section \"" + section + "\" (known: " + knownSections() + ")");
+    const std::string key = section + "." + field;
+    if (std::find(explicitKeys_.begin(), explicitKeys_.end(), key) == explicitKeys_.end()) explicitKeys_.push_back(key);
+}
+
+std::string RtCoreConfig::inertReason(const std::string& key) const {
+    const std::string section = key.substr(0, key.find('.'));
+    const bool builtinWithoutTreelets = scheduler.policy == "fifo" || scheduler.policy == "oldestFirst";
+    if (l2.mode == L2Mode::Ideal && ((section == "l2" && key != "l2.mode") || section == "dram"))
+        return "l2.mode is ideal (every access hits at the cost of the core's port alone; set l2.mode=cache to "
+               "model the L2 and DRAM)";
+    if (gpu.launch == LaunchMode::Tile && (key == "gpu.residentWarps" || key == "shader.nextTraceLatency"))
+        return "gpu.launch is tile (every trace call is its own batch; launches are gpu.launch=launch)";
+    if (gpu.cores == 1 && key == "gpu.dispatch") return "gpu.cores is 1 (every warp goes to the one core)";
+    if (key == "scheduler.treeletBytes" && builtinWithoutTreelets)
+        return "scheduler.policy is " + scheduler.policy + " (only treelet and treeletPrefetch use treelets)";
+    if (key == "scheduler.prefetchBytes" && (builtinWithoutTreelets || scheduler.policy == "treelet"))
+        return "scheduler.policy is " + scheduler.policy + " (only treeletPrefetch prefetches)";
+    return "";
+}
+
+void RtCoreConfig::checkExplicitKeys(const std::string& where) const {
+    for (const std::string& key : explicitKeys_) {
+        const std::string reason = inertReason(key);
+        if (!reason.empty()) fail(where, key, "has no effect here: " + reason);
+    }
+}
+
+RtCoreConfig RtCoreConfig::load(const std::string& nameOrPath) {
+    const std::string name = nameOrPath.empty() ? std::string(kDefaultRtCorePreset) : nameOrPath;
+    if (const char* text = rtcorePresetText(name)) {
+        const nlohmann::json j = nlohmann::json::parse(text);  // built in and tested: valid
+        return fromJson(j, "rtcore preset " + name);
+    }
+    const std::filesystem::path path(nameOrPath);
+    if (!std::filesystem::exists(path) && path.extension() != ".json" && nameOrPath.find('/') == std::string::npos) {
+        std::string names;
+        for (const std::string& n : rtcorePresetNames()) names += (names.empty() ? "" : ", ") + n;
+        throw InputError(nameOrPath, "neither an RT-core preset (" + names + ") nor a configuration file");
+    }
+    return loadFile(path);
 }
 
 nlohmann::json RtCoreConfig::toJson() const {

@@ -42,7 +42,8 @@ std::vector<FrameOptionField> makeFields() {
         field("--backend", "backend", &F::backend, kRenderLike | kUseReplay, "Traversal back end")
             .oneOf({"embree", "rtcore"}),
         field("--rtcore-config", "rtcoreConfig", &F::rtcoreConfig, kUseRender | kUseReplay | kUseStudy,
-              "RT-core model parameters (JSON; docs/rtcore-model.md)"),
+              "RT-core model: a preset (single-core, rtx2060-like, h100-like; default rtx2060-like) or a JSON "
+              "file (docs/rtcore-model.md, \"Presets\")"),
         field("--rtcore-set", "rtcoreSet", &F::rtcoreSet, kUseRender | kUseReplay,
               "Override one RT-core parameter: section.field=value (repeatable)"),
         field("--verify", "verify", &F::verify, kUseRender | kUseStatsEcho,
@@ -178,10 +179,10 @@ std::vector<std::string> FrameOptions::denoiseList() const {
 }
 
 rtcore_sim::RtCoreConfig FrameOptions::rtcoreConfiguration() const {
-    rtcore_sim::RtCoreConfig config =
-        rtcoreConfig.empty() ? rtcore_sim::RtCoreConfig{} : rtcore_sim::RtCoreConfig::loadFile(rtcoreConfig);
+    rtcore_sim::RtCoreConfig config = rtcore_sim::RtCoreConfig::load(rtcoreConfig);
     for (const std::string& assignment : rtcoreSet) config.set(assignment);
     config.validate(rtcoreConfig.empty() ? "--rtcore-set" : rtcoreConfig);
+    config.checkExplicitKeys("--rtcore-set");
     return config;
 }
 

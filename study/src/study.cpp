@@ -321,12 +321,16 @@ json overrideValue(const Point& point, const std::string& key) {
 }
 
 rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, const std::string& where) {
-    rtcore_sim::RtCoreConfig config = study.render.rtcoreConfig.empty()
-                                          ? rtcore_sim::RtCoreConfig{}
-                                          : rtcore_sim::RtCoreConfig::loadFile(study.render.rtcoreConfig);
+    rtcore_sim::RtCoreConfig config;
+    try {
+        config = rtcore_sim::RtCoreConfig::load(study.render.rtcoreConfig);
+    } catch (const InputError& e) {
+        throw InputError(where, std::string("render.rtcoreConfig: ") + e.what());
+    }
     for (const Override& o : study.base) config.set(o.assignment(), where + ": base");
     if (!point) {
         config.validate(where + ": base");
+        config.checkExplicitKeys(where + ": base");
         return config;
     }
     std::string label = "point " + point->id + " (" + point->workload.label();
@@ -334,6 +338,7 @@ rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, c
     label += ")";
     for (const Override& o : point->overrides) config.set(o.assignment(), where + ": " + label);
     config.validate(where + ": " + label);
+    config.checkExplicitKeys(where + ": " + label);  // refused before anything runs, naming the point
     return config;
 }
 

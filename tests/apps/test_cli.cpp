@@ -92,6 +92,14 @@ TEST(Cli, BadInputExitsTwoWithOneLineAndNoOutputs) {
         "render --scene builtin:cornell --backend rtcore --rtcore-set bvh.width=5 --out " + out.string(),
         "render --scene builtin:cornell --backend rtcore --rtcore-set nope.x=1 --out " + out.string(),
         "render --scene builtin:cornell --backend rtcore --rtcore-config /no/such/rtcore.json --out " + out.string(),
+        "render --scene builtin:cornell --backend rtcore --rtcore-config no-such-preset --out " + out.string(),
+        // a parameter set explicitly that has no effect (l2 ideal in the single-core preset; tile mode)
+        "render --scene builtin:cornell --backend rtcore --rtcore-config single-core --rtcore-set l2.sizeBytes=65536 "
+        "--out " +
+            out.string(),
+        "render --scene builtin:cornell --backend rtcore --rtcore-set gpu.launch=tile --rtcore-set "
+        "gpu.residentWarps=4 --out " +
+            out.string(),
         // cross-field rule: the input queue must hold a whole warp
         "render --scene builtin:cornell --backend rtcore --rtcore-set core.inputQueueRays=8 --out " + out.string(),
         "render --scene /no/such/file.gltf --backend rtcore --verify --out " + out.string(),

@@ -26,14 +26,15 @@ using nlohmann::json;
 
 namespace {
 
-// The minimal study of issue 15, as written there.
+// The minimal study of issue 15, as written there, on the single-core preset
+// (the default then; a point's node cache is the only one on the GPU).
 const char* kIssueStudy = R"({"workloads": ["builtin:cornell"],
- "render": {"width": 64, "height": 64, "frames": 1, "effects": "gbuffer", "backend": "rtcore"},
+ "render": {"width": 64, "height": 64, "frames": 1, "effects": "gbuffer", "backend": "rtcore", "rtcoreConfig": "single-core"},
  "grid": {"cache.sizeBytes": [4096, 32768], "traversal.units": [1, 2]}})";
 
 // A small study: 2 workloads x 3 cache sizes = 6 points, 32x32 gbuffer.
 const char* kSmallStudy = R"({"workloads": ["builtin:cornell", "builtin:terrain?triangles=2000"],
- "render": {"width": 32, "height": 32, "effects": "gbuffer"},
+ "render": {"width": 32, "height": 32, "effects": "gbuffer", "rtcoreConfig": "single-core"},
  "grid": {"cache.sizeBytes": [2048, 8192, 32768]}})";
 
 fs::path writeStudy(const std::string& name, const std::string& text) {
@@ -296,6 +297,11 @@ TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
         {R"({"workloads": ["builtin:cornell"], "render": {"backend": "embree"}, "grid": {"cache.ways": [2]}})",
          "render.backend"},
         {R"({"workloads": ["builtin:cornell"], "list": [{"scheduler.policy": "nope"}]})", "scheduler.policy"},
+        // A point whose override has no effect is refused before anything runs, naming the point.
+        {R"({"workloads": ["builtin:cornell"], "render": {"rtcoreConfig": "single-core"},
+             "list": [{"cache.sizeBytes": 8192}, {"l2.sizeBytes": 65536}]})",
+         "point p0001 (builtin:cornell, l2.sizeBytes=65536): l2.sizeBytes: has no effect here: l2.mode is ideal"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"rtcoreConfig": "no-such-preset"}})", "no-such-preset"},
         {"{not json", "not valid JSON"},
     };
     for (std::size_t i = 0; i < cases.size(); ++i) {
@@ -380,7 +386,7 @@ TEST(Sweep, RecordedRaysAreReplayedAtEveryPoint) {
     ASSERT_EQ(record.exitCode, 0) << record.out;
     const fs::path study = writeStudy(
         "rays", R"({"workloads": [{"scene": "builtin:cornell", "rays": ")" + (dir / "rays").string() + R"("}],
-      "render": {"backend": "rtcore"},
+      "render": {"backend": "rtcore", "rtcoreConfig": "single-core"},
       "grid": {"cache.sizeBytes": [1024, 32768]}})");
     const fs::path out = dir / "sweep";
     const CliRun sweep = runCli("sweep " + study.string() + " --out " + out.string());
@@ -389,7 +395,8 @@ TEST(Sweep, RecordedRaysAreReplayedAtEveryPoint) {
     ASSERT_EQ(rs.size(), 2u);
     const CliRun replay =
         runCli("replay --scene builtin:cornell --rays " + (dir / "rays").string() +
-               " --backend rtcore --rtcore-set cache.sizeBytes=1024 --out " + (dir / "replay").string());
+               " --backend rtcore --rtcore-config single-core --rtcore-set cache.sizeBytes=1024 --out " +
+               (dir / "replay").string());
     ASSERT_EQ(replay.exitCode, 0) << replay.out;
     std::ifstream in(dir / "replay" / "stats.json");
     const json replayed = json::parse(in);

@@ -4,6 +4,8 @@
 #include <rtlab/rtcore_sim/config.hpp>
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
 #include "temp_dir.hpp"
 
 #include <filesystem>
@@ -187,4 +189,65 @@ TEST(RtCoreConfig, EveryTimingSectionHasDescribedDefaultsAndChecksRanges) {
     EXPECT_NE(queue.find("core.inputQueueRays"), std::string::npos) << queue;
     config.set("core.inputQueueRays=64");
     EXPECT_EQ(inputErrorOf([&] { config.validate("cfg.json"); }), "");
+}
+
+TEST(RtCoreConfig, ExplicitlySetParametersWithoutEffectAreRefused) {
+    // l2.* and dram.* do nothing with the ideal L2 (the single-core defaults).
+    RtCoreConfig config;
+    config.set("gpu.cores=8");
+    config.set("l2.sizeBytes=65536");
+    config.set("dram.bytesPerCycle=8");
+    try {
+        config.checkExplicitKeys("--rtcore-set");
+        ADD_FAILURE() << "l2.sizeBytes accepted with l2.mode ideal";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("l2.sizeBytes"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("l2.mode is ideal"), std::string::npos) << e.what();
+    }
+    config.set("l2.mode=cache");
+    EXPECT_NO_THROW(config.checkExplicitKeys("--rtcore-set"));
+    // Launch parameters in tile mode; the dispatch rule on one core; treelet sizes of fifo.
+    for (const auto& [setting, inert] : std::vector<std::pair<std::string, std::string>>{
+             {"gpu.launch=tile", "gpu.residentWarps=4"},
+             {"gpu.launch=tile", "shader.nextTraceLatency=10"},
+             {"gpu.cores=1", "gpu.dispatch=contiguous"},
+             {"scheduler.policy=fifo", "scheduler.treeletBytes=8192"},
+             {"scheduler.policy=treelet", "scheduler.prefetchBytes=512"}}) {
+        RtCoreConfig c;
+        c.set(setting);
+        c.set(inert);
+        EXPECT_THROW(c.checkExplicitKeys("x"), InputError) << setting << " " << inert;
+    }
+    // Inherited values are never checked: a preset's or file's l2 fields with l2 ideal are fine.
+    const RtCoreConfig file = RtCoreConfig::fromJson(nlohmann::json::parse(R"({"l2": {"sizeBytes": 65536}})"), "f");
+    EXPECT_TRUE(file.explicitKeys().empty());
+    EXPECT_NO_THROW(file.checkExplicitKeys("f"));
+}
+
+TEST(RtCoreConfig, PresetsLoadByNameValidateAndDocumentEveryNumber) {
+    const std::vector<std::string> names = rtcorePresetNames();
+    for (const char* expected : {"single-core", "rtx2060-like", "h100-like"})
+        EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
+    EXPECT_EQ(RtCoreConfig::load("").toJson(), RtCoreConfig::load(kDefaultRtCorePreset).toJson());
+    EXPECT_EQ(RtCoreConfig::load("single-core").toJson(), RtCoreConfig{}.toJson());  // the hand-computed tests' model
+    for (const std::string& name : names) {
+        SCOPED_TRACE(name);
+        const RtCoreConfig c = RtCoreConfig::load(name);
+        EXPECT_NO_THROW(c.validate(name));
+        const nlohmann::json j = nlohmann::json::parse(rtcorePresetText(name));
+        ASSERT_TRUE(j.contains("description"));
+        ASSERT_TRUE(j.contains("sources"));
+        // Every number the preset sets names its source.
+        for (const auto& [section, fields] : j.items()) {
+            if (section == "description" || section == "sources") continue;
+            for (const auto& [field, value] : fields.items())
+                EXPECT_TRUE(j["sources"].contains(section + "." + field) || j["sources"].contains(section + ".*"))
+                    << section << "." << field << " has no source";
+        }
+    }
+    const RtCoreConfig rtx = RtCoreConfig::load("rtx2060-like");
+    EXPECT_EQ(rtx.gpu.cores, 30u);
+    EXPECT_EQ(rtx.l2.mode, L2Mode::Cache);
+    EXPECT_EQ(rtx.gpu.launch, LaunchMode::Launch);
+    EXPECT_THROW(RtCoreConfig::load("no-such-preset"), InputError);
 }

@@ -116,7 +116,7 @@ TEST(FrameOptions, ValidateChecksRangesAndRtCoreOnlyOptions) {
     o.backend = "rtcore";
     EXPECT_NO_THROW(o.validate());
     EXPECT_EQ(o.rtcoreConfiguration().toJson(), [] {
-        rtcore_sim::RtCoreConfig c;
+        rtcore_sim::RtCoreConfig c = rtcore_sim::RtCoreConfig::load(rtcore_sim::kDefaultRtCorePreset);
         c.set("gpu.cores=2");
         return c.toJson();
     }());

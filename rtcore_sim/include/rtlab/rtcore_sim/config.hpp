@@ -297,16 +297,33 @@ struct RtCoreConfig {
     // section line in config.cpp (forEachSection).
 
     // A JSON object {"section": {"field": value, ...}, ...}; absent fields
-    // keep their defaults. `where` names the source in error messages.
+    // keep their defaults. Two keys document a file and are not sections:
+    // "description" (a string) and "sources" (an object: "section.field" ->
+    // where its value comes from). `where` names the source in error messages.
     static RtCoreConfig fromJson(const nlohmann::json& json, const std::string& where);
     // Reads and parses a JSON file (InputError names the file).
     static RtCoreConfig loadFile(const std::filesystem::path& path);
+    // A preset by name (rtcorePresetNames()), or else a JSON file; "" is the
+    // default preset (kDefaultRtCorePreset). What --rtcore-config and a
+    // study's render.rtcoreConfig take.
+    static RtCoreConfig load(const std::string& nameOrPath);
 
     // Overlays the fields present in `json` onto this configuration.
     void applyJson(const nlohmann::json& json, const std::string& where);
     // One override "section.field=value"; value is JSON (8, 1.5, true) or a
     // bare word for choices (bvh.buildQuality=high).
+    // The key is remembered as set explicitly (checkExplicitKeys).
     void set(const std::string& assignment, const std::string& where = "--rtcore-set");
+
+    // Keys given by set() (the command line's --rtcore-set, a study's
+    // overrides), not those inherited from a preset or file.
+    const std::vector<std::string>& explicitKeys() const { return explicitKeys_; }
+    // InputError naming the first explicitly set key that has no effect in
+    // this configuration, and what makes it inert (e.g. l2.sizeBytes while
+    // l2.mode is ideal). Nothing set is silently ignored.
+    void checkExplicitKeys(const std::string& where) const;
+    // Why `key` ("section.field") has no effect in this configuration; "" when it may have one.
+    std::string inertReason(const std::string& key) const;
 
     // Rules across fields (checked when an RtCore is built, and by the CLI
     // once all overrides are applied): core.inputQueueRays >= core.warpWidth,
@@ -320,7 +337,18 @@ struct RtCoreConfig {
     nlohmann::json toJson() const;
     // Every parameter: description, default, range or allowed values.
     static nlohmann::json describe();
+
+private:
+    std::vector<std::string> explicitKeys_;
 };
+
+// Named presets (rtcore_sim/presets/NAME.json, built into the library and
+// installed to share/rtlab/rtcore-presets): each number's source is in the
+// file's "sources".
+inline constexpr const char* kDefaultRtCorePreset = "rtx2060-like";
+std::vector<std::string> rtcorePresetNames();
+// The preset's JSON text; nullptr when there is no preset of that name.
+const char* rtcorePresetText(const std::string& name);
 
 std::string toString(BuildQuality quality);
 std::string toString(WarpDispatch dispatch);
