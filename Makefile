@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench converge workloads study doc-figures test-asan clean
+.PHONY: deps configure build demo test bench converge workloads study gpu-study doc-figures test-asan clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -52,6 +52,11 @@ study: build
 # `make test` checks them).
 doc-figures: build
 	@python3 scripts/check_doc_figures.py build/release/apps/rtlab --write
+
+# The GPU study (docs/studies/gpu-study.md): three study files through rtlab
+# sweep, their reports, and the page's tables rewritten (a few minutes).
+gpu-study: build
+	@python3 scripts/gpu_study.py build/release/apps/rtlab --jobs 2
 
 # The sanitizer configuration (ASan + UBSan) over the whole suite.
 test-asan: deps

@@ -20,10 +20,18 @@
 //                         (rtlab::ThreadLimit). CPU time is the process's (all
 //                         threads); BM_EmbreeIntersect1Scene: Embree on the
 //                         terrain's rays
+//   BM_RtCoreLaunch30     launch level (issue 31): the rtx2060-like preset (30
+//                         cores, modelled L2 and DRAM) simulating one launch of
+//                         the terrain's primary rays, each pixel a thread that
+//                         then traces its bounce (RtCore::runLaunch, opaque
+//                         verdicts); argument: host threads (1, 2).
+//                         BM_EmbreeIntersect1Launch: Embree on the same rays
 // All on one thread except BM_RtCoreGpu8/*/*/2; perf/summarize.py turns rays_per_s into
 // rtcore_speed_vs_embree_{primary,bounce}[_native] (issue goal: >= 0.125),
 // rtcore_speed_gpu8_vs_embree_{showcase,terrain1m}_{primary,bounce} (one host thread, issue 14 goal: >= 0.1)
-// and rtcore_speed_gpu8_2t_vs_1t_* (issue 14 goal: >= 1.6).
+// and rtcore_speed_gpu8_2t_vs_1t_* (issue 14 goal: >= 1.6),
+// rtcore_speed_launch30_vs_embree_terrain1m (issue 31 goal: >= 0.1) and
+// rtcore_speed_launch30_2t_vs_1t_terrain1m (issue 31 goal: >= 1.6).
 #include "bench_scenes.hpp"
 
 #include <rtlab/core/parallel.hpp>
@@ -50,6 +58,8 @@ struct Workload {
     RtCoreConfig config;
     std::unique_ptr<ModelScene> model;
     std::vector<SimRay> primary, bounce;
+    std::vector<SimRay> launch;               // primary then bounce rays, ...
+    std::vector<std::uint32_t> launchThread;  // ... each on its pixel's thread
 
     Workload(const std::string& source, bool withNative) : scene(source) {
         if (withNative) {
@@ -74,6 +84,15 @@ struct Workload {
             hits[i] = traceClosestHit(*model, primary[i].ray, c);
         }
         bounce = diffuseBounceRays(scene.snapshot, primary, hits);
+        // One launch: pixel i's primary ray, then (hits only, in order) its bounce.
+        launch = primary;
+        for (std::uint32_t i = 0; i < primary.size(); ++i) launchThread.push_back(i);
+        std::size_t next = 0;
+        for (std::uint32_t i = 0; i < primary.size() && next < bounce.size(); ++i)
+            if (hits[i].hit && !hits[i].procedural) {
+                launch.push_back(bounce[next++]);
+                launchThread.push_back(i);
+            }
     }
     const std::vector<SimRay>& rays(std::int64_t which) const { return which == 0 ? primary : bounce; }
 };
@@ -195,6 +214,31 @@ void BM_RtCoreGpu8(benchmark::State& state) {
     state.counters["dramUtilization"] = stats["dram"]["utilization"].get<double>();
 }
 
+// Launch level: the terrain's primary and bounce rays as one launch on the
+// rtx2060-like preset, cold GPU per iteration; host threads range(0).
+void BM_RtCoreLaunch30(benchmark::State& state) {
+    const Workload& w = workload(1);
+    const int threads = static_cast<int>(state.range(0));
+    const ThreadLimit limit(threads);
+    const RtCoreConfig config = RtCoreConfig::load("rtx2060-like");
+    state.SetLabel("terrain1M launch, rtx2060-like, " + std::to_string(threads) + "t");
+    RtCore gpu(config, *w.model);
+    std::vector<SimRayResult> results(w.launch.size());
+    OpaqueSide side;
+    for (auto _ : state) {
+        gpu.reset();
+        gpu.runLaunch(w.launch, w.launchThread, static_cast<std::uint32_t>(w.primary.size()), side, results);
+        benchmark::DoNotOptimize(results.data());
+    }
+    setRate(state, w.launch.size());
+    state.counters["cyclesPerRay"] = static_cast<double>(gpu.cycle()) / static_cast<double>(w.launch.size());
+}
+
+void BM_EmbreeIntersect1Launch(benchmark::State& state) {
+    const Workload& w = workload(1);
+    embreeLoop(state, w.scene.accel->tlas(), w.launch);
+}
+
 void embreeLoop(benchmark::State& state, RTCScene tlas, const std::vector<SimRay>& rays) {
     for (auto _ : state) {
         std::uint64_t hits = 0;
@@ -244,4 +288,12 @@ BENCHMARK(BM_EmbreeIntersect1Scene)
     ->MinTime(1.0)
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RtCoreLaunch30)
+    ->Arg(1)
+    ->Arg(2)
+    ->MinTime(1.0)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EmbreeIntersect1Launch)->MinTime(1.0)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -10,8 +10,6 @@ ran=0
 for src in perf/*.cpp; do
   name=$(basename "$src" .cpp)
   exe="$build/perf/$name"
-  # Not a benchmark: the GPU study driver (docs/rtcore-model.md, "GPU study").
-  [ "$name" = rtcore_gpu_study ] && continue
   [ -x "$exe" ] || { echo "run-benchmarks: $exe not built" >&2; exit 1; }
   echo "== $name"
   extra=()

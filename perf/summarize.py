@@ -92,6 +92,9 @@ summary = {
     # Process CPU time over wall time of the 2-thread runs (2.0 = both threads busy throughout).
     **{f"rtcore_gpu8_2t_cpu_vs_wall_{scene}_{rays}": cpu_over_wall.get(gpu8(w, r, 2))
        for w, scene in ((0, "showcase"), (1, "terrain1m")) for r, rays in ((0, "primary"), (1, "bounce"))},
+    # Launch level (issue 31): 30 cores (rtx2060-like), one launch of terrain 1M primary + bounce rays.
+    "rtcore_speed_launch30_vs_embree_terrain1m": ratio("BM_RtCoreLaunch30/1/min_time:1.000/process_time/real_time", "BM_EmbreeIntersect1Launch/min_time:1.000/real_time", rates),
+    "rtcore_speed_launch30_2t_vs_1t_terrain1m": ratio("BM_RtCoreLaunch30/2/min_time:1.000/process_time/real_time", "BM_RtCoreLaunch30/1/min_time:1.000/process_time/real_time", rates),
     "rtcore_functional_vs_embree_primary": ratio("BM_RtCoreFunctional/0/min_time:1.000/real_time", "BM_EmbreeIntersect1/0/1/min_time:1.000/real_time", rates),
     "rtcore_functional_vs_embree_bounce": ratio("BM_RtCoreFunctional/1/min_time:1.000/real_time", "BM_EmbreeIntersect1/1/1/min_time:1.000/real_time", rates),
 }

@@ -263,7 +263,12 @@ int runRender(const session::FrameOptions& o) {
         if (recorder) fj["recordedRays"] = {{"file", raysFile.string()}, {"rays", recorder->recordedRays()}};
         fj["denoised"] = denoised;
         addShaderJson(fj, out.counters);
-        if (s.rtcore()) fj["rtcore"] = modelJson(s, heatmap);
+        if (s.rtcore()) {
+            fj["rtcore"] = modelJson(s, heatmap);
+            // Which pass each of rtcore.backend.launches is (a replay has launches, not passes).
+            fj["launchPasses"] = nlohmann::json::array();
+            for (const rtcore_sim::LaunchRecord& l : s.rtcore()->launches()) fj["launchPasses"].push_back(l.label);
+        }
         addMemoryJson(fj, s);
         fj["timing"] = {{"accelBuildMs", frame.accel.buildMs}, {"renderMs", renderMs}, {"denoiseMs", denoiseMs}};
         for (std::size_t p = 0; p < shaders::kPassCount; ++p)

@@ -57,6 +57,28 @@ nlohmann::json RtCore::statsJson() const { return impl_->statsJson(); }
 void RtCore::resetStats() { impl_->resetStats(); }
 void RtCore::reset() { impl_->reset(); }
 std::uint64_t RtCore::cycle() const { return impl_->now; }
+
+std::vector<ResourceUse> RtCore::resourceUse() const {
+    const RtCoreConfig& c = impl_->config;
+    std::vector<ResourceUse> out;
+    for (std::uint32_t k = 0; k < impl_->cores.size(); ++k) {
+        const Core& core = *impl_->cores[k];
+        const Histogram slots = core.slotOcc.histogram(impl_->now);
+        out.push_back({"traversalUnits", k, double(core.boxUnits.busyCycles), double(c.traversal.units)});
+        out.push_back({"triangleUnits", k, double(core.triangleUnits.busyCycles), double(c.triangle.units)});
+        out.push_back({"transformUnits", k, double(core.transformUnits.busyCycles), double(c.transform.units)});
+        out.push_back({"scheduler", k, double(core.stats.issued), double(c.scheduler.issueWidth)});
+        out.push_back({"raySlots", k, slots.mean() * double(slots.count()), double(c.core.raySlots)});
+        out.push_back({"memoryPort", k, double(core.port.channel.busyCycles), 1.0});
+    }
+    if (impl_->l2) {
+        for (std::uint32_t b = 0; b < impl_->l2->bankBusyCycles.size(); ++b)
+            out.push_back({"l2Bank", b, double(impl_->l2->bankBusyCycles[b]), 1.0});
+        for (std::uint32_t ch = 0; ch < impl_->l2->channelBusyCycles.size(); ++ch)
+            out.push_back({"dramChannel", ch, double(impl_->l2->channelBusyCycles[ch]), 1.0});
+    }
+    return out;
+}
 void RtCore::simulateEveryCycle(bool on) { impl_->everyCycle = on; }
 const RtCoreConfig& RtCore::config() const { return impl_->config; }
 

@@ -283,8 +283,15 @@ nlohmann::json RtCoreBackend::statsJson() const {
                     {"invalidRaysCountedAsMisses", invalidRays_},
                     {"launch", toString(config_.gpu.launch)}};
     nlohmann::json launches = nlohmann::json::array();
-    for (const LaunchRecord& l : launches_)
-        launches.push_back({{"rays", l.rays}, {"threads", l.threads}, {"cycles", l.cycles}});
+    for (const LaunchRecord& l : launches_) {
+        nlohmann::json byKind = nlohmann::json::object();
+        for (const auto& [kind, utilization] : l.busiestByKind) byKind[kind] = utilization;
+        launches.push_back({{"rays", l.rays},
+                            {"threads", l.threads},
+                            {"cycles", l.cycles},
+                            {"busiest", {{"resource", l.busiest}, {"utilization", l.busiestUtilization}}},
+                            {"busiestByKind", std::move(byKind)}});
+    }
     j["backend"]["launches"] = std::move(launches);
     return j;
 }
@@ -407,7 +414,7 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
                                     tracer::TraceCounters& counters) {
     // A call outside any launch is a launch of its own.
     const bool implicit = launchDepth_ == 0;
-    if (implicit) beginLaunchLocked(static_cast<std::uint32_t>(count));
+    if (implicit) beginLaunchLocked(static_cast<std::uint32_t>(count), "trace call");
     struct Abort {
         RtCoreBackend* self;
         bool armed;
@@ -472,6 +479,28 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
     if (implicit) endLaunchLocked();
 }
 
+// A launch's cost: its cycles and the utilization of its busiest resources.
+LaunchRecord RtCoreBackend::launchRecord(const LaunchLog& log, std::uint64_t cycles,
+                                         const std::vector<ResourceUse>& before,
+                                         const std::vector<ResourceUse>& after) const {
+    LaunchRecord r{launchLabel_, log.rays.size(), log.threads, cycles, {}, "", 0.0};
+    if (cycles == 0 || before.size() != after.size()) return r;
+    for (std::size_t i = 0; i < after.size(); ++i) {
+        const ResourceUse& u = after[i];
+        const double utilization = (u.busy - before[i].busy) / (u.capacity * double(cycles));
+        auto kind = std::find_if(r.busiestByKind.begin(), r.busiestByKind.end(),
+                                 [&](const auto& k) { return k.first == u.kind; });
+        if (kind == r.busiestByKind.end()) r.busiestByKind.emplace_back(u.kind, utilization);
+        else kind->second = std::max(kind->second, utilization);
+        if (utilization > r.busiestUtilization) {
+            r.busiestUtilization = utilization;
+            const bool shared = u.kind == "l2Bank" || u.kind == "dramChannel";
+            r.busiest = u.kind + (shared ? " " : " of core ") + std::to_string(u.index);
+        }
+    }
+    return r;
+}
+
 // Launch mode: primary rays' records are filled when their launch is simulated.
 void RtCoreBackend::recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active,
                                   std::size_t count, std::size_t first) {
@@ -494,9 +523,9 @@ void LaunchLog::clear() {
     lastOfThread.clear();
 }
 
-void RtCoreBackend::beginLaunch(std::uint32_t threads) {
+void RtCoreBackend::beginLaunch(std::uint32_t threads, std::string_view label) {
     const std::lock_guard lock(mutex_);
-    beginLaunchLocked(threads);
+    beginLaunchLocked(threads, label);
 }
 void RtCoreBackend::endLaunch() {
     const std::lock_guard lock(mutex_);
@@ -507,8 +536,9 @@ void RtCoreBackend::abortLaunch() {
     abortLaunchLocked();
 }
 
-void RtCoreBackend::beginLaunchLocked(std::uint32_t threads) {
+void RtCoreBackend::beginLaunchLocked(std::uint32_t threads, std::string_view label) {
     if (launchDepth_++ > 0) return;  // joins the open launch
+    launchLabel_ = label;
     launch_.clear();
     launch_.threads = threads;
     launch_.lastOfThread.assign(threads, LaunchLog::kNoParent);
@@ -540,9 +570,10 @@ void RtCoreBackend::endLaunchLocked() {
     results_.assign(launch_.rays.size(), SimRayResult{});
     VerdictReplaySide side(launch_.verdicts.data(), launch_.verdictEnd, false);
     const std::uint64_t before = core_->cycle();
+    const std::vector<ResourceUse> usedBefore = core_->resourceUse();
     core_->runLaunch(launch_.rays, launch_.thread, launch_.threads, side, results_);
     side.checkConsumed();
-    launches_.push_back(LaunchRecord{launch_.rays.size(), launch_.threads, core_->cycle() - before});
+    launches_.push_back(launchRecord(launch_, core_->cycle() - before, usedBefore, core_->resourceUse()));
     for (const auto& [record, ray] : launchPrimary_) {
         PrimaryRayRecord& rec = primary_[record];
         rec.cycles = results_[ray].cycles;

@@ -195,7 +195,8 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
         PassReport& report = out.passes[static_cast<std::size_t>(row.pass)];
         // A pass is one launch over the frame's pixels: its dispatches (a
         // path's bounces, a light's shadow rays) are the same threads.
-        tracer::LaunchScope launch(settings.backend, std::uint64_t(settings.width) * std::uint64_t(settings.height));
+        tracer::LaunchScope launch(settings.backend, std::uint64_t(settings.width) * std::uint64_t(settings.height),
+                                   row.name);
         report.bytesAllocated = row.run(frame, counters);
         launch.end();
         report.rays = counters.totalRays();

@@ -15,8 +15,8 @@ RecordingBackend::RecordingBackend(tracer::TraversalBackend* inner) : inner_(inn
     if (rtcore_) rtcore_->keepCallVerdicts(true);
 }
 
-void RecordingBackend::beginLaunch(std::uint32_t threads) {
-    inner_->beginLaunch(threads);
+void RecordingBackend::beginLaunch(std::uint32_t threads, std::string_view label) {
+    inner_->beginLaunch(threads, label);
     if (launchDepth_++ > 0) return;
     launchThreads_ = threads;
     launchRays_ = 0;

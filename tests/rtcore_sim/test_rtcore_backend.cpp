@@ -139,6 +139,15 @@ TEST(RtCoreBackend, FrameStatsAndPrimaryRayRecordsCoverEveryPixel) {
     EXPECT_EQ(s["backend"]["launches"][0]["rays"], std::uint64_t(w) * h);
     EXPECT_EQ(s["backend"]["launches"][0]["threads"], std::uint64_t(w) * h);
     EXPECT_EQ(s["backend"]["launches"][0]["cycles"], s["frame"]["cycles"]);
+    // Its busiest resource of each kind, each utilization in [0, 1].
+    const nlohmann::json& launch = s["backend"]["launches"][0];
+    EXPECT_FALSE(launch["busiest"]["resource"].get<std::string>().empty());
+    for (const auto& [kind, u] : launch["busiestByKind"].items()) {
+        EXPECT_GE(u.get<double>(), 0.0) << kind;
+        EXPECT_LE(u.get<double>(), 1.0) << kind;
+        EXPECT_LE(u.get<double>(), launch["busiest"]["utilization"].get<double>()) << kind;
+    }
+    EXPECT_TRUE(launch["busiestByKind"].contains("raySlots"));
     RtCoreConfig tile;
     tile.gpu.launch = LaunchMode::Tile;
     const nlohmann::json t = renderBoth("builtin:showcase", 1, w, h, tile, false).rtcore.stats;

@@ -163,6 +163,16 @@ TEST(RtCoreLaunch, LawsHoldOnALaunchOfABuiltinScene) {
         const nlohmann::json stats = core.statsJson();
         SCOPED_TRACE(stressed ? "stressed" : "default");
         expectInvariants(stats, config);
+        // Every unit, port, ray-slot pool, L2 bank and DRAM channel: its work
+        // fits in the launch's cycles (utilization <= 1: cycles >= the
+        // bottleneck's work), and DRAM moves at most its peak bytes per cycle.
+        const double cycles = double(core.cycle());
+        for (const ResourceUse& u : core.resourceUse()) {
+            EXPECT_GE(u.busy, 0.0) << u.kind << " " << u.index;
+            EXPECT_LE(u.busy, u.capacity * cycles) << u.kind << " " << u.index;
+        }
+        EXPECT_LE(stats["dram"]["bytesPerCycle"].get<double>(), stats["dram"]["peakBytesPerCycle"].get<double>());
+        EXPECT_GT(stats["dram"]["readBytes"].get<double>(), 0.0);
         EXPECT_EQ(stats["rays"]["completed"], rays.size());
         for (std::size_t i = 0; i < rays.size(); ++i) {
             TraversalCounters work;

@@ -220,9 +220,9 @@ std::vector<char> asVersion1(const RayTraceFile& f) {
     Fnv64 sum;
     sum.add(body.data(), body.size());
     h.bodyChecksum = sum.value();
-    std::vector<char> out(sizeof h);
+    std::vector<char> out(sizeof h + body.size());
     std::memcpy(out.data(), &h, sizeof h);
-    out.insert(out.end(), body.begin(), body.end());
+    if (!body.empty()) std::memcpy(out.data() + sizeof h, body.data(), body.size());
     return out;
 }
 

@@ -30,6 +30,8 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
+#include <vector>
 
 namespace rtlab::rtcore_sim {
 
@@ -40,6 +42,16 @@ struct SimRayResult {
     TraversalCounters work;
     std::uint32_t stackSpills = 0;   // entries this ray spilled from its short stack
     std::uint32_t stackRefills = 0;  // refills (memory reads) it needed
+};
+
+// One resource's work so far (RtCore::resourceUse): over an interval of C
+// cycles its utilization is (busy after - busy before) / (capacity x C).
+struct ResourceUse {
+    std::string
+        kind;  // traversalUnits, triangleUnits, transformUnits, scheduler, raySlots, memoryPort, l2Bank, dramChannel
+    std::uint32_t index = 0;  // the core, bank or channel
+    double busy = 0.0;        // busy unit-cycles (issued steps, occupied slot-cycles)
+    double capacity = 1.0;    // units of it working at once
 };
 
 class RtCore {
@@ -83,6 +95,9 @@ public:
     // Cold start: clock 0, empty cache and memory channel, statistics zeroed.
     void reset();
     std::uint64_t cycle() const;
+    // Every resource of every core, then every L2 bank and DRAM channel (l2
+    // mode cache), with its busy work since the last resetStats.
+    std::vector<ResourceUse> resourceUse() const;
     const RtCoreConfig& config() const;
     // Debug aid: visit every cycle instead of jumping over cycles in which
     // nothing can happen. Results and statistics must not change (tested).

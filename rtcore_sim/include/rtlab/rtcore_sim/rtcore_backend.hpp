@@ -89,9 +89,15 @@ struct RecordedVerdicts {
     std::span<const std::uint32_t> words;
 };
 
-// What one launch cost (the frame's stats tree's "launches").
+// What one launch cost (the frame's stats tree's "launches"): its cycles,
+// and per kind of resource the utilization of the busiest one of that kind
+// over the launch (RtCore::resourceUse), the busiest of all named.
 struct LaunchRecord {
+    std::string label;  // the pass (renderer), "dispatch" or "trace call"; not in statsJson (a replay has no passes)
     std::uint64_t rays = 0, threads = 0, cycles = 0;
+    std::vector<std::pair<std::string, double>> busiestByKind;  // kind -> utilization of its busiest instance
+    std::string busiest;                                        // e.g. "raySlots of core 3"
+    double busiestUtilization = 0.0;
 };
 
 struct VerifyStats {
@@ -165,7 +171,7 @@ public:
     void trace(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                tracer::CommittedHit* out, tracer::TraceCounters& counters) override;
-    void beginLaunch(std::uint32_t threads) override;
+    void beginLaunch(std::uint32_t threads, std::string_view label) override;
     void endLaunch() override;
     void abortLaunch() override;
 
@@ -173,7 +179,9 @@ private:
     void traceFunctional(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                          void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                          tracer::CommittedHit* out, tracer::TraceCounters& counters);
-    void beginLaunchLocked(std::uint32_t threads);
+    LaunchRecord launchRecord(const LaunchLog& log, std::uint64_t cycles, const std::vector<ResourceUse>& before,
+                              const std::vector<ResourceUse>& after) const;
+    void beginLaunchLocked(std::uint32_t threads, std::string_view label);
     void endLaunchLocked();
     void abortLaunchLocked();
     void recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active, std::size_t count,
@@ -196,6 +204,7 @@ private:
 
     LaunchLog launch_;
     std::uint32_t launchDepth_ = 0;
+    std::string launchLabel_;
     std::size_t lastCallFirst_ = 0;
     // Launch mode: (record in primary_, ray of the launch) filled when the launch is simulated.
     std::vector<std::pair<std::size_t, std::size_t>> launchPrimary_;

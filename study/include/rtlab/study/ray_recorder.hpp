@@ -35,7 +35,7 @@ public:
 
     std::string_view name() const override { return inner_->name(); }
     bool orderDependent() const override { return true; }
-    void beginLaunch(std::uint32_t threads) override;
+    void beginLaunch(std::uint32_t threads, std::string_view label) override;
     void endLaunch() override;
     void abortLaunch() override;
     void trace(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,

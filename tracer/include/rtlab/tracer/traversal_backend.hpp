@@ -150,7 +150,11 @@ public:
     // rays depend on each other in the order it traces them. Calls nest: an
     // inner begin/end pair joins the outer launch. abortLaunch drops the
     // launch (a shader threw). Back ends without a clock ignore them.
-    virtual void beginLaunch(std::uint32_t threads) { (void)threads; }
+    // `label` names the launch in statistics (the renderer: the pass).
+    virtual void beginLaunch(std::uint32_t threads, std::string_view label) {
+        (void)threads;
+        (void)label;
+    }
     virtual void endLaunch() {}
     virtual void abortLaunch() {}
 };
@@ -160,9 +164,10 @@ public:
 // exception) aborts it. No back end: nothing.
 class LaunchScope {
 public:
-    LaunchScope(TraversalBackend* backend, std::uint64_t threads) : backend_(backend) {
+    LaunchScope(TraversalBackend* backend, std::uint64_t threads, std::string_view label = "dispatch")
+        : backend_(backend) {
         if (threads > UINT32_MAX) throw PipelineError("a launch has at most 2^32 - 1 threads");
-        if (backend_) backend_->beginLaunch(static_cast<std::uint32_t>(threads));
+        if (backend_) backend_->beginLaunch(static_cast<std::uint32_t>(threads), label);
     }
     ~LaunchScope() {
         if (backend_) backend_->abortLaunch();
