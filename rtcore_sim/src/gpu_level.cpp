@@ -181,23 +181,28 @@ void RtCore::Impl::answerL2Reads(std::size_t threads) {
         group.counters = L2Counters{};
         group.stamp = l2->stamp();
         group.ready.assign(n, Core::kNever);
-        for (std::size_t c = g; c < classes; c += groups)
-            mergeByCycle(
-                group.cursor,
-                [&](std::size_t k, std::size_t i) {
-                    const DeferredReads& d = cores[k]->deferredReads;
-                    return d.reads[d.byClass[c][i]].cycle;
-                },
-                [&](std::size_t k) { return cores[k]->deferredReads.byClass[c].size(); },
-                [&](std::size_t k, std::size_t i) {
-                    DeferredReads& d = cores[k]->deferredReads;
-                    const std::uint32_t index = d.byClass[c][i];
-                    const DeferredReads::Read& r = d.reads[index];
-                    const LineFill f =
-                        cores[k]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
-                    d.fills[index] = f;
-                    group.ready[k] = std::min(group.ready[k], f.ready);
-                });
+        for (std::size_t c = g; c < classes; c += groups) {
+            // The serial model's order: by cycle, then core, then the core's
+            // own order (each core's reads of a class are in cycle order) —
+            // sorted once rather than merged with a scan over every core per read.
+            group.order.clear();
+            for (std::size_t k = 0; k < n; ++k) {
+                const DeferredReads& d = cores[k]->deferredReads;
+                const std::vector<std::uint32_t>& mine = d.byClass[c];
+                for (std::uint32_t i = 0; i < mine.size(); ++i)
+                    group.order.push_back(L2Group::Key{d.reads[mine[i]].cycle, static_cast<std::uint32_t>(k), i});
+            }
+            std::sort(group.order.begin(), group.order.end());
+            for (const L2Group::Key& key : group.order) {
+                DeferredReads& d = cores[key.core]->deferredReads;
+                const std::uint32_t index = d.byClass[c][key.position];
+                const DeferredReads::Read& r = d.reads[index];
+                const LineFill f =
+                    cores[key.core]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
+                d.fills[index] = f;
+                group.ready[key.core] = std::min(group.ready[key.core], f.ready);
+            }
+        }
     };
     if (groups == 1) answer(0);
     else parallelForEach(groups, answer);

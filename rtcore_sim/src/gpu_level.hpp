@@ -35,7 +35,14 @@ struct RtCore::Impl {
         L2Counters counters;
         std::uint64_t stamp = 0;
         std::vector<std::uint64_t> ready;  // per core: the earliest answer to its reads
-        std::vector<std::size_t> cursor;
+        struct Key {
+            std::uint64_t cycle;
+            std::uint32_t core, position;
+            bool operator<(const Key& o) const {
+                return cycle != o.cycle ? cycle < o.cycle : core != o.core ? core < o.core : position < o.position;
+            }
+        };
+        std::vector<Key> order;  // scratch: one class's reads in the serial order
     };
     std::vector<L2Group> l2Groups;
     bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event

@@ -85,21 +85,34 @@ void RayTraversal::begin(const ModelScene& scene, const SimRay& ray) {
     instanceIndex_ = 0;
     mesh_ = 0;
     size_ = 0;
+    overflow_.clear();
     const Bvh& tlas = scene.tlas();
     finished_ = tlas.empty();
     current_ = StackEntry{tlas.root.bits, ray.ray.tMin, EntryKind::TlasRef};  // the TLAS root box is not tested
 }
 
 void RayTraversal::push(const StackEntry& e) {
-    if (size_ == stack_.size()) throw std::logic_error("rtcore_sim traversal stack overflow");
-    stack_[size_++] = e;
+    if (size_ < stack_.size()) [[likely]] {
+        stack_[size_++] = e;
+    } else {
+        if (size_ == kStackCapacity) throw std::logic_error("rtcore_sim traversal stack overflow");
+        overflow_.push_back(e);
+        ++size_;
+    }
     counters_.maxStackDepth = std::max(counters_.maxStackDepth, static_cast<std::uint32_t>(size_));
 }
 
 void RayTraversal::selectNext(StepInfo& info) {
     // The top of the stack, unless a closer hit has been found since it was pushed.
     while (size_ > 0) {
-        const StackEntry& e = stack_[--size_];
+        --size_;
+        StackEntry e;
+        if (size_ < stack_.size()) [[likely]] {
+            e = stack_[size_];
+        } else {
+            e = overflow_.back();
+            overflow_.pop_back();
+        }
         ++info.pops;
         if (e.tEntry > tClosest_) continue;
         current_ = e;

@@ -15,6 +15,7 @@
 #include <array>
 #include <cstdint>
 #include <optional>
+#include <vector>
 
 namespace rtlab::rtcore_sim {
 
@@ -163,6 +164,10 @@ struct StepInfo {
 // Bound: (width - 1) entries per level of both trees (each <= 41 levels,
 // Embree's depth limit) plus one TLAS leaf's instances.
 inline constexpr std::size_t kStackCapacity = (kMaxBvhWidth - 1) * 2 * 41 + 32 + 1;
+// Entries held in the traversal object itself; deeper ones go to a heap
+// overflow (rare), so that a ray in flight is under a kilobyte (the timing
+// model keeps thousands of them: their headers stay within few host pages).
+inline constexpr std::size_t kInlineStackEntries = 32;
 
 // One ray in flight. A step processes the current entry:
 //   Node      test every child box; visit the nearest hit child next, push
@@ -219,7 +224,9 @@ private:
     StackEntry current_{};
     bool finished_ = true;
     std::size_t size_ = 0;
-    std::array<StackEntry, kStackCapacity> stack_;  // left uninitialised: only pushed entries are read
+    std::array<StackEntry, kInlineStackEntries>
+        stack_;                         // the bottom entries; left uninitialised: only pushed ones are read
+    std::vector<StackEntry> overflow_;  // entries beyond kInlineStackEntries (up to kStackCapacity)
 };
 
 // Functional traversal: the steps of `ray` back to back, candidates to `side`;
