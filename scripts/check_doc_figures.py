@@ -53,8 +53,7 @@ def thousands(v):
 
 
 # Block: README's architecture study in two commands.
-ARCH_DEFAULT = ["render", "--scene", "builtin:showcase", "--backend", "rtcore", "--denoise", "none"]
-ARCH_SMALL = ARCH_DEFAULT + ["--rtcore-set", "cache.sizeBytes=4096", "--rtcore-set", "traversal.units=1"]
+ARCH_STUDY = "docs/studies/arch-small.json"
 
 
 def busiest_of_longest(model):
@@ -63,10 +62,9 @@ def busiest_of_longest(model):
 
 
 def arch_study(rtlab, tmp):
-    a, b = os.path.join(tmp, "arch-default"), os.path.join(tmp, "arch-small")
-    run([rtlab, *ARCH_DEFAULT, "--out", a])
-    run([rtlab, *ARCH_SMALL, "--out", b])
-    ra, rb = frame_model(os.path.join(a, "stats.json")), frame_model(os.path.join(b, "stats.json"))
+    out = os.path.join(tmp, "arch")
+    run([rtlab, "sweep", os.path.join(ROOT, ARCH_STUDY), "--out", out, "--jobs", "2"])
+    ra, rb = (frame_model(os.path.join(out, "points", p, "stats.json")) for p in ("p0000", "p0001"))
     ratio = rb["frame"]["cycles"] / ra["frame"]["cycles"]
     rows = [
         ("rays (all ray types)", lambda r: thousands(r["frame"]["rays"]), None),
@@ -206,9 +204,7 @@ def example_args(scene):
 
 # name -> (file, generator, the commands it runs, as the docs quote them)
 BLOCKS = {
-    "readme-arch-study": ("README.md", arch_study,
-                          ["rtlab " + " ".join(ARCH_DEFAULT) + " --out out/arch-default",
-                           "rtlab " + " ".join(ARCH_SMALL) + " --out out/arch-small"]),
+    "readme-arch-study": ("README.md", arch_study, [f"rtlab sweep {ARCH_STUDY} --out out/arch --jobs 2"]),
     "readme-cache-policy": ("README.md", lambda r, t: cache_policy_table(r, t, False),
                             ["rtlab sweep docs/studies/cache-policy.json --out out/study --jobs 2"]),
     "studies-cache-policy": ("docs/studies.md", lambda r, t: cache_policy_table(r, t, True),

@@ -372,20 +372,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     }
     filter.rethrowIfFailed();
 
-    // Step: committed hits (HitKind, record and attributes come from the filter).
-    // Lanes in order: traced ones (laneOf_ is increasing) from the model, the
-    // rest (invalid rays) as misses.
-    std::size_t next = 0;
-    for (std::uint32_t lane = 0; lane < count; ++lane) {
-        if (!active[lane]) continue;
-        if (next < laneOf_.size() && laneOf_[next] == lane) {
-            const ModelHit& h = results_[next++].hit;
-            if (replaying) finishReplayed(filter, lane, h, out[lane]);
-            else filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
-        } else {
-            filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
-        }
-    }
+    finishCall(filter, active, count, replaying, out);
 
     // Step: per-ray records of primary rays (depth 1, ray type 0), in submission (lane) order.
     if (recordPrimary_ && depth == 1 && (args.rayContribution & 0xf) == 0) {
@@ -404,6 +391,24 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     }
 
     if (verify_) verifyBatch(engine, args, rays, payloads, active, count, depth, out);
+}
+
+// A call's committed hits (HitKind, record and attributes come from the
+// filter). Lanes in order: traced ones (laneOf_ is increasing) from the
+// model's results_, the rest (invalid rays) as misses.
+void RtCoreBackend::finishCall(const tracer::CandidateFilter& filter, const bool* active, std::size_t count,
+                               bool replaying, tracer::CommittedHit* out) const {
+    std::size_t next = 0;
+    for (std::uint32_t lane = 0; lane < count; ++lane) {
+        if (!active[lane]) continue;
+        if (next < laneOf_.size() && laneOf_[next] == lane) {
+            const ModelHit& h = results_[next++].hit;
+            if (replaying) finishReplayed(filter, lane, h, out[lane]);
+            else filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
+        } else {
+            filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
+        }
+    }
 }
 
 // Launch mode: the call's rays answered by the functional traversal now,
@@ -462,18 +467,7 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
         callVerdicts_ = RecordedVerdicts{callCounts_, callWords_};
     }
 
-    // Step: committed hits, as in tile mode.
-    std::size_t next = 0;
-    for (std::uint32_t lane = 0; lane < count; ++lane) {
-        if (!active[lane]) continue;
-        if (next < laneOf_.size() && laneOf_[next] == lane) {
-            const ModelHit& h = results_[next++].hit;
-            if (replaying) finishReplayed(filter, lane, h, out[lane]);
-            else filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
-        } else {
-            filter.finish(lane, false, 0.f, 0, 0, 0, out[lane]);
-        }
-    }
+    finishCall(filter, active, count, replaying, out);
     recordPrimary(args, depth, active, count, lastCallFirst_);
     abort.armed = false;
     if (implicit) endLaunchLocked();

@@ -184,6 +184,8 @@ private:
     void beginLaunchLocked(std::uint32_t threads, std::string_view label);
     void endLaunchLocked();
     void abortLaunchLocked();
+    void finishCall(const tracer::CandidateFilter& filter, const bool* active, std::size_t count, bool replaying,
+                    tracer::CommittedHit* out) const;
     void recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active, std::size_t count,
                        std::size_t first);
     void verifyBatch(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
