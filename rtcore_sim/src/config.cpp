@@ -378,6 +378,8 @@ const ParamTable<DramParams>& dramParamTable() {
 }
 
 void RtCoreConfig::validate(const std::string& where) const {
+    if (gpu.residentWarps < 1 || gpu.residentWarps > 4096)
+        fail(where, "gpu.residentWarps", "must be in [1, 4096] (got " + std::to_string(gpu.residentWarps) + ")");
     if (core.inputQueueRays < core.warpWidth)
         fail(where, "core.inputQueueRays",
              "must be at least core.warpWidth (" + std::to_string(core.warpWidth) + ") so that a warp fits (got " +
@@ -483,6 +485,14 @@ std::string RtCoreConfig::inertReason(const std::string& key) const {
     if (key == "scheduler.prefetchBytes" && (builtinWithoutTreelets || scheduler.policy == "treelet"))
         return "scheduler.policy is " + scheduler.policy + " (only treeletPrefetch prefetches)";
     return "";
+}
+
+void RtCoreConfig::checkLaunchMode(const std::string& where) const {
+    if (gpu.launch == LaunchMode::Launch && gpu.rayOrder != RayOrder::Submission)
+        fail(where, "gpu.rayOrder",
+             toString(gpu.rayOrder) +
+                 " is not modelled in launch mode (a launch's warps are its threads; reordering across warps "
+                 "with their parents' dependencies is not built): use gpu.launch=tile");
 }
 
 void RtCoreConfig::checkExplicitKeys(const std::string& where) const {

@@ -303,7 +303,7 @@ void RtCore::Impl::run(std::span<const SimRay> rays, ProgrammableSide& programma
 void RtCore::Impl::launchGroups(std::span<const std::uint32_t> threads, std::uint32_t threadCount) {
     const std::uint32_t w = config.core.warpWidth;
     const auto n = static_cast<std::uint32_t>(threads.size());
-    const std::uint32_t warps = (threadCount + w - 1) / w;
+    const auto warps = static_cast<std::uint32_t>((std::uint64_t(threadCount) + w - 1) / w);
     // Per thread, its rays in launch order (a counting sort by thread).
     std::vector<std::uint32_t> start(std::size_t(threadCount) + 1, 0);
     for (std::uint32_t t : threads) ++start[t + 1];
@@ -345,6 +345,9 @@ void RtCore::Impl::runLaunch(std::span<const SimRay> rays, std::span<const std::
     checkRays(rays, out.size(), "RtCore::runLaunch");
     if (threads.size() != rays.size())
         throw std::invalid_argument("RtCore::runLaunch: rays and threads differ in size");
+    if (threadCount > kMaxLaunchThreads)
+        throw InputError("RtCore::runLaunch", "a launch of " + std::to_string(threadCount) + " threads (at most " +
+                                                  std::to_string(kMaxLaunchThreads) + ")");
     for (std::uint32_t t : threads)
         if (t >= threadCount)
             throw std::invalid_argument("RtCore::runLaunch: thread " + std::to_string(t) + " >= the launch's " +
@@ -354,7 +357,7 @@ void RtCore::Impl::runLaunch(std::span<const SimRay> rays, std::span<const std::
                                                   " is not modelled in launch mode (use gpu.launch=tile)");
     if (rays.empty()) return;
     const std::uint32_t w = config.core.warpWidth;
-    const std::uint32_t warps = (threadCount + w - 1) / w;
+    const auto warps = static_cast<std::uint32_t>((std::uint64_t(threadCount) + w - 1) / w);
     batch.order.clear();
     simulateBatch(rays, programmable, out, warps, [&] { launchGroups(threads, threadCount); });
 }

@@ -257,6 +257,7 @@ static bool bitIdenticalHit(const tracer::CommittedHit& a, const tracer::Committ
 
 RtCoreBackend::RtCoreBackend(const RtCoreConfig& config) : config_(config), model_(config.bvh) {
     config_.validate("rtcore configuration");
+    config_.checkLaunchMode("rtcore configuration");
     core_ = std::make_unique<RtCore>(config_, model_);
 }
 
@@ -420,11 +421,16 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
     // A call outside any launch is a launch of its own.
     const bool implicit = launchDepth_ == 0;
     if (implicit) beginLaunchLocked(static_cast<std::uint32_t>(count), "trace call");
+    // An exception leaves a half-built log: the launch is then dropped
+    // (its own, or the open one when its scope ends).
     struct Abort {
         RtCoreBackend* self;
-        bool armed;
+        bool implicit;
+        bool armed = true;
         ~Abort() {
-            if (armed) self->abortLaunchLocked();
+            if (!armed) return;
+            if (implicit) self->abortLaunchLocked();
+            else self->launchFailed_ = true;
         }
     } abort{this, implicit};
     const std::uint32_t base = implicit ? 0 : tracer::currentTraceScope().thread;
@@ -438,13 +444,18 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
     LoggingSide logging(replaying ? static_cast<ProgrammableSide&>(recorded) : filterSide, launch_.verdicts);
     lastCallFirst_ = launch_.rays.size();
     results_.resize(simRays_.size());
+    // Step: the launch's threads: every active lane's (as the recorder counts them, invalid rays included).
+    for (std::size_t lane = count; lane-- > 0;)
+        if (active[lane]) {
+            const std::uint64_t last = std::uint64_t(base) + lane + 1;
+            if (last > kMaxLaunchThreads) throw tracer::PipelineError("launch thread index out of range");
+            launch_.threads = std::max(launch_.threads, static_cast<std::uint32_t>(last));
+            break;
+        }
     for (std::uint32_t k = 0; k < simRays_.size(); ++k) {
         // Step: the ray's thread and parent (its thread's previous ray).
-        const std::uint64_t thread64 = std::uint64_t(base) + laneOf_[k];
-        if (thread64 >= UINT32_MAX) throw tracer::PipelineError("launch thread index out of range");
-        const auto thread = static_cast<std::uint32_t>(thread64);
+        const auto thread = static_cast<std::uint32_t>(std::uint64_t(base) + laneOf_[k]);  // < launch_.threads
         if (thread >= launch_.lastOfThread.size()) launch_.lastOfThread.resize(thread + 1, LaunchLog::kNoParent);
-        launch_.threads = std::max(launch_.threads, thread + 1);
         const auto index = static_cast<std::uint32_t>(launch_.rays.size());
         launch_.parent.push_back(launch_.lastOfThread[thread]);
         launch_.lastOfThread[thread] = index;
@@ -531,17 +542,26 @@ void RtCoreBackend::abortLaunch() {
 }
 
 void RtCoreBackend::beginLaunchLocked(std::uint32_t threads, std::string_view label) {
-    if (launchDepth_++ > 0) return;  // joins the open launch
+    if (launchDepth_ > 0) {  // joins the open launch
+        ++launchDepth_;
+        return;
+    }
+    if (threads > kMaxLaunchThreads)
+        throw tracer::PipelineError("a launch of " + std::to_string(threads) + " threads (the model takes at most " +
+                                    std::to_string(kMaxLaunchThreads) + ")");
+    launchDepth_ = 1;
     launchLabel_ = label;
+    launchFailed_ = false;
     launch_.clear();
-    launch_.threads = threads;
-    launch_.lastOfThread.assign(threads, LaunchLog::kNoParent);
+    launch_.threads = threads;  // lastOfThread grows with the threads that trace
     launchPrimary_.clear();
 }
 
+// A scope left by an exception: the launch is dropped when its outermost scope ends.
 void RtCoreBackend::abortLaunchLocked() {
     if (launchDepth_ == 0) return;
-    launchDepth_ = 0;
+    launchFailed_ = true;
+    if (--launchDepth_ > 0) return;
     launch_.clear();
     launchPrimary_.clear();
 }
@@ -550,8 +570,10 @@ void RtCoreBackend::abortLaunchLocked() {
 void RtCoreBackend::endLaunchLocked() {
     if (launchDepth_ == 0) throw std::logic_error("RtCoreBackend::endLaunch without beginLaunch");
     if (--launchDepth_ > 0) return;
-    if (!launchMode() || launch_.rays.empty()) {
+    if (!launchMode() || launch_.rays.empty() || launchFailed_) {
         launch_.clear();
+        launchPrimary_.clear();
+        launchFailed_ = false;
         return;
     }
     struct Clear {

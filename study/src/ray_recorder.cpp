@@ -28,7 +28,7 @@ void RecordingBackend::endLaunch() {
     inner_->endLaunch();
 }
 void RecordingBackend::abortLaunch() {
-    launchDepth_ = 0;
+    if (launchDepth_ > 0) --launchDepth_;
     inner_->abortLaunch();
 }
 

@@ -233,7 +233,7 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
     if (sum.value() != h.bodyChecksum)
         throw InputError(where, "corrupt: the body's checksum does not match the header");
     const auto* bytes = reinterpret_cast<const unsigned char*>(f.storage_.data());
-    std::uint64_t offset = 0, lanes = 0, rays = 0;
+    std::uint64_t offset = 0, lanes = 0, rays = 0, launchRays = 0;
     f.batches_.reserve(h.batchCount);
     for (std::uint64_t b = 0; b < h.batchCount; ++b) {
         const std::string batchName = "batch " + std::to_string(b);
@@ -269,15 +269,23 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
                 throw InputError(where, "corrupt: " + batchName + " runs past the end");
             batch.verdicts = std::span(reinterpret_cast<const std::uint32_t*>(bytes + offset), words);
             offset += wordBytes;
-            // Links: parents earlier in the launch, verdict counts adding up.
-            std::uint64_t sum = 0;
-            for (const RayLinkRecord& l : batch.links) sum += l.verdicts;
-            if (sum != words) throw InputError(where, "corrupt: " + batchName + "'s verdict counts do not add up");
             if (batch.launch->launch >= h.launchCount || batch.launch->launchThreads == 0 ||
+                batch.launch->launchThreads > kMaxRecordedLaunchThreads ||
                 std::uint64_t(batch.launch->threadBase) + record->lanes > batch.launch->launchThreads)
                 throw InputError(where, "corrupt: " + batchName + " lies outside its launch's threads");
             if (!f.batches_.empty() && f.batches_.back().launch->launch > batch.launch->launch)
                 throw InputError(where, "corrupt: " + batchName + "'s launch is out of order");
+            if (f.batches_.empty() || f.batches_.back().launch->launch != batch.launch->launch) launchRays = 0;
+            // Links: parents earlier in the launch, verdict counts adding up.
+            std::uint64_t sum = 0;
+            for (const RayLinkRecord& l : batch.links) {
+                if (l.parent != RayLinkRecord::kNoParent && l.parent >= launchRays)
+                    throw InputError(where,
+                                     "corrupt: " + batchName + " has a ray whose parent is not earlier in its launch");
+                sum += l.verdicts;
+                ++launchRays;
+            }
+            if (sum != words) throw InputError(where, "corrupt: " + batchName + "'s verdict counts do not add up");
             if (!(h.flags & RayTraceHeader::kVerdicts) && words != 0)
                 throw InputError(where, "corrupt: " + batchName + " has verdicts the header does not announce");
         }

@@ -103,6 +103,10 @@ void replayLaunches(const tracer::TraceEngine& engine, rtcore_sim::RtCoreBackend
                     const std::vector<RayTraceFile::Batch>& batches, bool verdicts,
                     std::vector<BatchOutcome>& outcomes) {
     std::vector<std::uint32_t> counts;
+    struct RestoreThread {
+        std::uint32_t saved = tracer::currentTraceScope().thread;
+        ~RestoreThread() { tracer::currentTraceScope().thread = saved; }
+    } restore;
     for (std::size_t b = 0; b < batches.size();) {
         // Step: the launch's batches and its threads.
         const std::uint32_t launch = batches[b].launch->launch;

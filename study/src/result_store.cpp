@@ -135,6 +135,15 @@ ResultStore::ResultStore(const fs::path& dir, const Study& study, const std::str
                                             record.value("fingerprint", std::string("?")) + "; now " +
                                             study.fingerprint() +
                                             "): refusing to mix them; use another --out or remove " + where);
+        // The same text may resolve to another model (a preset file or the
+        // default preset changed since): its rows would not be comparable.
+        if (study.render.backend == "rtcore" && record.contains("baseConfig") &&
+            record["baseConfig"] != resolveConfig(study, nullptr, studyFile).toJson())
+            throw InputError(studyFile,
+                             "resolves to another RT-core configuration than the study whose results are in " + where +
+                                 " (a preset or the default preset changed since; see its study.json "
+                                 "baseConfig): refusing to mix them; use another --out or remove " +
+                                 where);
     } else {
         json record;
         record["format"] = kFormat;

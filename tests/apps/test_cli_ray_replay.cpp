@@ -25,6 +25,41 @@ nlohmann::json statsOf(const fs::path& dir) {
 }
 
 const std::string kScene = "'builtin:terrain?triangles=3000&seed=2'";
+
+// A version 2 file's batch, in place (docs/ray-trace-format.md, "Layout").
+struct Batch {
+    rtlab::study::BatchRecord* record;
+    rtlab::study::RayRecord* rays;
+    rtlab::study::BatchLaunchRecord* launch;
+    rtlab::study::RayLinkRecord* links;
+    std::uint32_t* verdicts;
+};
+template <class Fn>
+void forEachBatch(std::vector<char>& bytes, Fn&& fn) {
+    const auto* header = reinterpret_cast<const rtlab::study::RayTraceHeader*>(bytes.data());
+    std::size_t offset = sizeof(rtlab::study::RayTraceHeader);
+    for (std::uint64_t b = 0; b < header->batchCount; ++b) {
+        Batch batch;
+        batch.record = reinterpret_cast<rtlab::study::BatchRecord*>(bytes.data() + offset);
+        offset += sizeof(rtlab::study::BatchRecord);
+        batch.rays = reinterpret_cast<rtlab::study::RayRecord*>(bytes.data() + offset);
+        offset += batch.record->rays * sizeof(rtlab::study::RayRecord);
+        batch.launch = reinterpret_cast<rtlab::study::BatchLaunchRecord*>(bytes.data() + offset);
+        offset += sizeof(rtlab::study::BatchLaunchRecord);
+        batch.links = reinterpret_cast<rtlab::study::RayLinkRecord*>(bytes.data() + offset);
+        offset += batch.record->rays * sizeof(rtlab::study::RayLinkRecord);
+        batch.verdicts = reinterpret_cast<std::uint32_t*>(bytes.data() + offset);
+        offset += (batch.launch->verdictWords + batch.launch->verdictWords % 2) * sizeof(std::uint32_t);
+        fn(batch);
+    }
+}
+// The body checksum made consistent again after an edit.
+void resum(std::vector<char>& bytes) {
+    auto* header = reinterpret_cast<rtlab::study::RayTraceHeader*>(bytes.data());
+    rtlab::study::Fnv64 sum;
+    sum.add(bytes.data() + sizeof(rtlab::study::RayTraceHeader), header->bodyBytes);
+    header->bodyChecksum = sum.value();
+}
 const std::string kRender =
     "render --scene " + kScene + " --effects shadows,ao,pathtrace --max-depth 2 --width 32 --height 24 --frames 2";
 
@@ -137,6 +172,43 @@ TEST(CliRayReplay, RenderAndReplayAgreeInBothFeedingsOnEveryRayType) {
         }
 }
 
+TEST(CliRayReplay, RecordedVerdictsThatDoNotMatchExitTwo) {
+    // Showcase recorded on the model (alpha-masked foliage: any-hit verdicts);
+    // one ray's verdict moved to its neighbour (the counts still add up, the
+    // checksum made consistent): the replayed traversal meets candidates the
+    // recording does not have, in launch and in tile mode: exit 2, one line.
+    const fs::path dir = freshDir("rec_verdicts");
+    const std::string config = " --backend rtcore --rtcore-set gpu.cores=2";
+    ASSERT_EQ(runCli("render --scene builtin:showcase --width 24 --height 16" + config + " --record-rays " +
+                     (dir / "rays").string() + " --out " + dir.string())
+                  .exitCode,
+              0);
+    std::vector<char> bytes = bytesOf(dir / "rays" / "frame_0000.rays");
+    bool moved = false;
+    forEachBatch(bytes, [&](Batch& batch) {
+        for (std::uint32_t i = 0; i + 1 < batch.record->rays && !moved; ++i)
+            if (batch.links[i].verdicts > 0 && batch.links[i].verdicts != batch.links[i + 1].verdicts) {
+                --batch.links[i].verdicts;
+                ++batch.links[i + 1].verdicts;
+                moved = true;
+            }
+    });
+    ASSERT_TRUE(moved);
+    resum(bytes);
+    fs::create_directories(dir / "bad");
+    {
+        std::ofstream out(dir / "bad" / "frame_0000.rays", std::ios::binary);
+        out.write(bytes.data(), std::streamsize(bytes.size()));
+    }
+    for (const char* mode : {"launch", "tile"}) {
+        const CliRun r = runCli("replay --scene builtin:showcase --rays " + (dir / "bad").string() + config +
+                                " --rtcore-set gpu.launch=" + mode + " --out " + (dir / mode).string());
+        EXPECT_EQ(r.exitCode, 2) << mode << "\n" << r.out;
+        EXPECT_NE(r.out.find("recorded verdicts"), std::string::npos) << mode << "\n" << r.out;
+        EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << mode << "\n" << r.out;
+    }
+}
+
 TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
     const fs::path dir = freshDir("rec_bad");
     ASSERT_EQ(runCli("render --scene builtin:cornell --effects gbuffer,shadows --width 16 --height 16 --record-rays " +
@@ -171,24 +243,18 @@ TEST(CliRayReplay, ForeignDamagedOrAlteredRecordingsAreRefused) {
     EXPECT_EQ(runCli("replay --scene builtin:cornell --rays " + file.string() + " --rtcore-set cache.ways=2").exitCode,
               2);
     // A recorded hit turned into a miss (checksum made consistent): replay finds a differing hit, exit 1.
-    std::size_t offset = sizeof(rtlab::study::RayTraceHeader) + sizeof(rtlab::study::BatchRecord);
     auto* header = reinterpret_cast<rtlab::study::RayTraceHeader*>(bytes.data());
     bool altered = false;
-    for (std::uint64_t b = 0; b < header->batchCount && !altered; ++b) {
-        auto* batch =
-            reinterpret_cast<rtlab::study::BatchRecord*>(bytes.data() + offset - sizeof(rtlab::study::BatchRecord));
-        auto* rays = reinterpret_cast<rtlab::study::RayRecord*>(bytes.data() + offset);
-        for (std::uint32_t i = 0; i < batch->rays && !altered; ++i)
-            if (rays[i].flags & rtlab::study::RayRecord::kHit) {
-                rays[i].flags = 0;
+    forEachBatch(bytes, [&](Batch& batch) {
+        for (std::uint32_t i = 0; i < batch.record->rays && !altered; ++i)
+            if (batch.rays[i].flags & rtlab::study::RayRecord::kHit) {
+                batch.rays[i].flags = 0;
                 altered = true;
             }
-        offset += batch->rays * sizeof(rtlab::study::RayRecord) + sizeof(rtlab::study::BatchRecord);
-    }
+    });
     ASSERT_TRUE(altered);
-    rtlab::study::Fnv64 sum;
-    sum.add(bytes.data() + sizeof(rtlab::study::RayTraceHeader), header->bodyBytes);
-    header->bodyChecksum = sum.value();
+    resum(bytes);
+    (void)header;
     const fs::path changed = dir / "changed.rays";
     {
         std::ofstream out(changed, std::ios::binary);

@@ -4,6 +4,7 @@
 #include "rtcore_timing_helpers.hpp"
 
 #include <rtlab/rtcore_sim/rtcore.hpp>
+#include <rtlab/rtcore_sim/rtcore_backend.hpp>
 
 #include <gtest/gtest.h>
 
@@ -183,4 +184,23 @@ TEST(RtCoreLaunch, LawsHoldOnALaunchOfABuiltinScene) {
             ASSERT_EQ(work.steps, results[i].work.steps) << i;
         }
     }
+}
+
+TEST(RtCoreLaunch, AnAbortedInnerScopeDropsTheLaunchAndLeavesTheBackEndUsable) {
+    // An exception leaves an inner launch scope (abort) while the outer one
+    // is still open: the outer scope's end drops the launch (its log may be
+    // half built) instead of simulating it or failing; the next launch runs.
+    RtCoreConfig config;
+    RtCoreBackend backend(config);
+    backend.beginLaunch(64, "outer");
+    backend.beginLaunch(64, "inner");
+    backend.abortLaunch();
+    EXPECT_NO_THROW(backend.endLaunch());
+    EXPECT_TRUE(backend.launches().empty());
+    backend.beginLaunch(64, "next");
+    EXPECT_NO_THROW(backend.endLaunch());
+    EXPECT_THROW(backend.endLaunch(), std::logic_error);  // no launch open
+    // More threads than the model takes are refused.
+    EXPECT_THROW(backend.beginLaunch(kMaxLaunchThreads + 1u, "huge"), tracer::PipelineError);
+    EXPECT_THROW(backend.endLaunch(), std::logic_error);  // the refused launch was never opened
 }

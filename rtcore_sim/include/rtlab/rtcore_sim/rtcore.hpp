@@ -54,6 +54,9 @@ struct ResourceUse {
     double capacity = 1.0;    // units of it working at once
 };
 
+// At most this many threads in one launch (2^26: an 8192 x 8192 dispatch).
+inline constexpr std::uint32_t kMaxLaunchThreads = 1u << 26;
+
 class RtCore {
 public:
     // `scene` must outlive the core and be built with config.bvh (checked:
@@ -82,7 +85,7 @@ public:
     // rays together, shader.nextTraceLatency cycles after its (k-1)-th rays'
     // last result. Side callbacks receive the index into `rays`. Continues
     // the clock like run(); gpu.launch is not read (the caller chose).
-    // InputError when gpu.rayOrder is not submission.
+    // InputError when gpu.rayOrder is not submission or threadCount > kMaxLaunchThreads.
     void runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads, std::uint32_t threadCount,
                    ProgrammableSide& side, std::span<SimRayResult> results);
 

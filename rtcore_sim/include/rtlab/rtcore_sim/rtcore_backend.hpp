@@ -206,6 +206,7 @@ private:
 
     LaunchLog launch_;
     std::uint32_t launchDepth_ = 0;
+    bool launchFailed_ = false;  // a scope was left by an exception: the launch is dropped, not simulated
     std::string launchLabel_;
     std::size_t lastCallFirst_ = 0;
     // Launch mode: (record in primary_, ray of the launch) filled when the launch is simulated.

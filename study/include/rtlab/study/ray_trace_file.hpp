@@ -7,9 +7,10 @@
 // the file and use the records in place:
 //
 //   RayTraceHeader (128 bytes)
-//   per batch: BatchRecord (32 bytes), BatchLaunchRecord (16 bytes),
+//   per batch: BatchRecord (32 bytes),
 //              BatchRecord::rays RayRecords (64 bytes each), one per active lane
 //              of the call, in lane order (inactive lanes are not stored),
+//              BatchLaunchRecord (16 bytes),
 //              as many RayLinkRecords (8 bytes each),
 //              BatchLaunchRecord::verdictWords verdict words (4 bytes each),
 //              zero-padded to a multiple of 8 bytes
@@ -35,6 +36,8 @@ inline constexpr char kRayTraceMagic[8] = {'R', 'T', 'L', 'A', 'B', 'R', 'A', 'Y
 inline constexpr std::uint32_t kRayTraceVersion = 2;
 inline constexpr std::uint32_t kRayTraceOldestVersion = 1;
 inline constexpr std::uint32_t kBatchTag = 0x48435442u;  // "BTCH"
+// A launch of more threads is refused as corrupt (2^26: an 8192 x 8192 dispatch; rtcore_sim::kMaxLaunchThreads).
+inline constexpr std::uint32_t kMaxRecordedLaunchThreads = 1u << 26;
 
 enum class RecordedBackend : std::uint32_t { Embree = 0, RtCore = 1 };
 
