@@ -24,7 +24,12 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PAGE = os.path.join(ROOT, "docs", "studies", "gpu-study.md")
 STUDIES = ["gpu-scaling", "gpu-memory", "gpu-policies"]
-POLICIES = ["fifo", "oldestFirst", "treelet", "treeletPrefetch"]
+POLICIES = ["fifo", "oldestFirst", "treelet", "treeletPrefetch", "rayOrder=directionOrigin"]
+
+
+def policy_of(row):
+    o = row["overrides"]
+    return o["scheduler.policy"] if "scheduler.policy" in o else "rayOrder=" + o["gpu.rayOrder"]
 NOISE = 0.01  # a policy's effect smaller than 1 % of cycles is reported as within noise
 
 
@@ -126,7 +131,7 @@ def policy_table(policies):
     lines = ["| workload | " + " | ".join(POLICIES) + " |", "|---|" + "---:|" * len(POLICIES)]
     effects = {}
     for workload in dict.fromkeys(r["workload"] for r in policies):
-        by = {r["overrides"]["scheduler.policy"]: r["metrics"]["cycles"] for r in policies if r["workload"] == workload}
+        by = {policy_of(r): r["metrics"]["cycles"] for r in policies if r["workload"] == workload}
         cells = [thousands(by["fifo"])]
         for p in POLICIES[1:]:
             change = by[p] / by["fifo"] - 1

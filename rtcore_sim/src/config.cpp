@@ -329,8 +329,9 @@ const ParamTable<GpuParams>& gpuParamTable() {
                                                                       {"contiguous", WarpDispatch::Contiguous}});
         t.addChoice(
             "rayOrder", &GpuParams::rayOrder,
-            "ray reordering before warp formation: submission = as submitted; directionOrigin = stable sort "
-            "by direction octant, then origin and direction Morton codes (src/policies/order_direction_origin.cpp)",
+            "ray reordering: submission = as submitted; directionOrigin = by direction octant, then origin and "
+            "direction Morton codes (src/policies/order_direction_origin.cpp): a tile batch is sorted before warp "
+            "formation, a launch's cores admit the rays waiting in their input queues in key order",
             std::vector<std::pair<std::string, RayOrder>>{{"submission", RayOrder::Submission},
                                                           {"directionOrigin", RayOrder::DirectionOrigin}});
         return t;
@@ -485,14 +486,6 @@ std::string RtCoreConfig::inertReason(const std::string& key) const {
     if (key == "scheduler.prefetchBytes" && (builtinWithoutTreelets || scheduler.policy == "treelet"))
         return "scheduler.policy is " + scheduler.policy + " (only treeletPrefetch prefetches)";
     return "";
-}
-
-void RtCoreConfig::checkLaunchMode(const std::string& where) const {
-    if (gpu.launch == LaunchMode::Launch && gpu.rayOrder != RayOrder::Submission)
-        fail(where, "gpu.rayOrder",
-             toString(gpu.rayOrder) +
-                 " is not modelled in launch mode (a launch's warps are its threads; reordering across warps "
-                 "with their parents' dependencies is not built): use gpu.launch=tile");
 }
 
 void RtCoreConfig::checkExplicitKeys(const std::string& where) const {

@@ -363,6 +363,12 @@ inline void Core::submission(std::uint64_t c) {
         logActivity(c, batch.rays[i].rayType, +1);
         sequence.push_back(i);
     }
+    if (batch.reorderInput) {
+        // The input queue's rays in key order (ties: launch order): the next admitted is the smallest key waiting.
+        const auto& key = batch.rayKey;
+        std::sort(sequence.begin() + admitted, sequence.end(),
+                  [&key](std::uint32_t a, std::uint32_t b) { return key[a] != key[b] ? key[a] < key[b] : a < b; });
+    }
     ++stats.warps;
     stats.raysSubmitted += size;
     inputQueueOcc.set(submitted() - admitted, c);

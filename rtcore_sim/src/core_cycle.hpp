@@ -44,6 +44,10 @@ struct BatchState {
     std::vector<RayTypeStats> rayTypes;         // over the whole GPU (a type's activity is a union over cores)
     std::uint32_t residentWarps = ~0u;          // warps resident per core at once (tile batches: all)
     std::uint32_t nextTraceLatency = 0;         // cycles from a group's last result to the warp's next group
+    // A launch with gpu.rayOrder directionOrigin: each core admits the rays
+    // waiting in its input queue in order of their key (rayKey, per ray).
+    bool reorderInput = false;
+    std::vector<std::uint64_t> rayKey;
     // A reordered batch (gpu.rayOrder, or a launch's groups): rays/results above
     // are the reordered copies; order[i] = index in the caller's rays (side callbacks get it).
     std::vector<std::uint32_t> order;

@@ -58,6 +58,7 @@ void RtCore::Impl::tileGroups(std::uint32_t warps) {
     batch.warpGroups[warps] = warps;
     batch.residentWarps = ~0u;
     batch.nextTraceLatency = 0;
+    batch.reorderInput = false;
 }
 
 // The host threads the process allows (TBB's arena and any global limit).
@@ -338,6 +339,13 @@ void RtCore::Impl::launchGroups(std::span<const std::uint32_t> threads, std::uin
     batch.warpGroups[warps] = static_cast<std::uint32_t>(batch.groupFirst.size());
     batch.residentWarps = config.gpu.residentWarps;
     batch.nextTraceLatency = config.shader.nextTraceLatency;
+    // gpu.rayOrder at launch level: the cores' input queues admit in key order.
+    batch.reorderInput = config.gpu.rayOrder == RayOrder::DirectionOrigin;
+    if (batch.reorderInput) {
+        const std::vector<std::uint64_t> keys = directionOriginKeys(batch.rays);  // the launch's rays, launch order
+        batch.rayKey.resize(n);
+        for (std::uint32_t i = 0; i < n; ++i) batch.rayKey[i] = keys[batch.order[i]];
+    }
 }
 
 void RtCore::Impl::runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads,
@@ -352,9 +360,6 @@ void RtCore::Impl::runLaunch(std::span<const SimRay> rays, std::span<const std::
         if (t >= threadCount)
             throw std::invalid_argument("RtCore::runLaunch: thread " + std::to_string(t) + " >= the launch's " +
                                         std::to_string(threadCount) + " threads");
-    if (config.gpu.rayOrder != RayOrder::Submission)
-        throw InputError("RtCore::runLaunch", "gpu.rayOrder " + toString(config.gpu.rayOrder) +
-                                                  " is not modelled in launch mode (use gpu.launch=tile)");
     if (rays.empty()) return;
     const std::uint32_t w = config.core.warpWidth;
     const auto warps = static_cast<std::uint32_t>((std::uint64_t(threadCount) + w - 1) / w);

@@ -12,5 +12,8 @@ namespace rtlab::rtcore_sim {
 // order[i] = the index in `rays` of the i-th ray after sorting (a permutation;
 // stable: equal keys keep their submission order).
 std::vector<std::uint32_t> directionOriginOrder(std::span<const SimRay> rays);
+// The sort key of every ray: direction octant, then origin Morton code (within
+// the rays' origin bounds), then direction Morton code.
+std::vector<std::uint64_t> directionOriginKeys(std::span<const SimRay> rays);
 
 }  // namespace rtlab::rtcore_sim

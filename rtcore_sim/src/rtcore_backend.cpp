@@ -257,7 +257,6 @@ static bool bitIdenticalHit(const tracer::CommittedHit& a, const tracer::Committ
 
 RtCoreBackend::RtCoreBackend(const RtCoreConfig& config) : config_(config), model_(config.bvh) {
     config_.validate("rtcore configuration");
-    config_.checkLaunchMode("rtcore configuration");
     core_ = std::make_unique<RtCore>(config_, model_);
 }
 

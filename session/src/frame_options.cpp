@@ -183,7 +183,6 @@ rtcore_sim::RtCoreConfig FrameOptions::rtcoreConfiguration() const {
     for (const std::string& assignment : rtcoreSet) config.set(assignment);
     config.validate(rtcoreConfig.empty() ? "--rtcore-set" : rtcoreConfig);
     config.checkExplicitKeys("--rtcore-set");
-    config.checkLaunchMode(rtcoreConfig.empty() ? "--rtcore-set" : rtcoreConfig);
     return config;
 }
 

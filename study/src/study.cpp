@@ -331,7 +331,6 @@ rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, c
     if (!point) {
         config.validate(where + ": base");
         config.checkExplicitKeys(where + ": base");
-        config.checkLaunchMode(where + ": base");
         return config;
     }
     std::string label = "point " + point->id + " (" + point->workload.label();
@@ -340,7 +339,6 @@ rtcore_sim::RtCoreConfig resolveConfig(const Study& study, const Point* point, c
     for (const Override& o : point->overrides) config.set(o.assignment(), where + ": " + label);
     config.validate(where + ": " + label);
     config.checkExplicitKeys(where + ": " + label);  // refused before anything runs, naming the point
-    config.checkLaunchMode(where + ": " + label);
     return config;
 }
 

@@ -48,7 +48,7 @@ std::uint64_t quantize(float x, float lo, float hi, std::uint32_t levels) {
 
 }  // namespace
 
-std::vector<std::uint32_t> directionOriginOrder(std::span<const SimRay> rays) {
+std::vector<std::uint64_t> directionOriginKeys(std::span<const SimRay> rays) {
     // Step: the batch's origin bounds (finite origins only).
     vec3 lo(kInfinity), hi(-kInfinity);
     for (const SimRay& r : rays)
@@ -70,6 +70,11 @@ std::vector<std::uint32_t> directionOriginOrder(std::span<const SimRay> rays) {
             spread2(quantize(d.x / len, -1.f, 1.f, 32768)) << 1 | spread2(quantize(d.y / len, -1.f, 1.f, 32768));
         keys[i] = octant << 60 | origin << 30 | direction;
     }
+    return keys;
+}
+
+std::vector<std::uint32_t> directionOriginOrder(std::span<const SimRay> rays) {
+    const std::vector<std::uint64_t> keys = directionOriginKeys(rays);
     std::vector<std::uint32_t> order(rays.size());
     std::iota(order.begin(), order.end(), 0u);
     std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });

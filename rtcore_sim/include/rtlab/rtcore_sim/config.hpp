@@ -322,10 +322,6 @@ struct RtCoreConfig {
     // this configuration, and what makes it inert (e.g. l2.sizeBytes while
     // l2.mode is ideal). Nothing set is silently ignored.
     void checkExplicitKeys(const std::string& where) const;
-    // InputError when the configuration asks launch mode (gpu.launch) for
-    // something it does not model (gpu.rayOrder other than submission).
-    // RtCoreBackend, the command line and studies check it before anything runs.
-    void checkLaunchMode(const std::string& where) const;
     // Why `key` ("section.field") has no effect in this configuration; "" when it may have one.
     std::string inertReason(const std::string& key) const;
 
