@@ -110,13 +110,13 @@ inline void Core::issue(std::uint32_t slot, std::uint64_t c) {
     if (isDeferred(fetched.ready)) [[unlikely]] {
         // It waits for an L2 read answered after this epoch: its time and
         // event follow then (resolveDeferred), its event in this place.
-        deferredFetches.push_back(DeferredFetch{wheel.reserve(), c, slot,
+        deferredFetches.push_back(DeferredFetch{events.reserve(), c, slot,
                                                 static_cast<std::uint32_t>(fetched.ready & kDeferredIndex),
                                                 static_cast<std::uint32_t>(fetched.l2Cycles)});
         return;
     }
     fetchTimed(fetched, c);
-    wheel.schedule(fetched.ready, makeEvent(slot, kFetchDone));
+    events.schedule(fetched.ready, makeEvent(slot, kFetchDone));
 }
 
 // The latency breakdown's terms of a fetch issued at c.
@@ -138,7 +138,7 @@ void Core::resolveDeferred() {
         const LineFill fetched =
             cache.evaluate(f.cycle, deferredReads.terms.data() + f.firstTerm, f.terms, deferredReads);
         fetchTimed(fetched, f.cycle);
-        wheel.scheduleAt(fetched.ready, makeEvent(f.slot, kFetchDone), f.seq);
+        events.scheduleAt(fetched.ready, makeEvent(f.slot, kFetchDone), f.seq);
     }
     deferredFetches.clear();
     deferredReads.clear();
@@ -186,7 +186,7 @@ inline void Core::onFetchDone(std::uint32_t slot, std::uint64_t c) {
     stats.intersectionCalls += st.intersectionCalls;
     stats.shader += shaderCycles;
     t += shaderCycles;
-    wheel.schedule(t, makeEvent(slot, s.spillEntries || s.refillEntries ? kStackTraffic : kStepDone));
+    events.schedule(t, makeEvent(slot, s.spillEntries || s.refillEntries ? kStackTraffic : kStepDone));
 }
 
 inline void Core::onStackTraffic(std::uint32_t slot, std::uint64_t c) {
@@ -200,7 +200,7 @@ inline void Core::onStackTraffic(std::uint32_t slot, std::uint64_t c) {
     std::uint64_t r = c;
     if (s.refillEntries) r = port.readStack(c, s.refillEntries * config.stack.entryBytes);
     stats.stackRefill += r - c;
-    wheel.schedule(r, makeEvent(slot, kStepDone));
+    events.schedule(r, makeEvent(slot, kStepDone));
 }
 
 inline void Core::finish(std::uint32_t slot, std::uint64_t c) {
@@ -294,7 +294,7 @@ inline void Core::groupDone(std::uint32_t group, std::uint64_t c) {
     if (group + 1 < batch.warpGroups[warp + 1]) {
         resident[slot].group = group + 1;
         if (batch.nextTraceLatency == 0) readyGroups.push_back(group + 1);
-        else wheel.schedule(c + batch.nextTraceLatency, makeEvent(slot, kGroupReady));
+        else events.schedule(c + batch.nextTraceLatency, makeEvent(slot, kGroupReady));
         return;
     }
     freeResident.push_back(slot);
@@ -316,9 +316,8 @@ inline void Core::becomeResident(std::uint64_t c) {
 // ---- one cycle -----------------------------------------------------------
 
 inline void Core::processEvents(std::uint64_t c) {
-    std::vector<std::uint64_t>& bucket = wheel.bucket(c);
-    for (std::size_t i = 0; i < bucket.size(); ++i) {  // handlers may append events for this cycle
-        const std::uint32_t event = EventWheel::eventOf(bucket[i]);
+    std::uint32_t event;
+    while (events.popDue(c, event)) {  // handlers may schedule events for this cycle: they follow
         const std::uint32_t slot = event >> 2;
         switch (static_cast<Phase>(event & 3)) {
             case kFetchDone: onFetchDone(slot, c); break;
@@ -327,7 +326,6 @@ inline void Core::processEvents(std::uint64_t c) {
             case kGroupReady: readyGroups.push_back(resident[slot].group); break;
         }
     }
-    wheel.clearBucket(c);
 }
 
 inline void Core::completion(std::uint64_t c) {
@@ -472,7 +470,7 @@ void Core::start(std::uint64_t c) {
 void Core::runEpoch(std::uint64_t end, bool everyCycle) {
     while (visit < end) {
         const std::uint64_t c = visit;
-        wheel.advance(c);
+        events.advance(c);
         cycle(c);
         lastVisit = c;
         if (done()) {
@@ -480,7 +478,7 @@ void Core::runEpoch(std::uint64_t end, bool everyCycle) {
             return;
         }
         std::uint64_t n = c + 1;
-        if (!busy() && !everyCycle && !wheel.nextAfter(c, n)) n = kNever;
+        if (!busy() && !everyCycle && !events.nextAfter(c, n)) n = kNever;
         visit = n;
         if (n < end) {
             accountUntil(c, n);
@@ -513,7 +511,7 @@ void Core::settle(bool everyCycle) {
     accountPending = false;
     const std::uint64_t c = lastVisit;
     std::uint64_t n = c + 1;
-    if (!busy() && !everyCycle && !wheel.nextAfter(c, n)) n = kNever;
+    if (!busy() && !everyCycle && !events.nextAfter(c, n)) n = kNever;
     if (n != kNever) accountUntil(c, n);
     visit = n;
 }
@@ -523,7 +521,7 @@ void Core::abortBatch(std::uint64_t now) {
     deferredFetches.clear();
     deferredReads.clear();
     deferredReady = kNever;
-    wheel.clear();
+    events.clear();
     policy = makeSchedulerPolicy(config.scheduler);
     readyCount = 0;
     completionQueue.clear();
@@ -556,8 +554,8 @@ void Core::resetTime() {
     deferredFetches.clear();
     deferredReads.clear();
     deferredReady = kNever;
-    wheel.clear();
-    wheel.advance(0);
+    events.clear();
+    events.advance(0);
     cache.invalidate();
     port.channel.resetTime();
     boxUnits.resetTime();

@@ -8,7 +8,7 @@
 #include <rtlab/rtcore_sim/stats.hpp>
 #include <rtlab/rtcore_sim/traversal.hpp>
 
-#include "event_wheel.hpp"
+#include "event_queue.hpp"
 #include "stats_tree.hpp"
 #include "unit_pool.hpp"
 
@@ -96,7 +96,7 @@ struct alignas(64) Core {
     bool policyUsesAddress = true;
     bool policyPrefetches = true;
     std::size_t readyCount = 0;  // rays held by the policy
-    EventWheel wheel;
+    EventQueue events;
     std::vector<Slot> slots;
     std::vector<std::uint32_t> freeSlots;  // LIFO
     std::deque<Delivery> completionQueue;

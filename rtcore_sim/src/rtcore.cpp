@@ -14,7 +14,7 @@
 // With a side that allows concurrent callbacks the cores run in host-parallel
 // epochs instead (simulate): same cycles and statistics, several threads.
 // RtCore itself (this file) checks its configuration and forwards to the GPU level: gpu_level.cpp (dispatch,
-// lock step, epochs), core_cycle.cpp (one core's cycle), event_wheel.hpp and unit_pool.hpp (its timing
+// lock step, epochs), core_cycle.cpp (one core's cycle), event_queue.hpp and unit_pool.hpp (its timing
 // primitives), stats_tree.cpp (statsJson).
 #include <rtlab/rtcore_sim/rtcore.hpp>
 
