@@ -1,6 +1,7 @@
 #pragma once
 // One RT core of the timing model: its queues, ray slots, scheduler, units, node cache and memory port, and
 // the batch state it shares with the GPU level (docs/rtcore-model.md, "Timing model"). Methods: core_cycle.cpp.
+#include <rtlab/core/ring_queue.hpp>
 #include <rtlab/rtcore_sim/cache.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
 #include <rtlab/rtcore_sim/rtcore.hpp>
@@ -13,7 +14,6 @@
 #include "unit_pool.hpp"
 
 #include <cstdint>
-#include <deque>
 #include <exception>
 #include <memory>
 #include <span>
@@ -99,8 +99,8 @@ struct alignas(64) Core {
     EventQueue events;
     std::vector<Slot> slots;
     std::vector<std::uint32_t> freeSlots;  // LIFO
-    std::deque<Delivery> completionQueue;
-    std::deque<std::uint32_t> blockedFinishers;  // finished rays waiting for a completion-queue entry (slots)
+    RingQueue<Delivery> completionQueue;
+    RingQueue<std::uint32_t> blockedFinishers;  // finished rays waiting for a completion-queue entry (slots)
     std::uint64_t nextAge = 0;
 
     // This core's share of the batch: its warps (indices into the batch) in
@@ -115,7 +115,7 @@ struct alignas(64) Core {
     std::vector<Resident> resident;             // residency slots
     std::vector<std::uint32_t> freeResident;    // LIFO
     std::vector<std::uint32_t> residentOfWarp;  // per entry of `warps`: its residency slot
-    std::deque<std::uint32_t> readyGroups;      // groups waiting to enter the input queue
+    RingQueue<std::uint32_t> readyGroups;       // groups waiting to enter the input queue
     std::vector<std::uint32_t> sequence;        // the core's rays in submission order
     std::uint32_t rayCount = 0, admitted = 0;   // rays of the core's warps; positions in `sequence`
     std::uint32_t delivered = 0;                // rays returned

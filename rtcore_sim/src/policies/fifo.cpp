@@ -1,7 +1,6 @@
 // In-order FIFO: rays issue in the order they became ready.
+#include <rtlab/core/ring_queue.hpp>
 #include <rtlab/rtcore_sim/scheduler.hpp>
-
-#include <deque>
 
 namespace rtlab::rtcore_sim {
 namespace {
@@ -19,7 +18,7 @@ public:
     std::size_t size() const override { return queue_.size(); }
 
 private:
-    std::deque<ReadyRay> queue_;
+    RingQueue<ReadyRay> queue_;
 };
 
 }  // namespace
