@@ -135,9 +135,9 @@ void RtCore::Impl::simulate(bool parallel) {
         } else if (groups == 1) {
             for (auto& core : cores) runCore(*core, end);
         } else {
-            parallelForEach(groups, [&](std::size_t g) {
-                for (std::size_t k = g; k < n; k += groups) runCore(*cores[k], end);
-            });
+            // One task per core (the cores of an epoch share nothing): the
+            // host threads take them as they come, so unequal cores balance.
+            parallelForEach(n, [&](std::size_t k) { runCore(*cores[k], end); });
         }
         if (deferring) answerL2Reads(groups);
         // The next epoch starts at the earliest cycle any core may act in:
