@@ -298,12 +298,11 @@ inline void Core::groupDone(std::uint32_t group, std::uint64_t c) {
         return;
     }
     freeResident.push_back(slot);
-    becomeResident(c);
+    becomeResident();
 }
 
 // The core's next warp takes a free residency slot; its first group is ready at once.
-inline void Core::becomeResident(std::uint64_t c) {
-    (void)c;
+inline void Core::becomeResident() {
     if (nextWarp == warps.size() || freeResident.empty()) return;
     const std::uint32_t slot = freeResident.back();
     freeResident.pop_back();
@@ -451,13 +450,13 @@ void Core::addWarp(std::uint32_t warp) {
     warps.push_back(warp);
     for (std::uint32_t g = batch.warpGroups[warp]; g < batch.warpGroups[warp + 1]; ++g) rayCount += batch.groupSize[g];
 }
-void Core::start(std::uint64_t c) {
+void Core::start() {
     const std::size_t slotsNow = std::min<std::size_t>(batch.residentWarps, warps.size());
     resident.assign(slotsNow, Resident{});
     residentOfWarp.assign(warps.size(), 0);
     sequence.reserve(rayCount);
     for (std::size_t i = slotsNow; i-- > 0;) freeResident.push_back(static_cast<std::uint32_t>(i));
-    while (!freeResident.empty() && nextWarp < warps.size()) becomeResident(c);
+    while (!freeResident.empty() && nextWarp < warps.size()) becomeResident();
 }
 
 // ---- the GPU loop --------------------------------------------------------

@@ -169,7 +169,7 @@ struct alignas(64) Core {
     inline void deliver(const Delivery& d, std::uint64_t c);
     inline void logActivity(std::uint64_t c, std::uint32_t rayType, std::int32_t delta);
     inline void groupDone(std::uint32_t group, std::uint64_t c);
-    inline void becomeResident(std::uint64_t c);
+    inline void becomeResident();
 
     // ---- one cycle -----------------------------------------------------------
     inline void processEvents(std::uint64_t c);
@@ -185,8 +185,8 @@ struct alignas(64) Core {
 
     void beginBatch(std::size_t rayTypes);
     void addWarp(std::uint32_t warp);
-    // After the warps are added: the first batch.residentWarps become resident at cycle c.
-    void start(std::uint64_t c);
+    // After the warps are added: the first batch.residentWarps become resident (their first groups ready).
+    void start();
     bool done() const { return delivered == rayCount; }
 
     // ---- the GPU loop --------------------------------------------------------

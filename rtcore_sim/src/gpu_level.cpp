@@ -36,7 +36,7 @@ void RtCore::Impl::dispatch(std::uint32_t warpCount) {
                 : static_cast<std::uint32_t>((std::uint64_t(warp) * n) / warpCount);  // contiguous runs
         cores[k]->addWarp(warp);
     }
-    for (auto& core : cores) core->start(now);
+    for (auto& core : cores) core->start();
 }
 
 // A tile batch: warp w = rays [w * warpWidth, ...) is one group.

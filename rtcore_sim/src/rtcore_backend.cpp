@@ -128,32 +128,6 @@ private:
     std::vector<std::uint32_t>& words_;
 };
 
-// Recorded verdicts of one trace call (rtlab replay), ray by ray in call order.
-class RecordedCallSide final : public ProgrammableSide {
-public:
-    explicit RecordedCallSide(const RecordedVerdicts& v) : v_(v) {}
-    // The call's k-th traced ray starts.
-    void beginRay(std::uint32_t k) {
-        if (k >= v_.counts.size()) verdictMismatch(k, "has no recorded verdict count");
-        reader_.words = v_.words.data();
-        reader_.at = next_;
-        reader_.end = next_ + v_.counts[k];
-        reader_.ray = k;
-        if (reader_.end > v_.words.size()) verdictMismatch(k, "has more verdict words than recorded");
-        next_ = reader_.end;
-    }
-    void endRay() {
-        if (reader_.at != reader_.end) verdictMismatch(reader_.ray, "left recorded verdicts unused");
-    }
-    CandidateVerdict triangle(std::uint32_t, const TriangleCandidate&) override { return reader_.triangle(); }
-    ProceduralVerdict procedural(std::uint32_t, const ProceduralCandidate&) override { return reader_.procedural(); }
-
-private:
-    const RecordedVerdicts& v_;
-    VerdictReader reader_{};
-    std::uint64_t next_ = 0;
-};
-
 // The timing pass: each ray's verdicts, in order, from words where ray i's
 // are [ends[i-1], ends[i]) (a launch's log, or one recorded tile batch). A
 // ray's callbacks touch only its own cursor: concurrent.
@@ -193,6 +167,17 @@ private:
     std::vector<std::uint64_t> cursor_;
     bool recorded_;
 };
+
+// Where each traced ray's recorded verdicts end (RecordedVerdicts), checked against the call.
+std::vector<std::uint64_t> recordedEnds(const RecordedVerdicts& v, std::size_t rays) {
+    if (v.counts.size() != rays)
+        verdictMismatch(0, "batch has another number of traced rays than recorded verdict counts");
+    std::vector<std::uint64_t> ends(rays);
+    std::uint64_t sum = 0;
+    for (std::size_t i = 0; i < rays; ++i) ends[i] = sum += v.counts[i];
+    if (sum != v.words.size()) verdictMismatch(0, "batch's verdict counts do not add up");
+    return ends;
+}
 
 // Tile mode, recording: each ray's verdicts logged on their own (the rays of
 // a batch interleave), flattened after the batch.
@@ -347,12 +332,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     results_.resize(simRays_.size());
     FilterSide filterSide(filter, laneOf_);
     if (replaying) {
-        if (replay_.counts.size() != simRays_.size())
-            verdictMismatch(0, "batch has another number of traced rays than recorded verdict counts");
-        std::vector<std::uint64_t> ends(simRays_.size());
-        std::uint64_t sum = 0;
-        for (std::size_t i = 0; i < ends.size(); ++i) ends[i] = sum += replay_.counts[i];
-        if (sum != replay_.words.size()) verdictMismatch(0, "batch's verdict counts do not add up");
+        const std::vector<std::uint64_t> ends = recordedEnds(replay_, simRays_.size());
         VerdictReplaySide side(replay_.words.data(), ends, true);
         core_->run(simRays_, side, results_);
         side.checkConsumed();
@@ -439,7 +419,10 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
     lanes_.assign(count, tracer::LaneCommitState{});
     tracer::CandidateFilter filter(engine, args, depth, counters, rays, payloads, lanes_.data());
     FilterSide filterSide(filter, laneOf_);
-    RecordedCallSide recorded(replay_);
+    // Replaying: the recorded verdicts, checked for this call's rays (a call's rays are traced one by one here).
+    const std::vector<std::uint64_t> recordedEnd =
+        replaying ? recordedEnds(replay_, simRays_.size()) : std::vector<std::uint64_t>{};
+    VerdictReplaySide recorded(replay_.words.data(), recordedEnd, true);
     LoggingSide logging(replaying ? static_cast<ProgrammableSide&>(recorded) : filterSide, launch_.verdicts);
     lastCallFirst_ = launch_.rays.size();
     results_.resize(simRays_.size());
@@ -452,21 +435,15 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
             break;
         }
     for (std::uint32_t k = 0; k < simRays_.size(); ++k) {
-        // Step: the ray's thread and parent (its thread's previous ray).
-        const auto thread = static_cast<std::uint32_t>(std::uint64_t(base) + laneOf_[k]);  // < launch_.threads
-        if (thread >= launch_.lastOfThread.size()) launch_.lastOfThread.resize(thread + 1, LaunchLog::kNoParent);
-        const auto index = static_cast<std::uint32_t>(launch_.rays.size());
-        launch_.parent.push_back(launch_.lastOfThread[thread]);
-        launch_.lastOfThread[thread] = index;
-        launch_.thread.push_back(thread);
+        // Step: the ray and its thread (its parent is its thread's previous ray in the log).
+        launch_.thread.push_back(static_cast<std::uint32_t>(std::uint64_t(base) + laneOf_[k]));  // < threads
         launch_.rays.push_back(simRays_[k]);
         // Step: its hit, every verdict logged.
-        if (replaying) recorded.beginRay(k);
         TraversalCounters work;
         results_[k].hit = traceRay(model_, simRays_[k], logging, k, work);
-        if (replaying) recorded.endRay();
         launch_.verdictEnd.push_back(launch_.verdicts.size());
     }
+    if (replaying) recorded.checkConsumed();
     filter.rethrowIfFailed();
     if (keepCallVerdicts_) {
         callCounts_.clear();
@@ -521,10 +498,8 @@ void LaunchLog::clear() {
     threads = 0;
     rays.clear();
     thread.clear();
-    parent.clear();
     verdictEnd.clear();
     verdicts.clear();
-    lastOfThread.clear();
 }
 
 void RtCoreBackend::beginLaunch(std::uint32_t threads, std::string_view label) {
@@ -552,7 +527,7 @@ void RtCoreBackend::beginLaunchLocked(std::uint32_t threads, std::string_view la
     launchLabel_ = label;
     launchFailed_ = false;
     launch_.clear();
-    launch_.threads = threads;  // lastOfThread grows with the threads that trace
+    launch_.threads = threads;  // grows with the threads that trace
     launchPrimary_.clear();
 }
 

@@ -1,6 +1,7 @@
 #include <rtlab/study/ray_trace_file.hpp>
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/rtcore_sim/rtcore.hpp>
 
 #include <algorithm>
 #include <bit>
@@ -254,7 +255,7 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
                 throw InputError(where, "corrupt: " + batchName + " has a ray on lane " + std::to_string(span[i].lane) +
                                             " out of order or beyond its " + std::to_string(record->lanes) + " lanes");
         offset += std::uint64_t(record->rays) * sizeof(RayRecord);
-        Batch batch{record, span};
+        Batch batch{record, span, nullptr, {}, {}};
         if (v2) {
             const std::uint64_t linkBytes = std::uint64_t(record->rays) * sizeof(RayLinkRecord);
             if (offset + sizeof(BatchLaunchRecord) + linkBytes > h.bodyBytes)
@@ -270,7 +271,7 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
             batch.verdicts = std::span(reinterpret_cast<const std::uint32_t*>(bytes + offset), words);
             offset += wordBytes;
             if (batch.launch->launch >= h.launchCount || batch.launch->launchThreads == 0 ||
-                batch.launch->launchThreads > kMaxRecordedLaunchThreads ||
+                batch.launch->launchThreads > rtcore_sim::kMaxLaunchThreads ||
                 std::uint64_t(batch.launch->threadBase) + record->lanes > batch.launch->launchThreads)
                 throw InputError(where, "corrupt: " + batchName + " lies outside its launch's threads");
             if (!f.batches_.empty() && f.batches_.back().launch->launch > batch.launch->launch)

@@ -168,7 +168,9 @@ TEST(CliRayReplay, RenderAndReplayAgreeInBothFeedingsOnEveryRayType) {
             EXPECT_EQ(r["differingHits"], 0);
             EXPECT_EQ(a["backend"]["launch"], mode);
             EXPECT_GT(a["frame"]["rays"].get<long long>(), 0);
-            if (scene == "builtin:showcase") EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
+            if (scene == "builtin:showcase") {
+                EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
+            }
         }
 }
 

@@ -64,20 +64,17 @@ struct HitMismatch {
 };
 
 // A launch as the timing model simulates it (gpu.launch = launch): every
-// ray its threads traced, in trace order, with the verdicts of its
-// candidates. Verdict words per candidate: bit 0 commit, bit 1 end search,
+// ray its threads traced, in trace order (so a ray's parent is the previous
+// ray of its thread), with the verdicts of its candidates. Verdict words per candidate: bit 0 commit, bit 1 end search,
 // bit 2 a shader ran, bit 3 procedural (then one more word: the committed
 // t's bits).
 struct LaunchLog {
-    static constexpr std::uint32_t kNoParent = ~0u;
     static constexpr std::uint32_t kCommit = 1, kEndSearch = 2, kShaderRan = 4, kProcedural = 8;
     std::uint32_t threads = 0;
     std::vector<SimRay> rays;
-    std::vector<std::uint32_t> thread;        // per ray
-    std::vector<std::uint32_t> parent;        // per ray: its thread's previous ray, or kNoParent
-    std::vector<std::uint64_t> verdictEnd;    // per ray: end of its words (its start is the previous ray's end)
-    std::vector<std::uint32_t> verdicts;      // the words
-    std::vector<std::uint32_t> lastOfThread;  // per thread: its latest ray (building the log)
+    std::vector<std::uint32_t> thread;      // per ray
+    std::vector<std::uint64_t> verdictEnd;  // per ray: end of its words (its start is the previous ray's end)
+    std::vector<std::uint32_t> verdicts;    // the words
     std::uint64_t verdictBegin(std::size_t ray) const { return ray == 0 ? 0 : verdictEnd[ray - 1]; }
     void clear();
 };

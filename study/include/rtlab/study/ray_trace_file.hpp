@@ -36,8 +36,6 @@ inline constexpr char kRayTraceMagic[8] = {'R', 'T', 'L', 'A', 'B', 'R', 'A', 'Y
 inline constexpr std::uint32_t kRayTraceVersion = 2;
 inline constexpr std::uint32_t kRayTraceOldestVersion = 1;
 inline constexpr std::uint32_t kBatchTag = 0x48435442u;  // "BTCH"
-// A launch of more threads is refused as corrupt (2^26: an 8192 x 8192 dispatch; rtcore_sim::kMaxLaunchThreads).
-inline constexpr std::uint32_t kMaxRecordedLaunchThreads = 1u << 26;
 
 enum class RecordedBackend : std::uint32_t { Embree = 0, RtCore = 1 };
 
