@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace rtlab::app {
@@ -17,6 +18,10 @@ namespace rtlab::app {
 // `command`, bound to `options` (whose current values are the defaults
 // shown). `--scene` is required when `sceneRequired`.
 void addFrameOptions(CLI::App& command, session::FrameOptions& options, unsigned use, bool sceneRequired = false);
+
+// --ray-types: "all" or a comma-separated list of ray-type names
+// (shaders::rayTypeName), as a bit mask over ray types; InputError otherwise.
+std::uint32_t rayTypeMask(const std::string& list);
 
 // A committed hit for stats.json ({"hit": false}, or t, instance, geometry, primitive).
 nlohmann::json hitJson(const tracer::CommittedHit& hit);

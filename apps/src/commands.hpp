@@ -32,6 +32,20 @@ struct ReplayOptions {
 void addReplayCommand(CLI::App& app, ReplayOptions& options);
 int runReplay(const ReplayOptions& options);
 
+struct GpuCheckExportOptions {
+    session::FrameOptions frame = [] {
+        session::FrameOptions o = frameOptionsWithoutScene("out/gpucheck");
+        o.backend = "rtcore";
+        return o;
+    }();
+    std::string rays;              // one .rays file recorded on the model
+    std::string rayTypes = "all";  // --ray-types all|LIST
+    std::uint64_t maxRays = 0;     // 0: all selected rays
+    std::string label;             // model.json "label"
+};
+void addGpuCheckExportCommand(CLI::App& app, GpuCheckExportOptions& options);
+int runGpuCheckExport(const GpuCheckExportOptions& options);
+
 struct PlanOptions {
     session::FrameOptions frame = frameOptionsWithoutScene();
     bool json = false;

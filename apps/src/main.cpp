@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     app::ReplayOptions replay;
     app::SweepOptions sweep;
     app::ReportOptions reportOptions;
+    app::GpuCheckExportOptions gpucheckExport;
     app::addRenderCommand(app, render);
     app::addPlanCommand(app, plan);
     app::addInfoCommand(app, info);
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
     app::addReplayCommand(app, replay);
     app::addSweepCommand(app, sweep);
     app::addReportCommand(app, reportOptions);
+    app::addGpuCheckExportCommand(app, gpucheckExport);
 
     try {
         app.parse(argc, argv);
@@ -49,6 +51,7 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("replay")) return app::runReplay(replay);
         if (app.got_subcommand("sweep")) return app::runSweep(sweep);
         if (app.got_subcommand("report")) return app::runReport(reportOptions);
+        if (app.got_subcommand("gpucheck-export")) return app::runGpuCheckExport(gpucheckExport);
     } catch (const InputError& e) {
         std::cerr << "rtlab: " << e.what() << "\n";
         return static_cast<int>(ExitCode::BadInput);

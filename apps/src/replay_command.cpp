@@ -37,28 +37,6 @@ std::vector<std::filesystem::path> rayFiles(const std::string& rays) {
     return files;
 }
 
-// --ray-types: "all" or a comma-separated list of ray-type names, as a bit mask.
-std::uint32_t rayTypeMask(const std::string& list) {
-    if (list == "all") return 0xffffu;
-    std::uint32_t mask = 0;
-    std::stringstream in(list);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-        if (item.empty()) continue;
-        std::uint32_t t = 0;
-        while (t < shaders::kRayTypeCount && shaders::rayTypeName(t) != item) ++t;
-        if (t == shaders::kRayTypeCount) {
-            std::string known;
-            for (std::uint32_t k = 0; k < shaders::kRayTypeCount; ++k)
-                known += (k ? ", " : "") + std::string(shaders::rayTypeName(k));
-            throw InputError("--ray-types", "unknown ray type '" + item + "' (known: all, " + known + ")");
-        }
-        mask |= 1u << t;
-    }
-    if (!mask) throw InputError("--ray-types", "empty list (use all or ray-type names)");
-    return mask;
-}
-
 }  // namespace
 
 void addReplayCommand(CLI::App& app, ReplayOptions& o) {

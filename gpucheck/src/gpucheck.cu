@@ -1,0 +1,233 @@
+// gpucheck EXPORT_DIR [--repeat N] [--io-only] [--json FILE]
+//
+// Replays the rays of an export (rtlab gpucheck-export) on an NVIDIA GPU,
+// one thread per ray, with the model's traversal (traversal.hpp) over the
+// model's BVH bytes, and checks every ray's hit, per-ray work and fetch
+// checksum against the model's (exit 1 on any difference). Reports rays/s
+// (median of --repeat timed launches, CUDA events). --io-only runs instead a
+// kernel that reads the rays and writes answers of the same size without
+// traversing: its counters are subtracted from the traversal's
+// (perf/gpucheck.sh), so that what remains is the BVH fetch stream.
+// Exit 2: unreadable input or a scene over the constant-memory tables.
+#include <gpucheck/files.hpp>
+#include <gpucheck/traversal.hpp>
+
+#include <cuda_runtime.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+namespace {
+
+constexpr int kBlock = 64;          // threads per block
+constexpr int kSharedEntries = 32;  // stack entries per thread in shared memory (the rest in global memory)
+constexpr unsigned kMaxInstances = 600;
+constexpr unsigned kMaxMeshes = 256;
+
+__constant__ gpucheck::InstanceInfo cInstances[kMaxInstances];
+__constant__ gpucheck::MeshInfo cMeshes[kMaxMeshes];
+
+struct ConstantTables {
+    __device__ const gpucheck::MeshInfo& mesh(std::uint32_t i) const { return cMeshes[i]; }
+    __device__ const gpucheck::InstanceInfo& instance(std::uint32_t i) const { return cInstances[i]; }
+};
+
+// A thread's stack: the first kSharedEntries entries in shared memory
+// (strided by the block size: no bank conflicts), deeper ones in a
+// per-thread region of global memory (counted: that traffic is not the BVH's).
+struct DeviceStack {
+    std::uint32_t (*bits)[kBlock];
+    float (*ts)[kBlock];
+    std::uint8_t (*kinds)[kBlock];
+    std::uint32_t* overflow;  // 3 words per entry
+    unsigned long long* overflowPushes;
+    unsigned tid;
+    std::uint32_t n;
+    __device__ void push(std::uint32_t b, float t, std::uint32_t kind) {
+        if (n < kSharedEntries) {
+            bits[n][tid] = b;
+            ts[n][tid] = t;
+            kinds[n][tid] = static_cast<std::uint8_t>(kind);
+        } else {
+            std::uint32_t* e = overflow + 3 * (n - kSharedEntries);
+            e[0] = b;
+            e[1] = __float_as_uint(t);
+            e[2] = kind;
+            atomicAdd(overflowPushes, 1ull);
+        }
+        ++n;
+    }
+    __device__ void pop(std::uint32_t& b, float& t, std::uint32_t& kind) {
+        --n;
+        if (n < kSharedEntries) {
+            b = bits[n][tid];
+            t = ts[n][tid];
+            kind = kinds[n][tid];
+        } else {
+            const std::uint32_t* e = overflow + 3 * (n - kSharedEntries);
+            b = e[0];
+            t = __uint_as_float(e[1]);
+            kind = e[2];
+        }
+    }
+    __device__ void clear() { n = 0; }
+};
+
+__global__ void __launch_bounds__(kBlock)
+    traverse(gpucheck::SceneView scene, const gpucheck::RayIn* rays, gpucheck::RayOut* out, std::uint32_t count,
+             std::uint32_t* overflow, std::uint32_t overflowEntries, unsigned long long* overflowPushes) {
+    __shared__ std::uint32_t bits[kSharedEntries][kBlock];
+    __shared__ float ts[kSharedEntries][kBlock];
+    __shared__ std::uint8_t kinds[kSharedEntries][kBlock];
+    const std::uint32_t i = blockIdx.x * kBlock + threadIdx.x;
+    if (i >= count) return;
+    DeviceStack stack{bits, ts, kinds, overflow + std::size_t(3) * overflowEntries * i, overflowPushes, threadIdx.x, 0};
+    const gpucheck::RayIn ray = rays[i];
+    gpucheck::RayOut o;
+    gpucheck::traceRay(scene, ConstantTables{}, ray, stack, o);
+    out[i] = o;
+}
+
+// The same reads of the rays and writes of the answers, no traversal.
+__global__ void __launch_bounds__(kBlock)
+    inputOutput(const gpucheck::RayIn* rays, gpucheck::RayOut* out, std::uint32_t count) {
+    const std::uint32_t i = blockIdx.x * kBlock + threadIdx.x;
+    if (i >= count) return;
+    const gpucheck::RayIn r = rays[i];
+    gpucheck::RayOut o{};
+    o.t = r.origin[0] + r.origin[1] + r.origin[2] + r.tMin;
+    o.b1 = r.direction[0] + r.direction[1] + r.direction[2] + r.tMax;
+    o.hit = r.mask ^ r.policy ^ r.skipTriangles ^ r.reserved;
+    out[i] = o;
+}
+
+#define CHECK(call)                                                                           \
+    do {                                                                                      \
+        const cudaError_t e_ = (call);                                                        \
+        if (e_ != cudaSuccess) {                                                              \
+            std::fprintf(stderr, "gpucheck: %s failed: %s\n", #call, cudaGetErrorString(e_)); \
+            std::exit(1);                                                                     \
+        }                                                                                     \
+    } while (0)
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string dir, jsonPath;
+    int repeat = 10;
+    bool ioOnly = false;
+    for (int a = 1; a < argc; ++a) {
+        const std::string arg = argv[a];
+        if (arg == "--repeat" && a + 1 < argc) repeat = std::max(1, std::atoi(argv[++a]));
+        else if (arg == "--io-only") ioOnly = true;
+        else if (arg == "--json" && a + 1 < argc) jsonPath = argv[++a];
+        else if (dir.empty() && arg[0] != '-') dir = arg;
+        else {
+            std::fprintf(stderr, "usage: gpucheck EXPORT_DIR [--repeat N] [--io-only] [--json FILE]\n");
+            return 2;
+        }
+    }
+    if (dir.empty()) {
+        std::fprintf(stderr, "usage: gpucheck EXPORT_DIR [--repeat N] [--io-only] [--json FILE]\n");
+        return 2;
+    }
+    gpucheck::CheckData d;
+    std::string error;
+    if (!gpucheck::loadCheck(dir, d, error)) {
+        std::fprintf(stderr, "gpucheck: %s\n", error.c_str());
+        return 2;
+    }
+    if (d.instances.size() > kMaxInstances || d.meshes.size() > kMaxMeshes) {
+        std::fprintf(stderr, "gpucheck: %s: %zu instances and %zu meshes; the constant tables hold %u and %u\n",
+                     dir.c_str(), d.instances.size(), d.meshes.size(), kMaxInstances, kMaxMeshes);
+        return 2;
+    }
+    const std::uint32_t n = static_cast<std::uint32_t>(d.rays.size());
+    const std::uint32_t overflowEntries = d.maxStackDepth > kSharedEntries ? d.maxStackDepth - kSharedEntries : 0;
+
+    // Step: upload the image, the tables and the rays.
+    cudaDeviceProp prop{};
+    CHECK(cudaGetDeviceProperties(&prop, 0));
+    int driver = 0, runtime = 0;
+    CHECK(cudaDriverGetVersion(&driver));
+    CHECK(cudaRuntimeGetVersion(&runtime));
+    std::uint32_t *image = nullptr, *overflow = nullptr;
+    gpucheck::RayIn* rays = nullptr;
+    gpucheck::RayOut* out = nullptr;
+    unsigned long long* overflowPushes = nullptr;
+    CHECK(cudaMalloc(&image, d.image.size() * 4 + 4));
+    CHECK(cudaMemcpy(image, d.image.data(), d.image.size() * 4, cudaMemcpyHostToDevice));
+    if (!d.instances.empty())
+        CHECK(cudaMemcpyToSymbol(cInstances, d.instances.data(), d.instances.size() * sizeof(gpucheck::InstanceInfo)));
+    if (!d.meshes.empty())
+        CHECK(cudaMemcpyToSymbol(cMeshes, d.meshes.data(), d.meshes.size() * sizeof(gpucheck::MeshInfo)));
+    CHECK(cudaMalloc(&rays, std::size_t(n) * sizeof(gpucheck::RayIn)));
+    CHECK(cudaMemcpy(rays, d.rays.data(), std::size_t(n) * sizeof(gpucheck::RayIn), cudaMemcpyHostToDevice));
+    CHECK(cudaMalloc(&out, std::size_t(n) * sizeof(gpucheck::RayOut)));
+    CHECK(cudaMalloc(&overflow, std::size_t(3) * 4 * std::max<std::uint32_t>(overflowEntries, 1) * n));
+    CHECK(cudaMalloc(&overflowPushes, sizeof(unsigned long long)));
+    CHECK(
+        cudaFuncSetAttribute(traverse, cudaFuncAttributePreferredSharedMemoryCarveout, cudaSharedmemCarveoutMaxShared));
+    const gpucheck::SceneView scene{image, d.header};
+    const unsigned blocks = (n + kBlock - 1) / kBlock;
+
+    // Step: timed launches (the first is the warm-up), the answers poisoned before each.
+    cudaEvent_t start, stop;
+    CHECK(cudaEventCreate(&start));
+    CHECK(cudaEventCreate(&stop));
+    std::vector<float> ms;
+    for (int r = 0; r <= repeat; ++r) {
+        CHECK(cudaMemset(out, 0xff, std::size_t(n) * sizeof(gpucheck::RayOut)));
+        CHECK(cudaMemset(overflowPushes, 0, sizeof(unsigned long long)));
+        CHECK(cudaEventRecord(start));
+        if (ioOnly) inputOutput<<<blocks, kBlock>>>(rays, out, n);
+        else traverse<<<blocks, kBlock>>>(scene, rays, out, n, overflow, overflowEntries, overflowPushes);
+        CHECK(cudaGetLastError());
+        CHECK(cudaEventRecord(stop));
+        CHECK(cudaEventSynchronize(stop));
+        float t = 0.f;
+        CHECK(cudaEventElapsedTime(&t, start, stop));
+        if (r > 0 || repeat == 0) ms.push_back(t);
+    }
+    if (ms.empty()) ms.push_back(0.f);
+    std::sort(ms.begin(), ms.end());
+    const float median = ms[ms.size() / 2];
+
+    // Step: every ray against the model.
+    std::vector<gpucheck::RayOut> got(n);
+    CHECK(cudaMemcpy(got.data(), out, std::size_t(n) * sizeof(gpucheck::RayOut), cudaMemcpyDeviceToHost));
+    unsigned long long pushes = 0;
+    CHECK(cudaMemcpy(&pushes, overflowPushes, sizeof pushes, cudaMemcpyDeviceToHost));
+    const std::uint64_t mismatches = ioOnly ? 0 : gpucheck::compareWithModel(got, d.expected);
+    const double raysPerSecond = median > 0.f ? double(n) / (double(median) * 1e-3) : 0.0;
+    std::printf(
+        "gpucheck: %s: %u rays on %s, %s kernel %.3f ms (median of %zu), %.4g rays/s, %llu stack "
+        "entries beyond shared memory, %llu differ from the model\n",
+        dir.c_str(), n, prop.name, ioOnly ? "io-only" : "traversal", median, ms.size(), raysPerSecond, pushes,
+        static_cast<unsigned long long>(mismatches));
+    if (!jsonPath.empty()) {
+        std::FILE* f = std::fopen(jsonPath.c_str(), "w");
+        if (!f) {
+            std::fprintf(stderr, "gpucheck: cannot write %s\n", jsonPath.c_str());
+            return 2;
+        }
+        std::fprintf(f,
+                     "{\"export\": \"%s\", \"rays\": %u, \"kernel\": \"%s\", \"device\": \"%s\", \"sms\": %d, "
+                     "\"l2Bytes\": %d, \"driverVersion\": %d, \"runtimeVersion\": %d, \"blockThreads\": %d, "
+                     "\"sharedStackEntries\": %d, \"medianMs\": %.6f, \"timedLaunches\": %zu, \"raysPerSecond\": %.6g, "
+                     "\"stackOverflowPushes\": %llu, \"mismatches\": %llu}\n",
+                     dir.c_str(), n, ioOnly ? "inputOutput" : "traverse", prop.name, prop.multiProcessorCount,
+                     prop.l2CacheSize, driver, runtime, kBlock, kSharedEntries, median, ms.size(), raysPerSecond,
+                     pushes, static_cast<unsigned long long>(mismatches));
+        std::fclose(f);
+    }
+    CHECK(cudaFree(image));
+    CHECK(cudaFree(rays));
+    CHECK(cudaFree(out));
+    CHECK(cudaFree(overflow));
+    CHECK(cudaFree(overflowPushes));
+    return mismatches ? 1 : 0;
+}
