@@ -169,8 +169,14 @@ int main(int argc, char** argv) {
     CHECK(cudaMalloc(&out, std::size_t(n) * sizeof(gpucheck::RayOut)));
     CHECK(cudaMalloc(&overflow, std::size_t(3) * 4 * std::max<std::uint32_t>(overflowEntries, 1) * n));
     CHECK(cudaMalloc(&overflowPushes, sizeof(unsigned long long)));
-    CHECK(
-        cudaFuncSetAttribute(traverse, cudaFuncAttributePreferredSharedMemoryCarveout, cudaSharedmemCarveoutMaxShared));
+    // Shared memory for as many blocks as the registers allow; the rest of each SM's unified
+    // 256 KB is L1 (its size as configured is read by ncu: launch__shared_mem_config_size).
+    int blocksPerSm = 0;
+    CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocksPerSm, traverse, kBlock, 0));
+    const int sharedPerBlock = kSharedEntries * kBlock * 9;
+    const int sharedPerSm = static_cast<int>(prop.sharedMemPerMultiprocessor);
+    const int carveout = std::min(100, (blocksPerSm * sharedPerBlock * 100 + sharedPerSm - 1) / sharedPerSm);
+    CHECK(cudaFuncSetAttribute(traverse, cudaFuncAttributePreferredSharedMemoryCarveout, carveout));
     const gpucheck::SceneView scene{image, d.header};
     const unsigned blocks = (n + kBlock - 1) / kBlock;
 
@@ -218,10 +224,10 @@ int main(int argc, char** argv) {
                      "{\"export\": \"%s\", \"rays\": %u, \"kernel\": \"%s\", \"device\": \"%s\", \"sms\": %d, "
                      "\"l2Bytes\": %d, \"driverVersion\": %d, \"runtimeVersion\": %d, \"blockThreads\": %d, "
                      "\"sharedStackEntries\": %d, \"medianMs\": %.6f, \"timedLaunches\": %zu, \"raysPerSecond\": %.6g, "
-                     "\"stackOverflowPushes\": %llu, \"mismatches\": %llu}\n",
+                     "\"stackOverflowPushes\": %llu, \"mismatches\": %llu, \"blocksPerSm\": %d, \"carveoutPercent\": %d}\n",
                      dir.c_str(), n, ioOnly ? "inputOutput" : "traverse", prop.name, prop.multiProcessorCount,
                      prop.l2CacheSize, driver, runtime, kBlock, kSharedEntries, median, ms.size(), raysPerSecond,
-                     pushes, static_cast<unsigned long long>(mismatches));
+                     pushes, static_cast<unsigned long long>(mismatches), blocksPerSm, carveout);
         std::fclose(f);
     }
     CHECK(cudaFree(image));
