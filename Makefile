@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench converge workloads study gpu-study doc-figures test-asan clean
+.PHONY: deps configure build demo test bench converge workloads study gpu-study gpucheck-exports gpucheck doc-figures test-asan clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -57,6 +57,19 @@ doc-figures: build
 # sweep, their reports, and the page's tables rewritten (a few minutes).
 gpu-study: build
 	@python3 scripts/gpu_study.py build/release/apps/rtlab --jobs 2
+
+# The GPU check (docs/validation.md). Here: the exports of its rows
+# (out/gpucheck/exports and out/gpucheck/exports.tar.xz, about 10 minutes).
+gpucheck-exports: build
+	@scripts/gpucheck_exports.sh out/gpucheck/exports build/release/apps/rtlab
+
+# On a machine with an NVIDIA GPU, CMake and the CUDA toolkit (no other
+# dependency): the check and its measurement, GPUCHECK_EXPORTS (a directory
+# or .tar.xz from gpucheck-exports) into GPUCHECK_OUT.
+GPUCHECK_EXPORTS ?= out/gpucheck/exports.tar.xz
+GPUCHECK_OUT ?= out/gpucheck/h100
+gpucheck:
+	@perf/gpucheck.sh $(GPUCHECK_EXPORTS) $(GPUCHECK_OUT)
 
 # The sanitizer configuration (ASan + UBSan) over the whole suite.
 test-asan: deps

@@ -57,6 +57,8 @@ def main():
         dram = net("dram__bytes_read.sum")
         thread_sectors = model["fetch"]["sectors"]
         p = model["predicted"]
+        cache = model["config"]["cache"]
+        fill_bytes = cache.get("sectorBytes") or cache["lineBytes"]  # the L1's unit of lookup and fill
         row = {
             "workload": name,
             "rays": rays,
@@ -80,7 +82,7 @@ def main():
             "predicted": {
                 "l1HitRate": p["l1"]["hitRate"],
                 "l1HitRateWithoutPending": p["l1"]["hitRateWithoutPending"],
-                "l1MissSectorsPerRay": p["l1"]["misses"] * p["l1"]["lineBytes"] / 32 / rays,
+                "l1MissSectorsPerRay": p["l1"]["misses"] * fill_bytes / 32 / rays,
                 "l2HitRate": p["l2"]["hitRate"],
                 "l2HitRateWithoutPending": p["l2"]["hitRateWithoutPending"],
                 "dramBytesPerRay": p["dram"]["bytesPerRay"],

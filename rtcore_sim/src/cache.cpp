@@ -13,9 +13,12 @@ NodeCache::NodeCache(const CacheParams& params) : params_(params) {
     if (!std::has_single_bit(sets_) || !std::has_single_bit(params.lineBytes))
         throw std::invalid_argument("NodeCache: sets and line size must be powers of two");
     lineShift_ = static_cast<std::uint32_t>(std::countr_zero(params.lineBytes));
+    unitShift_ = static_cast<std::uint32_t>(std::countr_zero(params.fillBytes()));
+    sectorsPerLine_ = params.lineBytes / params.fillBytes();
     const std::size_t lines = std::size_t(sets_) * params.ways;
     tags_.assign(lines, kInvalid);
-    ready_.assign(lines, 0);
+    valid_.assign(lines, 0);
+    ready_.assign(lines * sectorsPerLine_, 0);
     used_.assign(lines, 0);
     prefetched_.assign(lines, 0);
 }
@@ -38,9 +41,15 @@ void NodeCache::prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort
         tags_[victim] = line;
         used_[victim] = ++stamp_;
         prefetched_[victim] = 1;
-        ready_[victim] = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
-        if (isDeferred(ready_[victim])) [[unlikely]]
-            port.deferred()->ways.push_back(static_cast<std::uint32_t>(victim));
+        valid_[victim] = ~0u;
+        // The whole line, every sector of it.
+        const std::uint64_t ready = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
+        for (std::uint32_t k = 0; k < sectorsPerLine_; ++k) {
+            const std::size_t slot = victim * sectorsPerLine_ + k;
+            ready_[slot] = ready;
+            if (isDeferred(ready)) [[unlikely]]
+                port.deferred()->ways.push_back(static_cast<std::uint32_t>(slot));
+        }
     }
 }
 
@@ -49,25 +58,39 @@ void NodeCache::invalidate() {
     ++invalidations;
 }
 
-LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port) {
+LineFill NodeCache::accessUnit(std::uint64_t unit, std::uint64_t now, MemoryPort& port) {
     ++accesses;
+    const std::uint32_t sectorShift = lineShift_ - unitShift_;
+    const std::uint64_t line = unit >> sectorShift;
+    const std::uint32_t sector = static_cast<std::uint32_t>(unit & (sectorsPerLine_ - 1));
     const std::size_t base = std::size_t(line & (sets_ - 1)) * params_.ways;
     const std::uint64_t hitReady = now + params_.hitLatency;
     std::size_t victim = base;
     for (std::size_t i = base; i < base + params_.ways; ++i) {
         if (tags_[i] == line) {
-            ++hits;
             used_[i] = ++stamp_;
             if (prefetched_[i]) {
                 ++prefetchHits;
                 prefetched_[i] = 0;
             }
-            if (ready_[i] > hitReady) {
+            const std::size_t slot = i * sectorsPerLine_ + sector;
+            if (!((valid_[i] >> sector) & 1u)) [[unlikely]] {
+                // A sector miss: the line is there, this sector was never read.
+                ++misses;
+                valid_[i] |= 1u << sector;
+                const LineFill fill = port.readLine(unit << unitShift_, params_.fillBytes(), now);
+                ready_[slot] = fill.ready;
+                if (isDeferred(fill.ready)) [[unlikely]]
+                    port.deferred()->ways.push_back(static_cast<std::uint32_t>(slot));
+                return fill;
+            }
+            ++hits;
+            if (ready_[slot] > hitReady) {
                 // A line whose read is deferred: whether this hit is pending is decided when it is answered.
-                if (isDeferred(ready_[i])) [[unlikely]]
-                    return LineFill{ready_[i] | kDeferredHit, 0, 0};
+                if (isDeferred(ready_[slot])) [[unlikely]]
+                    return LineFill{ready_[slot] | kDeferredHit, 0, 0};
                 ++pendingHits;
-                return LineFill{ready_[i], 0, 0};
+                return LineFill{ready_[slot], 0, 0};
             }
             return LineFill{hitReady, 0, 0};
         }
@@ -79,19 +102,21 @@ LineFill NodeCache::accessLine(std::uint64_t line, std::uint64_t now, MemoryPort
     tags_[victim] = line;
     used_[victim] = ++stamp_;
     prefetched_[victim] = 0;
-    const LineFill fill = port.readLine(line << lineShift_, params_.lineBytes, now);
-    ready_[victim] = fill.ready;
+    valid_[victim] = 1u << sector;
+    const std::size_t slot = victim * sectorsPerLine_ + sector;
+    const LineFill fill = port.readLine(unit << unitShift_, params_.fillBytes(), now);
+    ready_[slot] = fill.ready;
     if (isDeferred(fill.ready)) [[unlikely]]
-        port.deferred()->ways.push_back(static_cast<std::uint32_t>(victim));
+        port.deferred()->ways.push_back(static_cast<std::uint32_t>(slot));
     return fill;
 }
 
 LineFill NodeCache::fetch(const MemoryRange& range, std::uint64_t now, MemoryPort& port) {
-    const std::uint64_t first = range.address >> lineShift_;
-    const std::uint64_t last = (range.address + std::max<std::uint32_t>(range.bytes, 1) - 1) >> lineShift_;
+    const std::uint64_t first = range.address >> unitShift_;
+    const std::uint64_t last = (range.address + std::max<std::uint32_t>(range.bytes, 1) - 1) >> unitShift_;
     LineFill done{now, 0, 0};
     for (std::uint64_t line = first; line <= last; ++line) {
-        const LineFill f = accessLine(line, now, port);
+        const LineFill f = accessUnit(line, now, port);
         if (isDeferred(f.ready)) [[unlikely]] {
             // From here on the lines' times are kept as terms: the first is the
             // latest line so far (the result of the lines before), then one per line.
@@ -99,7 +124,7 @@ LineFill NodeCache::fetch(const MemoryRange& range, std::uint64_t now, MemoryPor
             const std::size_t begin = terms.size();
             terms.push_back(done);
             terms.push_back(f);
-            for (++line; line <= last; ++line) terms.push_back(accessLine(line, now, port));
+            for (++line; line <= last; ++line) terms.push_back(accessUnit(line, now, port));
             return LineFill{kDeferred | begin, terms.size() - begin, 0};
         }
         if (f.ready > done.ready) done = f;
@@ -117,7 +142,7 @@ LineFill NodeCache::evaluate(std::uint64_t now, const LineFill* terms, std::size
             if (!(f.ready & kDeferredHit)) {
                 f = answer;  // the miss that made the read
             } else if (answer.ready > hitReady) {
-                ++pendingHits;  // a hit on a line still being filled (accessLine's rule)
+                ++pendingHits;  // a hit on a line still being filled (accessUnit's rule)
                 f = LineFill{answer.ready, 0, 0};
             } else {
                 f = LineFill{hitReady, 0, 0};

@@ -277,6 +277,10 @@ const ParamTable<CacheParams>& cacheParamTable() {
         t.addUnsignedOneOf("lineBytes", &CacheParams::lineBytes, "cache line size", {16, 32, 64, 128, 256});
         t.addUnsigned("ways", &CacheParams::ways, "associativity (lines per set, LRU replacement)", 1, 64);
         t.addUnsigned("hitLatency", &CacheParams::hitLatency, "cycles from a fetch to its data on a hit", 1, 1000);
+        t.addUnsignedOneOf("sectorBytes", &CacheParams::sectorBytes,
+                           "sector size of sectored lines: lines allocated whole, sectors looked up, read and "
+                           "counted one by one (0 = unsectored)",
+                           {0, 16, 32, 64, 128});
         return t;
     }();
     return table;
@@ -405,10 +409,14 @@ void RtCoreConfig::validate(const std::string& where) const {
         fail(where, "l2.hitLatency",
              "must be at least l2.bankCycles (" + std::to_string(l2.bankCycles) + ") in l2 mode cache (got " +
                  std::to_string(l2.hitLatency) + ")");
-    if (l2.mode == L2Mode::Cache && l2.lineBytes < cache.lineBytes)
+    if (cache.sectorBytes != 0 && (cache.sectorBytes >= cache.lineBytes || cache.lineBytes / cache.sectorBytes > 32))
+        fail(where, "cache.sectorBytes",
+             "must be smaller than cache.lineBytes (" + std::to_string(cache.lineBytes) +
+                 "), at most 32 sectors a line, or 0 (got " + std::to_string(cache.sectorBytes) + ")");
+    if (l2.mode == L2Mode::Cache && l2.lineBytes < cache.fillBytes())
         fail(where, "l2.lineBytes",
-             "must be at least cache.lineBytes (" + std::to_string(cache.lineBytes) + ") in l2 mode cache (got " +
-                 std::to_string(l2.lineBytes) + ")");
+             "must be at least the node cache's fill unit (cache.sectorBytes, else cache.lineBytes: " +
+                 std::to_string(cache.fillBytes()) + ") in l2 mode cache (got " + std::to_string(l2.lineBytes) + ")");
 }
 
 RtCoreConfig RtCoreConfig::fromJson(const nlohmann::json& json, const std::string& where) {

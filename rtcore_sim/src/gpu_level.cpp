@@ -109,7 +109,7 @@ void RtCore::Impl::simulate(bool parallel) {
     const std::size_t n = cores.size();
     const bool deferring = parallel && l2;
     const std::uint64_t length = !parallel   ? 1
-                                 : deferring ? cores[0]->port.minReadLatency(config.cache.lineBytes)
+                                 : deferring ? cores[0]->port.minReadLatency(config.cache.fillBytes())
                                              : kNever;
     for (auto& core : cores) {
         core->visit = now;

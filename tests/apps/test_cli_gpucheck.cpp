@@ -63,16 +63,16 @@ TEST(GpuCheck, HostTwinTraversesAsTheModelOnEveryWorkload) {
 }
 
 TEST(GpuCheck, SectorMetricCountsEveryFetchedSector) {
-    // With 32-byte lines the model's L1 looks up exactly the sectors each fetch
-    // touches (docs/validation.md, "Counting the same thing"), and every L1
-    // miss is an L2 access.
-    const Export e =
-        recordAndExport("sectors", "builtin:terrain?triangles=20000", "gbuffer", "primary",
-                        "--rtcore-config h100-like --rtcore-set cache.lineBytes=32 --rtcore-set l2.lineBytes=32");
+    // h100-like's sectored L1 (128-byte lines of 32-byte sectors) looks up
+    // exactly the sectors each fetch touches (docs/validation.md, "Counting
+    // the same thing"), every L1 miss is an L2 access, every L2 miss a 64-byte read.
+    const Export e = recordAndExport("sectors", "builtin:terrain?triangles=20000", "gbuffer", "primary",
+                                     "--rtcore-config h100-like");
     const nlohmann::json& p = e.model["predicted"];
+    EXPECT_EQ(e.model["config"]["cache"]["sectorBytes"], 32);
     EXPECT_EQ(p["l1"]["accesses"], e.model["fetch"]["sectors"]);
     EXPECT_EQ(p["l2"]["accesses"], p["l1"]["misses"]);
-    EXPECT_EQ(p["dram"]["readBytes"].get<std::uint64_t>(), 32u * p["l2"]["misses"].get<std::uint64_t>());
+    EXPECT_EQ(p["dram"]["readBytes"].get<std::uint64_t>(), 64u * p["l2"]["misses"].get<std::uint64_t>());
     EXPECT_GT(p["l1"]["hitRate"].get<double>(), 0.0);
     EXPECT_LT(p["l1"]["hitRate"].get<double>(), 1.0);
     // --max-rays keeps the first rays and says how many it left out.

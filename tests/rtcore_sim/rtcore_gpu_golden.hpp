@@ -112,13 +112,15 @@ inline GoldenRun gpuGoldenRun(RtCore& core, const std::vector<SimRay>& rays, Pro
     }
     g.rayDigest = h;
     // The whole tree: per core, l2, dram, config (less the launch parameters,
-    // added after the goldens and unread by RtCore::run).
+    // added after the goldens and unread by RtCore::run, and cache.sectorBytes,
+    // added after them and 0 here: unsectored, as the goldens' model).
     nlohmann::json tree = core.statsJson();
     for (nlohmann::json* config : {&tree["config"]}) {
         if (!config->is_object()) continue;
         (*config)["gpu"].erase("launch");
         (*config)["gpu"].erase("residentWarps");
         (*config)["shader"].erase("nextTraceLatency");
+        if ((*config)["cache"]["sectorBytes"] == 0) (*config)["cache"].erase("sectorBytes");
     }
     const std::string dump = tree.dump();
     g.statsDigest = fnv1a(14695981039346656037ull, dump.data(), dump.size());

@@ -237,7 +237,11 @@ private:
 
 // Set-associative node cache with LRU replacement. Lines are allocated at
 // the miss (the data arrives later); a hit on a line still being filled waits
-// for its data (a "pending hit", merged into the outstanding miss).
+// for its data (a "pending hit", merged into the outstanding miss). With
+// cache.sectorBytes, a line is a tag over sectors: a fetch looks up each
+// sector it touches; a sector of a present line that was never read is a
+// sector miss (read alone); a line's allocation evicts all its sectors.
+// Accesses, hits and misses then count sectors.
 class NodeCache {
 public:
     explicit NodeCache(const CacheParams& params);
@@ -255,8 +259,9 @@ public:
     LineFill evaluate(std::uint64_t now, const LineFill* terms, std::size_t count, const DeferredReads& reads);
     // Replaces the placeholders of answered reads in the cache's ways.
     void resolve(const DeferredReads& reads);
-    // One line (address / lineBytes) at `now`: the cycle its data is there.
-    LineFill accessLine(std::uint64_t line, std::uint64_t now, MemoryPort& port);
+    // One unit (address / fill unit: a line, or a sector of a sectored
+    // cache) at `now`: the cycle its data is there.
+    LineFill accessUnit(std::uint64_t unit, std::uint64_t now, MemoryPort& port);
 
     // Reads `range` ahead of demand at `now`: every line it touches that is
     // not in the cache is allocated and filled through `port` (LRU victim);
@@ -287,8 +292,11 @@ private:
     std::vector<std::uint8_t> prefetched_;  // per way: filled by prefetch(), not yet hit by demand
     std::uint32_t sets_ = 1;
     std::uint32_t lineShift_ = 6;
+    std::uint32_t unitShift_ = 6;       // log2 of the fill unit (a sector, or the line)
+    std::uint32_t sectorsPerLine_ = 1;  // 1: unsectored
     std::vector<std::uint64_t> tags_;   // line number per way, kInvalid when empty
-    std::vector<std::uint64_t> ready_;  // cycle the line's data is there
+    std::vector<std::uint32_t> valid_;  // per way: its sectors read (sectored caches)
+    std::vector<std::uint64_t> ready_;  // per way and sector: cycle its data is there
     std::vector<std::uint64_t> used_;   // LRU stamp
     std::uint64_t stamp_ = 0;
 };

@@ -216,6 +216,12 @@ struct CacheParams {
     std::uint32_t lineBytes = 64;
     std::uint32_t ways = 4;
     std::uint32_t hitLatency = 4;
+    // Sectored lines (GPU L1s: 128-byte lines of 32-byte sectors): a line is
+    // allocated whole, its sectors are looked up, read and counted one by one.
+    // 0: unsectored (one sector = the line).
+    std::uint32_t sectorBytes = 0;
+    // The unit of a lookup and of a read below the cache.
+    std::uint32_t fillBytes() const { return sectorBytes ? sectorBytes : lineBytes; }
 };
 const ParamTable<CacheParams>& cacheParamTable();
 
