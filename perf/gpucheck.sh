@@ -37,7 +37,8 @@ l1tex__t_sectors_pipe_lsu_mem_global_op_ld_lookup_miss.sum,l1tex__t_requests_pip
 l1tex__t_sector_hit_rate.pct,lts__t_sectors_srcunit_tex_op_read.sum,lts__t_sectors_srcunit_tex_op_read_lookup_hit.sum,\
 lts__t_sectors_srcunit_tex_op_read_lookup_miss.sum,lts__t_sector_hit_rate.pct,dram__bytes_read.sum,dram__bytes_write.sum,\
 gpu__time_duration.sum,launch__shared_mem_config_size,launch__registers_per_thread,launch__occupancy_limit_registers,\
-launch__occupancy_limit_shared_mem,sm__warps_active.avg.per_cycle_active,sm__cycles_elapsed.avg.per_second
+launch__occupancy_limit_shared_mem,sm__warps_active.avg.per_cycle_active,sm__cycles_elapsed.avg.per_second,\
+lts__t_sectors_srcunit_ltcfabric_op_read.sum,lts__t_sectors_srcunit_ltcfabric_op_read_lookup_hit.sum
 ncu_run() {  # kernel csv args...
   local kernel=$1 csv=$2; shift 2
   ncu --cache-control all --clock-control base --kernel-name "$kernel" --launch-count 1 --csv --print-units base \
@@ -57,6 +58,17 @@ for d in "$exports"/*/; do
   "$bin/gpucheck" "$d" --repeat 0 --io-only --json "$out/$name.io.json" >/dev/null
   ncu_run traverse "$out/$name.traverse.csv" "$bin/gpucheck" "$d" --repeat 0
   ncu_run inputOutput "$out/$name.io.csv" "$bin/gpucheck" "$d" --repeat 0 --io-only
+  # Optional counters, one ncu run each (a name this ncu lacks costs only itself):
+  # GPUCHECK_EXTRA_METRICS="a,b,..." into OUT/<workload>.{traverse,io}.extra.csv.
+  for m in ${GPUCHECK_EXTRA_METRICS//,/ }; do
+    for k in traverse io; do
+      kernel=traverse; flags=(--repeat 0)
+      [[ $k == io ]] && kernel=inputOutput && flags=(--repeat 0 --io-only)
+      ncu --cache-control all --clock-control base --kernel-name $kernel --launch-count 1 --csv --print-units base \
+          --metrics "$m" "$bin/gpucheck" "$d" "${flags[@]}" 2>>"$out/$name.extra.log" |
+        grep "\"$m\"" >>"$out/$name.$k.extra.csv" || echo "ncu: no $m" >>"$out/$name.extra.log"
+    done
+  done
   cp "$d/model.json" "$out/$name.model.json"
 done
 python3 "$here/perf/gpucheck_table.py" "$out" | tee "$out/table.md"

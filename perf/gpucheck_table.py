@@ -44,6 +44,15 @@ def main():
         model_path = models / name / "model.json" if models else out / f"{name}.model.json"
         model = json.loads(model_path.read_text())
         t, io = ncu_metrics(out / f"{name}.traverse.csv"), ncu_metrics(out / f"{name}.io.csv")
+        for metrics, kind in ((t, "traverse"), (io, "io")):  # GPUCHECK_EXTRA_METRICS (rows without a header)
+            extra = out / f"{name}.{kind}.extra.csv"
+            if extra.exists():
+                for r in csv.reader(extra.read_text().splitlines()):
+                    if len(r) >= 3:
+                        try:
+                            metrics[r[-3]] = float(r[-1].replace(",", ""))
+                        except ValueError:
+                            pass
         rays = run["rays"]
 
         def net(metric):
@@ -55,6 +64,12 @@ def main():
         l2_sectors = net("lts__t_sectors_srcunit_tex_op_read.sum")
         l2_hits = net("lts__t_sectors_srcunit_tex_op_read_lookup_hit.sum")
         dram = net("dram__bytes_read.sum")
+        fabric = net("lts__t_sectors_srcunit_ltcfabric_op_read.sum")
+        fabric_hits = net("lts__t_sectors_srcunit_ltcfabric_op_read_lookup_hit.sum")
+        # The model's L2 is one cache whose misses each read l2.lineBytes from DRAM: its hit rate is
+        # 1 - (DRAM bytes per L2 request) / l2.lineBytes, and so is the GPU's counted the same way
+        # (docs/validation.md, "Counting the same thing").
+        l2_fill = model["config"]["l2"]["lineBytes"]
         thread_sectors = model["fetch"]["sectors"]
         p = model["predicted"]
         cache = model["config"]["cache"]
@@ -69,7 +84,10 @@ def main():
                 "l1HitRateCoalesced": l1_hits / l1_sectors if l1_sectors else None,
                 "l1MissSectorsPerRay": l1_misses / rays,
                 "l1HitRate": 1.0 - l1_misses / thread_sectors if thread_sectors else None,
-                "l2HitRate": l2_hits / l2_sectors if l2_sectors else None,
+                "l2HitRate": 1.0 - dram / l2_fill / l2_sectors if l2_sectors else None,
+                "l2NearHitRate": l2_hits / l2_sectors if l2_sectors else None,
+                "l2FabricSectorsPerRay": fabric / rays,
+                "l2FabricHitRate": fabric_hits / fabric if fabric else None,
                 "l2SectorsPerRay": l2_sectors / rays,
                 "dramBytesPerRay": dram / rays,
                 "sharedMemConfigBytes": t.get("launch__shared_mem_config_size"),
@@ -93,6 +111,7 @@ def main():
         row["error"] = {
             "l1HitRatePoints": None if m["l1HitRate"] is None else 100 * (q["l1HitRate"] - m["l1HitRate"]),
             "l2HitRatePoints": None if m["l2HitRate"] is None else 100 * (q["l2HitRate"] - m["l2HitRate"]),
+            "l2NearHitRatePoints": None if m["l2NearHitRate"] is None else 100 * (q["l2HitRate"] - m["l2NearHitRate"]),
             "dramBytesPerRayRelative": (q["dramBytesPerRay"] - m["dramBytesPerRay"]) / m["dramBytesPerRay"]
             if m["dramBytesPerRay"] else None,
         }
@@ -106,8 +125,8 @@ def main():
         return "n/a" if v is None else f"{v:+.1f}"
 
     print("| workload | rays | GPU rays/s | L1 hit (GPU / model, pts) | L2 hit (GPU / model, pts) "
-          "| DRAM B/ray (GPU / model, err) | ncu L1 hit (coalesced) |")
-    print("|---|---:|---:|---|---|---|---:|")
+          "| DRAM B/ray (GPU / model, err) | ncu L1 hit (coalesced) | ncu L2 hit, near partition (pts) |")
+    print("|---|---:|---:|---|---|---|---:|---:|")
     for r in rows:
         m, q, e = r["measured"], r["predicted"], r["error"]
         dram_err = "n/a" if e["dramBytesPerRayRelative"] is None else f"{100 * e['dramBytesPerRayRelative']:+.0f}%"
@@ -115,7 +134,7 @@ def main():
               f"| {pct(m['l1HitRate'])} / {pct(q['l1HitRate'])} ({pts(e['l1HitRatePoints'])}) "
               f"| {pct(m['l2HitRate'])} / {pct(q['l2HitRate'])} ({pts(e['l2HitRatePoints'])}) "
               f"| {m['dramBytesPerRay']:.0f} / {q['dramBytesPerRay']:.0f} ({dram_err}) "
-              f"| {pct(m['l1HitRateCoalesced'])} |")
+              f"| {pct(m['l1HitRateCoalesced'])} | {pct(m['l2NearHitRate'])} ({pts(e['l2NearHitRatePoints'])}) |")
 
 
 if __name__ == "__main__":
