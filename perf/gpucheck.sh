@@ -8,9 +8,10 @@
 # workload x ray type; scripts/gpucheck_exports.sh makes the documented set),
 # or a .tar.xz of one. For each: the host twin and the CUDA program check every
 # ray against the model (exit 1 on a difference), the CUDA program is timed
-# (median of 20 launches), and Nsight Compute reads the traversal kernel's and
-# the input/output kernel's cache and DRAM counters from a cold start at base
-# clocks. Writes OUT/<workload>.{run,io}.json, OUT/<workload>.{traverse,io}.csv,
+# (median of 20 launches), and Nsight Compute reads the cache and DRAM
+# counters of the traversal kernel, and of the same kernel over an empty scene
+# (the rays' and answers' own traffic, subtracted), from a cold start at base
+# clocks; an ncu failure stops the script (exit 3). Writes OUT/<workload>.{run,io}.json, OUT/<workload>.{traverse,io}.csv,
 # OUT/gpu.txt and, through perf/gpucheck_table.py, OUT/gpucheck.json and OUT/table.md.
 set -euo pipefail
 exports=${1:?usage: perf/gpucheck.sh EXPORTS OUT}
@@ -39,13 +40,10 @@ lts__t_sectors_srcunit_tex_op_read_lookup_miss.sum,lts__t_sector_hit_rate.pct,dr
 gpu__time_duration.sum,launch__shared_mem_config_size,launch__registers_per_thread,launch__occupancy_limit_registers,\
 launch__occupancy_limit_shared_mem,sm__warps_active.avg.per_cycle_active,sm__cycles_elapsed.avg.per_second,\
 lts__t_sectors_srcunit_ltcfabric_op_read.sum,lts__t_sectors_srcunit_ltcfabric_op_read_lookup_hit.sum
-ncu_run() {  # kernel csv args...
+ncu_run() {  # kernel csv args...: every metric or nothing (a missing one is an error, not a zero)
   local kernel=$1 csv=$2; shift 2
   ncu --cache-control all --clock-control base --kernel-name "$kernel" --launch-count 1 --csv --print-units base \
-      --metrics "$metrics" "$@" >"$csv" 2>"$csv.log" ||
-  ncu --cache-control all --clock-control base --kernel-name "$kernel" --launch-count 1 --csv --print-units base \
-      --metrics l1tex__t_sector_hit_rate.pct,lts__t_sector_hit_rate.pct,dram__bytes_read.sum,gpu__time_duration.sum \
-      "$@" >"$csv" 2>>"$csv.log"
+      --metrics "$metrics" "$@" >"$csv" 2>"$csv.log" || { cat "$csv.log" >&2; echo "ncu failed: $csv" >&2; exit 3; }
 }
 
 status=0
@@ -57,13 +55,13 @@ for d in "$exports"/*/; do
   "$bin/gpucheck" "$d" --repeat 20 --json "$out/$name.run.json" || status=1
   "$bin/gpucheck" "$d" --repeat 0 --io-only --json "$out/$name.io.json" >/dev/null
   ncu_run traverse "$out/$name.traverse.csv" "$bin/gpucheck" "$d" --repeat 0
-  ncu_run inputOutput "$out/$name.io.csv" "$bin/gpucheck" "$d" --repeat 0 --io-only
+  ncu_run traverse "$out/$name.io.csv" "$bin/gpucheck" "$d" --repeat 0 --io-only
   # Optional counters, one ncu run each (a name this ncu lacks costs only itself):
   # GPUCHECK_EXTRA_METRICS="a,b,..." into OUT/<workload>.{traverse,io}.extra.csv.
   for m in ${GPUCHECK_EXTRA_METRICS//,/ }; do
     for k in traverse io; do
       kernel=traverse; flags=(--repeat 0)
-      [[ $k == io ]] && kernel=inputOutput && flags=(--repeat 0 --io-only)
+      [[ $k == io ]] && flags=(--repeat 0 --io-only)
       ncu --cache-control all --clock-control base --kernel-name $kernel --launch-count 1 --csv --print-units base \
           --metrics "$m" "$bin/gpucheck" "$d" "${flags[@]}" 2>>"$out/$name.extra.log" |
         grep "\"$m\"" >>"$out/$name.$k.extra.csv" || echo "ncu: no $m" >>"$out/$name.extra.log"

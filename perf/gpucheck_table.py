@@ -8,7 +8,7 @@ Reads OUT/<workload>.{traverse,io}.csv (Nsight Compute), OUT/<workload>.run.json
 with --models DIR, DIR/<workload>/model.json (predictions made again with other
 model parameters: the measured files are kept). Writes OUT/gpucheck.json and
 prints a Markdown table. The GPU's counts are the traversal kernel's minus the
-input/output kernel's (the rays read, the answers written), so what remains is
+same kernel's over an empty scene (the rays read, the answers written), so what remains is
 the BVH fetch stream; the model counts the same fetches (docs/validation.md,
 "Counting the same thing")."""
 import csv
@@ -56,7 +56,9 @@ def main():
         rays = run["rays"]
 
         def net(metric):
-            return t.get(metric, 0.0) - io.get(metric, 0.0)
+            if metric not in t or metric not in io:
+                sys.exit(f"gpucheck_table: {name}: ncu did not report {metric}")
+            return t[metric] - io[metric]
 
         l1_sectors = net("l1tex__t_sectors_pipe_lsu_mem_global_op_ld.sum")
         l1_hits = net("l1tex__t_sectors_pipe_lsu_mem_global_op_ld_lookup_hit.sum")

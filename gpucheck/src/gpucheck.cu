@@ -7,8 +7,12 @@
 // (median of --repeat timed launches, CUDA events). --io-only runs instead a
 // kernel that reads the rays and writes answers of the same size without
 // traversing: its counters are subtracted from the traversal's
-// (perf/gpucheck.sh), so that what remains is the BVH fetch stream.
-// Exit 2: unreadable input or a scene over the constant-memory tables.
+// (perf/gpucheck.sh), so that what remains is the BVH fetch stream: the
+// same traversal kernel over an empty scene (every ray ends before its first
+// fetch), so its code, its ray loads and its answer stores are the same.
+// Exit 1: some ray differs from the model; 2: unreadable or corrupt input, or
+// a scene over the constant-memory tables; 3: a CUDA error, or the kernel
+// did not get the occupancy it was sized for.
 #include <gpucheck/files.hpp>
 #include <gpucheck/traversal.hpp>
 
@@ -46,7 +50,9 @@ struct DeviceStack {
     unsigned long long* overflowPushes;
     unsigned tid;
     std::uint32_t n;
-    __device__ void push(std::uint32_t b, float t, std::uint32_t kind) {
+    std::uint32_t overflowEntries;  // room in global memory: the model's deepest stack, less the shared entries
+    __device__ bool push(std::uint32_t b, float t, std::uint32_t kind) {
+        if (n >= kSharedEntries + overflowEntries) return false;  // deeper than the model's deepest: corrupt
         if (n < kSharedEntries) {
             bits[n][tid] = b;
             ts[n][tid] = t;
@@ -59,6 +65,7 @@ struct DeviceStack {
             atomicAdd(overflowPushes, 1ull);
         }
         ++n;
+        return true;
     }
     __device__ void pop(std::uint32_t& b, float& t, std::uint32_t& kind) {
         --n;
@@ -78,30 +85,30 @@ struct DeviceStack {
 
 __global__ void __launch_bounds__(kBlock)
     traverse(gpucheck::SceneView scene, const gpucheck::RayIn* rays, gpucheck::RayOut* out, std::uint32_t count,
-             std::uint32_t* overflow, std::uint32_t overflowEntries, unsigned long long* overflowPushes) {
+             std::uint32_t* overflow, std::uint32_t overflowEntries, unsigned long long* overflowPushes,
+             unsigned* corruptRays) {
     __shared__ std::uint32_t bits[kSharedEntries][kBlock];
     __shared__ float ts[kSharedEntries][kBlock];
     __shared__ std::uint8_t kinds[kSharedEntries][kBlock];
     const std::uint32_t i = blockIdx.x * kBlock + threadIdx.x;
     if (i >= count) return;
-    DeviceStack stack{bits, ts, kinds, overflow + std::size_t(3) * overflowEntries * i, overflowPushes, threadIdx.x, 0};
+    DeviceStack stack{bits,           ts,          kinds, overflow + std::size_t(3) * overflowEntries * i,
+                      overflowPushes, threadIdx.x, 0,     overflowEntries};
     const gpucheck::RayIn ray = rays[i];
     gpucheck::RayOut o;
-    gpucheck::traceRay(scene, ConstantTables{}, ray, stack, o);
+    if (!gpucheck::traceRay(scene, ConstantTables{}, ray, stack, o)) atomicAdd(corruptRays, 1u);
     out[i] = o;
 }
 
-// The same reads of the rays and writes of the answers, no traversal.
-__global__ void __launch_bounds__(kBlock)
-    inputOutput(const gpucheck::RayIn* rays, gpucheck::RayOut* out, std::uint32_t count) {
-    const std::uint32_t i = blockIdx.x * kBlock + threadIdx.x;
-    if (i >= count) return;
-    const gpucheck::RayIn r = rays[i];
-    gpucheck::RayOut o{};
-    o.t = r.origin[0] + r.origin[1] + r.origin[2] + r.tMin;
-    o.b1 = r.direction[0] + r.direction[1] + r.direction[2] + r.tMax;
-    o.hit = r.mask ^ r.policy ^ r.skipTriangles ^ r.reserved;
-    out[i] = o;
+// A string for the JSON summary: quotes, backslashes and control characters escaped.
+std::string jsonText(const std::string& s) {
+    std::string out;
+    for (const char c : s) {
+        if (c == '"' || c == '\\') out += '\\';
+        if (static_cast<unsigned char>(c) < 0x20) out += ' ';
+        else out += c;
+    }
+    return out;
 }
 
 #define CHECK(call)                                                                           \
@@ -158,6 +165,7 @@ int main(int argc, char** argv) {
     gpucheck::RayIn* rays = nullptr;
     gpucheck::RayOut* out = nullptr;
     unsigned long long* overflowPushes = nullptr;
+    unsigned* corruptRays = nullptr;
     CHECK(cudaMalloc(&image, d.image.size() * 4 + 4));
     CHECK(cudaMemcpy(image, d.image.data(), d.image.size() * 4, cudaMemcpyHostToDevice));
     if (!d.instances.empty())
@@ -169,15 +177,30 @@ int main(int argc, char** argv) {
     CHECK(cudaMalloc(&out, std::size_t(n) * sizeof(gpucheck::RayOut)));
     CHECK(cudaMalloc(&overflow, std::size_t(3) * 4 * std::max<std::uint32_t>(overflowEntries, 1) * n));
     CHECK(cudaMalloc(&overflowPushes, sizeof(unsigned long long)));
-    // Shared memory for as many blocks as the registers allow; the rest of each SM's unified
-    // 256 KB is L1 (its size as configured is read by ncu: launch__shared_mem_config_size).
+    CHECK(cudaMalloc(&corruptRays, sizeof(unsigned)));
+    CHECK(cudaMemset(corruptRays, 0, sizeof(unsigned)));
+    // Shared memory for as many blocks as the registers allow (each block's static shared memory
+    // plus the runtime's reserve); the rest of each SM's unified 256 KB is L1 (its size as
+    // configured is read by ncu: launch__shared_mem_config_size). The occupancy is checked after.
     int blocksPerSm = 0;
     CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocksPerSm, traverse, kBlock, 0));
-    const int sharedPerBlock = kSharedEntries * kBlock * 9;
+    cudaFuncAttributes attributes{};
+    CHECK(cudaFuncGetAttributes(&attributes, traverse));
+    const int sharedPerBlock = static_cast<int>(attributes.sharedSizeBytes + prop.reservedSharedMemPerBlock);
     const int sharedPerSm = static_cast<int>(prop.sharedMemPerMultiprocessor);
     const int carveout = std::min(100, (blocksPerSm * sharedPerBlock * 100 + sharedPerSm - 1) / sharedPerSm);
     CHECK(cudaFuncSetAttribute(traverse, cudaFuncAttributePreferredSharedMemoryCarveout, carveout));
-    const gpucheck::SceneView scene{image, d.header};
+    int blocksAfter = 0;
+    CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocksAfter, traverse, kBlock, 0));
+    if (blocksAfter != blocksPerSm) {
+        std::fprintf(stderr, "gpucheck: the carve-out of %d%% leaves %d blocks per SM instead of %d\n", carveout,
+                     blocksAfter, blocksPerSm);
+        return 3;
+    }
+    // --io-only: the same kernel over an empty scene (no fetch at all).
+    gpucheck::SceneHeader header = d.header;
+    if (ioOnly) header.tlasRoot = gpucheck::kInvalidRef;
+    const gpucheck::SceneView scene{image, header};
     const unsigned blocks = (n + kBlock - 1) / kBlock;
 
     // Step: timed launches (the first is the warm-up), the answers poisoned before each.
@@ -189,8 +212,7 @@ int main(int argc, char** argv) {
         CHECK(cudaMemset(out, 0xff, std::size_t(n) * sizeof(gpucheck::RayOut)));
         CHECK(cudaMemset(overflowPushes, 0, sizeof(unsigned long long)));
         CHECK(cudaEventRecord(start));
-        if (ioOnly) inputOutput<<<blocks, kBlock>>>(rays, out, n);
-        else traverse<<<blocks, kBlock>>>(scene, rays, out, n, overflow, overflowEntries, overflowPushes);
+        traverse<<<blocks, kBlock>>>(scene, rays, out, n, overflow, overflowEntries, overflowPushes, corruptRays);
         CHECK(cudaGetLastError());
         CHECK(cudaEventRecord(stop));
         CHECK(cudaEventSynchronize(stop));
@@ -207,6 +229,12 @@ int main(int argc, char** argv) {
     CHECK(cudaMemcpy(got.data(), out, std::size_t(n) * sizeof(gpucheck::RayOut), cudaMemcpyDeviceToHost));
     unsigned long long pushes = 0;
     CHECK(cudaMemcpy(&pushes, overflowPushes, sizeof pushes, cudaMemcpyDeviceToHost));
+    unsigned corrupt = 0;
+    CHECK(cudaMemcpy(&corrupt, corruptRays, sizeof corrupt, cudaMemcpyDeviceToHost));
+    if (corrupt) {
+        std::fprintf(stderr, "gpucheck: %s: %u rays meet a corrupt memory image\n", dir.c_str(), corrupt);
+        return 2;
+    }
     const std::uint64_t mismatches = ioOnly ? 0 : gpucheck::compareWithModel(got, d.expected);
     const double raysPerSecond = median > 0.f ? double(n) / (double(median) * 1e-3) : 0.0;
     std::printf(
@@ -220,14 +248,15 @@ int main(int argc, char** argv) {
             std::fprintf(stderr, "gpucheck: cannot write %s\n", jsonPath.c_str());
             return 2;
         }
-        std::fprintf(f,
-                     "{\"export\": \"%s\", \"rays\": %u, \"kernel\": \"%s\", \"device\": \"%s\", \"sms\": %d, "
-                     "\"l2Bytes\": %d, \"driverVersion\": %d, \"runtimeVersion\": %d, \"blockThreads\": %d, "
-                     "\"sharedStackEntries\": %d, \"medianMs\": %.6f, \"timedLaunches\": %zu, \"raysPerSecond\": %.6g, "
-                     "\"stackOverflowPushes\": %llu, \"mismatches\": %llu, \"blocksPerSm\": %d, \"carveoutPercent\": %d}\n",
-                     dir.c_str(), n, ioOnly ? "inputOutput" : "traverse", prop.name, prop.multiProcessorCount,
-                     prop.l2CacheSize, driver, runtime, kBlock, kSharedEntries, median, ms.size(), raysPerSecond,
-                     pushes, static_cast<unsigned long long>(mismatches), blocksPerSm, carveout);
+        std::fprintf(
+            f,
+            "{\"export\": \"%s\", \"rays\": %u, \"kernel\": \"%s\", \"device\": \"%s\", \"sms\": %d, "
+            "\"l2Bytes\": %d, \"driverVersion\": %d, \"runtimeVersion\": %d, \"blockThreads\": %d, "
+            "\"sharedStackEntries\": %d, \"medianMs\": %.6f, \"timedLaunches\": %zu, \"raysPerSecond\": %.6g, "
+            "\"stackOverflowPushes\": %llu, \"mismatches\": %llu, \"blocksPerSm\": %d, \"carveoutPercent\": %d}\n",
+            jsonText(dir).c_str(), n, ioOnly ? "traverse (empty scene)" : "traverse", jsonText(prop.name).c_str(),
+            prop.multiProcessorCount, prop.l2CacheSize, driver, runtime, kBlock, kSharedEntries, median, ms.size(),
+            raysPerSecond, pushes, static_cast<unsigned long long>(mismatches), blocksPerSm, carveout);
         std::fclose(f);
     }
     CHECK(cudaFree(image));
@@ -235,5 +264,6 @@ int main(int argc, char** argv) {
     CHECK(cudaFree(out));
     CHECK(cudaFree(overflow));
     CHECK(cudaFree(overflowPushes));
+    CHECK(cudaFree(corruptRays));
     return mismatches ? 1 : 0;
 }

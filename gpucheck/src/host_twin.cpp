@@ -18,7 +18,12 @@ struct HostStack {
         std::uint32_t kind;
     };
     std::vector<Entry> entries;
-    void push(std::uint32_t bits, float t, std::uint32_t kind) { entries.push_back({bits, t, kind}); }
+    std::size_t capacity = 0;  // the model's deepest stack: a deeper one is a divergence
+    bool push(std::uint32_t bits, float t, std::uint32_t kind) {
+        if (entries.size() == capacity) return false;
+        entries.push_back({bits, t, kind});
+        return true;
+    }
     void pop(std::uint32_t& bits, float& t, std::uint32_t& kind) {
         bits = entries.back().bits;
         t = entries.back().t;
@@ -45,9 +50,14 @@ int main(int argc, char** argv) {
     const gpucheck::HostTables tables{d.meshes.data(), d.instances.data()};
     std::vector<gpucheck::RayOut> got(d.rays.size());
     HostStack stack;
+    stack.capacity = d.maxStackDepth;
     for (std::size_t i = 0; i < d.rays.size(); ++i) {
         stack.clear();
-        gpucheck::traceRay(view, tables, d.rays[i], stack, got[i]);
+        // A ray stops one step past the model's count: it differs by then (and a corrupt loop ends).
+        if (!gpucheck::traceRay(view, tables, d.rays[i], stack, got[i], d.expected[i].steps + 1)) {
+            std::fprintf(stderr, "gpucheck-host: %s: ray %zu meets a corrupt memory image\n", argv[1], i);
+            return 2;
+        }
     }
     const std::uint64_t mismatches = gpucheck::compareWithModel(got, d.expected);
     std::printf("gpucheck-host: %zu rays, %llu differ from the model\n", d.rays.size(),

@@ -35,19 +35,19 @@ void NodeCache::prefetch(const MemoryRange& range, std::uint64_t now, MemoryPort
             present = tags_[i] == line;
             if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
         }
-        if (present) continue;
+        if (present) continue;  // a present line is left alone, also when some of its sectors were never read
         ++prefetchLines;
         if (tags_[victim] != kInvalid) ++evictions;
         tags_[victim] = line;
         used_[victim] = ++stamp_;
         prefetched_[victim] = 1;
         valid_[victim] = ~0u;
-        // The whole line, every sector of it.
-        const std::uint64_t ready = port.readLine(line << lineShift_, params_.lineBytes, now).ready;
+        // The whole line, every sector of it, one read per fill unit (an L2 line may be smaller than this line).
         for (std::uint32_t k = 0; k < sectorsPerLine_; ++k) {
             const std::size_t slot = victim * sectorsPerLine_ + k;
-            ready_[slot] = ready;
-            if (isDeferred(ready)) [[unlikely]]
+            ready_[slot] =
+                port.readLine((line << lineShift_) + (std::uint64_t(k) << unitShift_), params_.fillBytes(), now).ready;
+            if (isDeferred(ready_[slot])) [[unlikely]]
                 port.deferred()->ways.push_back(static_cast<std::uint32_t>(slot));
         }
     }

@@ -10,6 +10,19 @@
 #include <string>
 
 namespace rtlab::rtcore_sim {
+
+SimRay simRayOf(const tracer::RayDesc& r, const tracer::TraceArgs& args) {
+    SimRay s;
+    s.ray.origin = r.origin;
+    s.ray.tMin = r.tMin;
+    s.ray.direction = r.direction;
+    s.ray.tMax = r.tMax;
+    s.ray.mask = static_cast<std::uint8_t>(args.instanceInclusionMask & 0xff);
+    s.rayType = args.rayContribution & 0xf;
+    s.skipTriangles = (args.rayFlags & tracer::RayFlag::SkipTriangles) != 0;
+    s.skipProcedural = (args.rayFlags & tracer::RayFlag::SkipProceduralPrimitives) != 0;
+    return s;
+}
 namespace {
 
 constexpr std::size_t kMaxMismatchExamples = 8;
@@ -296,7 +309,6 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     // Step: the rays the model sees (valid, active lanes), in lane order.
     simRays_.clear();
     laneOf_.clear();
-    const std::uint8_t mask = static_cast<std::uint8_t>(args.instanceInclusionMask & 0xff);
     for (std::uint32_t lane = 0; lane < count; ++lane) {
         if (!active[lane]) continue;
         const tracer::RayDesc& r = rays[lane];
@@ -304,16 +316,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
             ++invalidRays_;
             continue;
         }
-        SimRay s;
-        s.ray.origin = r.origin;
-        s.ray.tMin = r.tMin;
-        s.ray.direction = r.direction;
-        s.ray.tMax = r.tMax;
-        s.ray.mask = mask;
-        s.rayType = args.rayContribution & 0xf;
-        s.skipTriangles = (args.rayFlags & tracer::RayFlag::SkipTriangles) != 0;
-        s.skipProcedural = (args.rayFlags & tracer::RayFlag::SkipProceduralPrimitives) != 0;
-        simRays_.push_back(s);
+        simRays_.push_back(simRayOf(r, args));
         laneOf_.push_back(lane);
     }
 

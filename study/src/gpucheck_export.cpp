@@ -68,7 +68,9 @@ std::vector<std::uint32_t> leafOffsets(const rtcore_sim::Bvh& bvh, std::uint32_t
     for (std::size_t i = 0; i < bvh.leaves.size(); ++i) {
         const std::uint64_t o =
             std::uint64_t(rtcore_sim::kLeafHeaderBytes) * i + std::uint64_t(slotBytes) * bvh.leaves[i].firstRef;
-        if (o >= gpucheck::kLeafBit) throw InputError("gpucheck-export", "a BVH region exceeds 2 GiB of leaves");
+        if (o >= gpucheck::kLeafBit)
+            throw InputError("gpucheck-export",
+                             "the scene has a BVH of over 2 GiB of leaves (the check addresses leaves in 31 bits)");
         offsets[i] = static_cast<std::uint32_t>(o);
     }
     return offsets;
@@ -211,7 +213,8 @@ void writeBinary(const std::filesystem::path& path, const void* header, std::siz
         f.write(static_cast<const char*>(header), static_cast<std::streamsize>(headerBytes));
         if (extra) f.write(static_cast<const char*>(extra), static_cast<std::streamsize>(extraBytes));
         f.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size() * sizeof(T)));
-        if (!f) throw InputError(path.string(), "cannot write");
+        f.close();
+        if (f.fail()) throw InputError(path.string(), "cannot write (disk full?)");
     });
 }
 
@@ -253,15 +256,7 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
                 ++result.beyondMaxRays;
                 continue;
             }
-            SimRay s;
-            s.ray.origin = desc.origin;
-            s.ray.tMin = desc.tMin;
-            s.ray.direction = desc.direction;
-            s.ray.tMax = desc.tMax;
-            s.ray.mask = static_cast<std::uint8_t>(batch.record->instanceInclusionMask & 0xff);
-            s.rayType = type;
-            s.skipTriangles = (batch.record->rayFlags & tracer::RayFlag::SkipTriangles) != 0;
-            s.skipProcedural = (batch.record->rayFlags & tracer::RayFlag::SkipProceduralPrimitives) != 0;
+            const SimRay s = simRayOf(desc, batch.args());
             gpucheck::RayIn in{};
             for (int a = 0; a < 3; ++a) {
                 in.origin[a] = s.ray.origin[a];
@@ -278,6 +273,9 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
         }
     }
     if (rays.empty()) throw InputError(file.path().string(), "no ray of the selected ray types to export");
+    if (rays.size() > kMaxLaunchThreads)
+        throw InputError(file.path().string(),
+                         std::to_string(rays.size()) + " selected rays: more than one launch holds (use --max-rays)");
 
     // Step: the memory image at the layout's addresses.
     MemoryLayout layout;
@@ -328,8 +326,9 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
         const RayRecord& r = *records[i];
         const bool recordedHit = (r.flags & RayRecord::kHit) != 0;
         if (recordedHit != hit.hit ||
-            (hit.hit && (std::bit_cast<std::uint32_t>(r.hitT) != std::bit_cast<std::uint32_t>(hit.t) ||
-                         r.instance != hit.instanceIndex || r.primitive != hit.primitiveIndex)))
+            (hit.hit &&
+             (std::bit_cast<std::uint32_t>(r.hitT) != std::bit_cast<std::uint32_t>(hit.t) ||
+              r.instance != hit.instanceIndex || r.geometry != hit.geometryIndex || r.primitive != hit.primitiveIndex)))
             throw InputError(file.path().string(), "ray " + std::to_string(i) +
                                                        " of the selection hits otherwise on this scene than recorded "
                                                        "(another scene, frame or BVH configuration?)");
@@ -342,7 +341,6 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
     std::vector<std::uint32_t> threads(rays.size());
     std::iota(threads.begin(), threads.end(), 0u);
     std::vector<SimRayResult> results(rays.size());
-    if (rays.size() > kMaxLaunchThreads) throw InputError("--max-rays", "more rays than one launch holds");
     core.runLaunch(simRays, threads, static_cast<std::uint32_t>(rays.size()), side, results);
     const nlohmann::json stats = core.statsJson();
     const double n = double(rays.size());
@@ -375,7 +373,7 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
                         {"pendingHits", l1Pending},
                         {"misses", l1["misses"]},
                         {"lineBytes", config.cache.lineBytes},
-                        {"missBytesPerRay", double(std::uint64_t(l1["misses"]) * config.cache.lineBytes) / n},
+                        {"missBytesPerRay", double(std::uint64_t(l1["misses"]) * config.cache.fillBytes()) / n},
                         {"hitRate", l1Accesses ? double(l1Hits) / double(l1Accesses) : 0.0},
                         {"hitRateWithoutPending", l1Accesses ? double(l1Hits - l1Pending) / double(l1Accesses) : 0.0}}},
                       {"l2",
@@ -398,16 +396,26 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
     std::memcpy(tables.data(), image.meshes.data(), image.meshes.size() * sizeof(gpucheck::MeshInfo));
     std::memcpy(tables.data() + image.meshes.size() * sizeof(gpucheck::MeshInfo), image.instances.data(),
                 image.instances.size() * sizeof(gpucheck::InstanceInfo));
-    writeBinary(out / "scene.bin", &image.header, sizeof image.header, image.words, tables.data(), tables.size());
+    // One id in the three files: a set written partly over an older export is refused by the reader.
+    Fnv64 id;
+    id.add(image.words.data(), image.words.size() * 4);
+    id.add(rays.data(), rays.size() * sizeof(gpucheck::RayIn));
+    id.add(expected.data(), expected.size() * sizeof(gpucheck::RayOut));
+    const std::uint32_t exportId = static_cast<std::uint32_t>(id.value() ^ (id.value() >> 32));
+    gpucheck::SceneHeader header = image.header;
+    header.exportId = exportId;
+    writeBinary(out / "scene.bin", &header, sizeof header, image.words, tables.data(), tables.size());
     gpucheck::RaysHeader rh{};
     std::memcpy(rh.magic, "RTLGCRAY", 8);
     rh.version = gpucheck::kFormatVersion;
     rh.rayCount = static_cast<std::uint32_t>(rays.size());
+    rh.exportId = exportId;
     writeBinary(out / "rays.bin", &rh, sizeof rh, rays);
     gpucheck::ExpectedHeader eh{};
     std::memcpy(eh.magic, "RTLGCEXP", 8);
     eh.version = gpucheck::kFormatVersion;
     eh.rayCount = static_cast<std::uint32_t>(rays.size());
+    eh.exportId = exportId;
     writeBinary(out / "expected.bin", &eh, sizeof eh, expected);
     writeTextFileAtomically(out / "model.json", m.dump(2) + "\n");
     return result;

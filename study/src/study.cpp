@@ -28,16 +28,6 @@ void rejectUnknownKeys(const json& object, std::initializer_list<const char*> kn
     }
 }
 
-int intField(const json& object, const char* key, int min, int max, int fallback, const std::string& where,
-             const std::string& path) {
-    if (!object.contains(key)) return fallback;
-    const json& v = object.at(key);
-    if (!v.is_number_integer() || v.get<long long>() < min || v.get<long long>() > max)
-        throw InputError(where, path + ": must be an integer in " + std::to_string(min) + ".." + std::to_string(max) +
-                                    " (got " + v.dump() + ")");
-    return v.get<int>();
-}
-
 std::string stringField(const json& object, const char* key, const std::string& fallback, const std::string& where,
                         const std::string& path, std::initializer_list<const char*> allowed = {}) {
     if (!object.contains(key)) return fallback;

@@ -99,6 +99,16 @@ TEST(GpuCheck, ChangedOrDamagedInputIsFound) {
     const CliRun changed = runCommand(kHost + " " + e.dir.string());
     EXPECT_EQ(changed.exitCode, 1) << changed.out;
     EXPECT_NE(changed.out.find("ray 0 differs"), std::string::npos) << changed.out;
+    // A reference out of the image (the TLAS root): exit 2, the ray named, no crash.
+    {
+        std::fstream f(e.dir / "scene.bin", std::ios::in | std::ios::out | std::ios::binary);
+        const std::uint32_t farNode = 0x7ffffffu;
+        f.seekp(offsetof(gpucheck::SceneHeader, tlasRoot));
+        f.write(reinterpret_cast<const char*>(&farNode), 4);
+    }
+    const CliRun corrupt = runCommand(kHost + " " + e.dir.string());
+    EXPECT_EQ(corrupt.exitCode, 2) << corrupt.out;
+    EXPECT_NE(corrupt.out.find("corrupt memory image"), std::string::npos) << corrupt.out;
     // A truncated scene: exit 2 naming the file.
     fs::resize_file(e.dir / "scene.bin", fs::file_size(e.dir / "scene.bin") - 4);
     const CliRun truncated = runCommand(kHost + " " + e.dir.string());

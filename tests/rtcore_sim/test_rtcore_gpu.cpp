@@ -674,3 +674,52 @@ TEST(RtCoreGpu, TreeletPrefetchReadsAheadWithoutDelayingTheRay) {
     EXPECT_EQ(core.statsJson()["cache"]["prefetch"]["lines"], 0);
     EXPECT_EQ(core.statsJson()["memory"]["reads"], 0);
 }
+
+TEST(RtCoreGpu, SectoredCachesGiveTheSameLaunchSeriallyAndOnHostThreads) {
+    // h100-like's memory side (128-byte L1 lines of 32-byte sectors, 64-byte
+    // L2 lines) on four cores, with and without treelet prefetching (whole
+    // lines read one sector at a time): the serial model and host-parallel
+    // epochs on 2 and 3 threads give the same cycles, per-ray results and stats.
+    for (const char* policy : {"fifo", "treeletPrefetch"}) {
+        RtCoreConfig config;
+        config.gpu.cores = 4;
+        config.gpu.residentWarps = 4;
+        config.l2.mode = L2Mode::Cache;
+        config.cache.lineBytes = 128;
+        config.cache.sectorBytes = 32;
+        config.cache.ways = 4;
+        config.cache.sizeBytes = 128 * 4 * 8;
+        config.l2.lineBytes = 64;
+        config.l2.sizeBytes = 64 * 16 * 16 * 16;
+        config.scheduler.policy = policy;
+        SCOPED_TRACE(policy);
+        MicroScene scene;
+        loadScene(scene, "builtin:terrain?triangles=20000", config.bvh);
+        const std::vector<SimRay> rays = primaryRays(scene.snapshot.camera, 48, 32);
+        std::vector<std::uint32_t> threads(rays.size());
+        for (std::uint32_t t = 0; t < threads.size(); ++t) threads[t] = t;
+        const auto run = [&](ProgrammableSide& side, std::vector<SimRayResult>& results) {
+            RtCore core(config, *scene.model);
+            results.assign(rays.size(), SimRayResult{});
+            core.runLaunch(rays, threads, static_cast<std::uint32_t>(rays.size()), side, results);
+            nlohmann::json stats = core.statsJson();
+            stats["clock"] = core.cycle();
+            return stats;
+        };
+        SerialOpaqueSide serialSide;
+        std::vector<SimRayResult> serial;
+        const nlohmann::json expected = run(serialSide, serial);
+        EXPECT_GT(expected["cache"]["misses"].get<std::uint64_t>(), 0u);
+        EXPECT_EQ(expected["cache"]["sizeBytes"], config.cache.sizeBytes);
+        for (const int hostThreads : {2, 3}) {
+            std::vector<SimRayResult> parallel;
+            nlohmann::json stats;
+            withHostThreads(hostThreads, [&] {
+                OpaqueSide side;
+                stats = run(side, parallel);
+            });
+            EXPECT_EQ(stats, expected) << hostThreads << " host threads";
+            for (std::size_t i = 0; i < rays.size(); ++i) ASSERT_EQ(parallel[i].cycles, serial[i].cycles) << i;
+        }
+    }
+}

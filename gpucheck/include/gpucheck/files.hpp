@@ -35,6 +35,11 @@ inline bool readAll(const std::string& path, std::vector<unsigned char>& bytes, 
     std::fclose(f);
     return true;
 }
+// Whether `count` records of T follow `at` (checked before anything is allocated for them).
+template <class T>
+bool fits(const std::vector<unsigned char>& bytes, std::size_t at, std::uint64_t count) {
+    return at <= bytes.size() && count <= (bytes.size() - at) / sizeof(T);
+}
 template <class T>
 bool take(const std::vector<unsigned char>& bytes, std::size_t& at, T* out, std::size_t count) {
     if (bytes.size() - at < sizeof(T) * count || at > bytes.size()) return false;
@@ -56,6 +61,14 @@ inline bool loadCheck(const std::string& dir, CheckData& d, std::string& error) 
         error = scene + ": not a gpucheck scene of format version " + std::to_string(kFormatVersion);
         return false;
     }
+    const std::uint64_t tables = at + std::uint64_t(d.header.meshCount) * sizeof(MeshInfo) +
+                                 std::uint64_t(d.header.instanceCount) * sizeof(InstanceInfo);
+    if (!detail::fits<MeshInfo>(bytes, at, d.header.meshCount) ||
+        !detail::fits<InstanceInfo>(bytes, at, d.header.instanceCount) || tables > bytes.size() ||
+        !detail::fits<std::uint32_t>(bytes, static_cast<std::size_t>(tables), d.header.imageBytes / 4)) {
+        error = scene + ": truncated or of the wrong size";
+        return false;
+    }
     d.meshes.resize(d.header.meshCount);
     d.instances.resize(d.header.instanceCount);
     d.image.resize(d.header.imageBytes / 4);
@@ -72,6 +85,14 @@ inline bool loadCheck(const std::string& dir, CheckData& d, std::string& error) 
         error = rays + ": not a gpucheck ray file";
         return false;
     }
+    if (rh.exportId != d.header.exportId) {
+        error = rays + ": not of the same export as scene.bin";
+        return false;
+    }
+    if (!detail::fits<RayIn>(bytes, at, rh.rayCount)) {
+        error = rays + ": truncated or of the wrong size";
+        return false;
+    }
     d.rays.resize(rh.rayCount);
     if (!detail::take(bytes, at, d.rays.data(), d.rays.size()) || at != bytes.size()) {
         error = rays + ": truncated or of the wrong size";
@@ -81,7 +102,7 @@ inline bool loadCheck(const std::string& dir, CheckData& d, std::string& error) 
     at = 0;
     if (!detail::readAll(expected, bytes, error)) return false;
     if (!detail::take(bytes, at, &eh, 1) || std::memcmp(eh.magic, "RTLGCEXP", 8) != 0 || eh.version != kFormatVersion ||
-        eh.rayCount != rh.rayCount) {
+        eh.rayCount != rh.rayCount || eh.exportId != rh.exportId || !detail::fits<RayOut>(bytes, at, eh.rayCount)) {
         error = expected + ": not the expected answers of these rays";
         return false;
     }
@@ -93,6 +114,10 @@ inline bool loadCheck(const std::string& dir, CheckData& d, std::string& error) 
     d.maxStackDepth = 0;
     for (const RayOut& e : d.expected)
         d.maxStackDepth = e.maxStackDepth > d.maxStackDepth ? e.maxStackDepth : d.maxStackDepth;
+    if (d.maxStackDepth > kMaxStackDepth) {
+        error = expected + ": a stack deeper than any BVH of the model has";
+        return false;
+    }
     return true;
 }
 

@@ -32,6 +32,8 @@ inline constexpr std::uint32_t kInvalidRef = 0xffffffffu;
 inline constexpr std::uint32_t kMaxWidth = 8;
 inline constexpr std::uint32_t kMaxTlasLeafRefs = 32;
 inline constexpr std::uint32_t kInstanceIndexBits = 24;
+// The model's stack bound (rtcore_sim::kStackCapacity: (8 - 1) x 2 x 41 + 32 + 1 entries).
+inline constexpr std::uint32_t kMaxStackDepth = 607;
 
 struct SceneHeader {
     char magic[8];  // "RTLGCSCN"
@@ -45,7 +47,7 @@ struct SceneHeader {
     std::uint64_t tlasNodeBase, tlasLeafBase, instanceBase;
     float tlasMagnitude, tlasConditioning;  // conservative TLAS padding (tracer/conservative_bounds.hpp)
     float farScale;                         // the slab test's 1 + 2 gamma(3)
-    std::uint32_t reserved;
+    std::uint32_t exportId;                 // the same in the three files of one export (a hash of its rays and image)
 };
 static_assert(sizeof(SceneHeader) == 80);
 
@@ -73,8 +75,10 @@ struct RaysHeader {
     char magic[8];  // "RTLGCRAY"
     std::uint32_t version;
     std::uint32_t rayCount;
+    std::uint32_t exportId;
+    std::uint32_t reserved;
 };
-static_assert(sizeof(RaysHeader) == 16);
+static_assert(sizeof(RaysHeader) == 24);
 
 struct RayIn {
     float origin[3];
@@ -92,8 +96,10 @@ struct ExpectedHeader {
     char magic[8];  // "RTLGCEXP"
     std::uint32_t version;
     std::uint32_t rayCount;
+    std::uint32_t exportId;
+    std::uint32_t reserved;
 };
-static_assert(sizeof(ExpectedHeader) == 16);
+static_assert(sizeof(ExpectedHeader) == 24);
 
 // One ray's answer: its committed hit and the work its traversal did.
 struct RayOut {

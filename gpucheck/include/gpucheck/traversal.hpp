@@ -168,11 +168,18 @@ struct HostTables {
 
 // Reads the image word by word, folding each word into the ray's checksum
 // and counting the fetch's bytes and 32-byte sectors.
+// An address outside the image (a corrupt export) reads 0 and marks the ray bad.
 struct Fetcher {
     const std::uint32_t* image;
+    std::uint64_t words;
     std::uint32_t checksum = 0x811c9dc5u;
     std::uint32_t bytes = 0, sectors = 0;
+    bool bad = false;
     GC_HD std::uint32_t word(std::uint64_t address) {
+        if ((address >> 2) >= words) {
+            bad = true;
+            return 0;
+        }
         const std::uint32_t w = image[address >> 2];
         checksum = (checksum ^ w) * 0x01000193u;
         return w;
@@ -183,14 +190,24 @@ struct Fetcher {
     }
 };
 
-// The traversal of one ray. Stack: push(bits, tEntry, kind), pop(bits,
-// tEntry, kind) (only when not empty), clear(); on the GPU a fixed number
-// of entries in shared memory, the rest in global memory; on the host a vector.
+// At most this many steps a ray: more means a corrupt export (a cycle of references).
+inline constexpr std::uint32_t kMaxSteps = 1u << 24;
+
+// The traversal of one ray. Stack: push(bits, tEntry, kind) -> false when
+// it is full, pop(bits, tEntry, kind) (only when not empty), clear(); on the
+// GPU a fixed number of entries in shared memory, the rest in global memory
+// (as deep as the model's deepest stack); on the host a bounded vector.
+// Returns false for a corrupt export (an address outside the image, a mesh
+// or instance that does not exist, a leaf larger than the image, a cycle):
+// the answer is then meaningless. A ray that takes maxSteps steps or fills
+// the stack stops there (maxStackDepth ~0 for a full stack): it differs
+// from the model's answer, which is how a divergence is reported.
 template <class Stack, class Tables>
-GC_HD void traceRay(const SceneView& scene, const Tables& tables, const RayIn& ray, Stack& stack, RayOut& out) {
+GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& ray, Stack& stack, RayOut& out,
+                    std::uint32_t maxSteps = kMaxSteps) {
     using namespace detail;
     const SceneHeader& h = scene.header;
-    Fetcher f{scene.image};
+    Fetcher f{scene.image, h.imageBytes >> 2};
     out = RayOut{};
     out.t = bitsFloat(0x7f800000u);
     float tClosest = ray.tMax;
@@ -217,8 +234,12 @@ GC_HD void traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
     std::uint32_t curBits = h.tlasRoot, curKind = kTlasRef;
     float curT = ray.tMin;
 
+    bool stackFull = false;
     auto push = [&](std::uint32_t bits, float t, std::uint32_t kind) {
-        stack.push(bits, t, kind);
+        if (!stack.push(bits, t, kind)) {
+            stackFull = true;
+            return;
+        }
         ++depth;
         if (depth > out.maxStackDepth) out.maxStackDepth = depth;
     };
@@ -238,6 +259,12 @@ GC_HD void traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
     };
 
     while (!finished) {
+        if (f.bad || out.steps == kMaxSteps) return false;
+        if (stackFull) {
+            out.maxStackDepth = ~0u;
+            break;
+        }
+        if (out.steps == maxSteps) break;
         ++out.steps;
         // Step: instance transition, the ray into the instance's object space.
         if (curKind == kInstance) {
@@ -250,6 +277,7 @@ GC_HD void traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
                 const std::uint32_t w = f.word(at + 4 * i);
                 if (i == 12) meshIndex = w;
             }
+            if (meshIndex >= h.meshCount || instanceIndex >= h.instanceCount) return false;
             mesh = &tables.mesh(meshIndex);
             ++out.instanceTransitions;
             const double(*m)[3] = tables.instance(instanceIndex).objectFromWorld;
@@ -349,6 +377,7 @@ GC_HD void traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
         const std::uint64_t at = leafBase + (curBits & ~kLeafBit);
         const std::uint32_t refCount = f.word(at);
         f.word(at + 4);
+        if (refCount > (inTlas ? kMaxTlasLeafRefs : std::uint32_t(h.imageBytes / 44))) return false;
         if (inTlas) {
             // Step: TLAS leaf, the instances passing the mask entered in
             // reference order (the later ones wait on the stack).
@@ -423,6 +452,7 @@ GC_HD void traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
     out.fetchBytes = f.bytes;
     out.fetchSectors = f.sectors;
     out.checksum = f.checksum;
+    return !f.bad;
 }
 
 }  // namespace gpucheck

@@ -101,7 +101,7 @@ struct DeferredReads {
     std::vector<std::vector<std::uint32_t>> byClass;  // per L2 line class (SharedL2::classOf): its reads, in order
     std::vector<LineFill> fills;                      // the answers, per read, data at the core (filled between epochs)
     std::vector<LineFill> terms;                      // per-line times of fetches that wait for a deferred read
-    std::vector<std::uint32_t> ways;                  // node-cache ways given a placeholder (may repeat)
+    std::vector<std::uint32_t> ways;  // node-cache slots (way x sectors + sector) given a placeholder (may repeat)
     bool empty() const { return reads.empty(); }
     void clear() {
         reads.clear();

@@ -265,11 +265,11 @@ enum class L2Mode : std::uint8_t { Ideal, Cache };
 struct L2Params {
     L2Mode mode = L2Mode::Ideal;
     std::uint32_t sizeBytes = 4u << 20;  // capacity over all banks
-    std::uint32_t lineBytes = 128;       // line size (>= cache.lineBytes in mode cache)
-    std::uint32_t ways = 16;             // associativity
-    std::uint32_t banks = 16;            // independent banks, line-interleaved
-    std::uint32_t bankCycles = 1;        // cycles one access occupies its bank
-    std::uint32_t hitLatency = 100;      // cycles from bank access to data on a hit
+    std::uint32_t lineBytes = 128;   // line size (>= the node cache's fill unit, CacheParams::fillBytes, in mode cache)
+    std::uint32_t ways = 16;         // associativity
+    std::uint32_t banks = 16;        // independent banks, line-interleaved
+    std::uint32_t bankCycles = 1;    // cycles one access occupies its bank
+    std::uint32_t hitLatency = 100;  // cycles from bank access to data on a hit
 };
 const ParamTable<L2Params>& l2ParamTable();
 
@@ -336,7 +336,8 @@ struct RtCoreConfig {
     // stack.refillEntries <= stack.shortStackEntries, cache.sizeBytes a
     // power-of-two number of sets of cache.ways lines, l2.sizeBytes a
     // power-of-two number of sets of l2.ways lines per bank, and in l2 mode
-    // cache l2.lineBytes >= cache.lineBytes. Throws InputError.
+    // cache l2.lineBytes >= cache.fillBytes(); cache.sectorBytes 0 or a divisor of
+    // lineBytes with at most 32 sectors a line. Throws InputError.
     void validate(const std::string& where) const;
 
     // The resolved configuration, every field present.

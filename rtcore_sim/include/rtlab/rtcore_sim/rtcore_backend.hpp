@@ -63,6 +63,10 @@ struct HitMismatch {
     tracer::CommittedHit embree;
 };
 
+// A (valid) pipeline ray as the model traces it: its TraceRay arguments' mask,
+// ray type (RayContributionToHitGroupIndex & 0xf) and skip flags.
+SimRay simRayOf(const tracer::RayDesc& ray, const tracer::TraceArgs& args);
+
 // A launch as the timing model simulates it (gpu.launch = launch): every
 // ray its threads traced, in trace order (so a ray's parent is the previous
 // ray of its thread), with the verdicts of its candidates. Verdict words per candidate: bit 0 commit, bit 1 end search,
