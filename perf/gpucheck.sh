@@ -58,7 +58,8 @@ for d in "$exports"/*/; do
   ncu_run traverse "$out/$name.io.csv" "$bin/gpucheck" "$d" --repeat 0 --io-only
   # Optional counters, one ncu run each (a name this ncu lacks costs only itself):
   # GPUCHECK_EXTRA_METRICS="a,b,..." into OUT/<workload>.{traverse,io}.extra.csv.
-  for m in ${GPUCHECK_EXTRA_METRICS//,/ }; do
+  extra=${GPUCHECK_EXTRA_METRICS:-}
+  for m in ${extra//,/ }; do
     for k in traverse io; do
       kernel=traverse; flags=(--repeat 0)
       [[ $k == io ]] && flags=(--repeat 0 --io-only)
