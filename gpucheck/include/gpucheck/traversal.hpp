@@ -168,25 +168,27 @@ struct HostTables {
 
 // Reads the image word by word, folding each word into the ray's checksum
 // and counting the fetch's bytes and 32-byte sectors.
-// An address outside the image (a corrupt export) reads 0 and marks the ray bad.
+// Every fetch is checked to lie in the image before its words are read (a
+// corrupt export is found per fetch, not per word: the inner loads stay plain).
 struct Fetcher {
     const std::uint32_t* image;
-    std::uint64_t words;
+    std::uint64_t imageBytes;
     std::uint32_t checksum = 0x811c9dc5u;
     std::uint32_t bytes = 0, sectors = 0;
-    bool bad = false;
+    GC_HD bool inImage(std::uint64_t address, std::uint64_t size) const {
+        return address <= imageBytes && size <= imageBytes - address;
+    }
     GC_HD std::uint32_t word(std::uint64_t address) {
-        if ((address >> 2) >= words) {
-            bad = true;
-            return 0;
-        }
         const std::uint32_t w = image[address >> 2];
         checksum = (checksum ^ w) * 0x01000193u;
         return w;
     }
-    GC_HD void count(std::uint64_t address, std::uint32_t size) {
-        bytes += size;
+    // Counts a fetch of `size` bytes at `address`; false when it is not in the image.
+    GC_HD bool count(std::uint64_t address, std::uint64_t size) {
+        if (!inImage(address, size)) return false;
+        bytes += static_cast<std::uint32_t>(size);
         sectors += static_cast<std::uint32_t>(((address + size - 1) >> 5) - (address >> 5) + 1);
+        return true;
     }
 };
 
@@ -207,7 +209,7 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
                     std::uint32_t maxSteps = kMaxSteps) {
     using namespace detail;
     const SceneHeader& h = scene.header;
-    Fetcher f{scene.image, h.imageBytes >> 2};
+    Fetcher f{scene.image, h.imageBytes};
     out = RayOut{};
     out.t = bitsFloat(0x7f800000u);
     float tClosest = ray.tMax;
@@ -259,7 +261,7 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
     };
 
     while (!finished) {
-        if (f.bad || out.steps == kMaxSteps) return false;
+        if (out.steps == kMaxSteps) return false;
         if (stackFull) {
             out.maxStackDepth = ~0u;
             break;
@@ -270,7 +272,7 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
         if (curKind == kInstance) {
             instanceIndex = curBits;
             const std::uint64_t at = h.instanceBase + 64ull * instanceIndex;
-            f.count(at, 64);
+            if (!f.count(at, 64)) return false;
             std::uint32_t meshIndex = 0;
             GC_UNROLL
             for (std::uint32_t i = 0; i < 16; ++i) {
@@ -311,7 +313,7 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
             // child next, the others pushed far to near (ties keep slot order).
             ++out.nodeVisits;
             const std::uint64_t at = nodeBase + std::uint64_t(h.nodeBytes) * curBits;
-            f.count(at, h.nodeBytes);
+            if (!f.count(at, h.nodeBytes)) return false;
             const std::uint32_t childCount = f.word(at);
             GC_UNROLL
             for (std::uint32_t i = 1; i < 4; ++i) f.word(at + 4 * i);
@@ -375,13 +377,14 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
 
         ++out.leafVisits;
         const std::uint64_t at = leafBase + (curBits & ~kLeafBit);
+        if (!f.inImage(at, 8)) return false;
         const std::uint32_t refCount = f.word(at);
         f.word(at + 4);
         if (refCount > (inTlas ? kMaxTlasLeafRefs : std::uint32_t(h.imageBytes / 44))) return false;
         if (inTlas) {
             // Step: TLAS leaf, the instances passing the mask entered in
             // reference order (the later ones wait on the stack).
-            f.count(at, 8 + 4 * refCount);
+            if (!f.count(at, 8 + 4ull * refCount)) return false;
             // Which references pass the mask, as bits (no array: see sel3);
             // the later ones are pushed from their words read again.
             std::uint32_t enteredMask = 0, first = 0;
@@ -406,7 +409,7 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
         }
         // Step: BLAS leaf, every triangle in reference order; a committed
         // candidate is the closest hit, later tests use its t.
-        f.count(at, 8 + 44 * refCount);
+        if (!f.count(at, 8 + 44ull * refCount)) return false;
         bool ended = false;
         for (std::uint32_t r = 0; r < refCount; ++r) {
             const std::uint64_t s = at + 8 + 44ull * r;
@@ -452,7 +455,7 @@ GC_HD bool traceRay(const SceneView& scene, const Tables& tables, const RayIn& r
     out.fetchBytes = f.bytes;
     out.fetchSectors = f.sectors;
     out.checksum = f.checksum;
-    return !f.bad;
+    return true;
 }
 
 }  // namespace gpucheck
