@@ -39,6 +39,7 @@ int runGpuCheckExport(const GpuCheckExportOptions& options) {
     selection.rayTypeMask = rayTypeMask(options.rayTypes);
     selection.maxRays = options.maxRays;
     selection.label = options.label;
+    selection.scene = o.scene;
     const study::RayTraceFile file = study::RayTraceFile::read(options.rays);
     const std::uint32_t frame = file.header().frame;
 

@@ -63,13 +63,13 @@ struct MemoryImage {
 };
 
 // Leaf byte offsets from the region's leaf base, in leaf order (as MemoryLayout places them).
-std::vector<std::uint32_t> leafOffsets(const rtcore_sim::Bvh& bvh, std::uint32_t slotBytes) {
+std::vector<std::uint32_t> leafOffsets(const rtcore_sim::Bvh& bvh, std::uint32_t slotBytes, const std::string& where) {
     std::vector<std::uint32_t> offsets(bvh.leaves.size());
     for (std::size_t i = 0; i < bvh.leaves.size(); ++i) {
         const std::uint64_t o =
             std::uint64_t(rtcore_sim::kLeafHeaderBytes) * i + std::uint64_t(slotBytes) * bvh.leaves[i].firstRef;
         if (o >= gpucheck::kLeafBit)
-            throw InputError("gpucheck-export",
+            throw InputError(where,
                              "the scene has a BVH of over 2 GiB of leaves (the check addresses leaves in 31 bits)");
         offsets[i] = static_cast<std::uint32_t>(o);
     }
@@ -99,7 +99,8 @@ void writeNodes(MemoryImage& image, const rtcore_sim::Bvh& bvh, std::uint64_t no
     }
 }
 
-MemoryImage buildImage(const rtcore_sim::ModelScene& scene, const rtcore_sim::MemoryLayout& layout) {
+MemoryImage buildImage(const rtcore_sim::ModelScene& scene, const rtcore_sim::MemoryLayout& layout,
+                       const std::string& where) {
     using namespace rtcore_sim;
     MemoryImage image;
     image.words.assign(layout.totalBytes() / 4, 0u);
@@ -117,19 +118,18 @@ MemoryImage buildImage(const rtcore_sim::ModelScene& scene, const rtcore_sim::Me
     h.tlasConditioning = scene.tlasConditioning();
     h.farScale = 1.f + 2.f * errorGamma(3);
     if (scene.instances().size() >= (1u << gpucheck::kInstanceIndexBits))
-        throw InputError("gpucheck-export", "more than 2^24 instances");
+        throw InputError(where, "more than 2^24 instances");
 
     // Step: the TLAS, its leaves holding (instance | mask << 24).
     const Bvh& tlas = scene.tlas();
     h.tlasNodeBase = layout.tlasBase();
     h.tlasLeafBase = h.tlasNodeBase + std::uint64_t(tlas.nodes.size()) * nodeSize;
-    const std::vector<std::uint32_t> tlasOffsets = leafOffsets(tlas, kTlasRefBytes);
+    const std::vector<std::uint32_t> tlasOffsets = leafOffsets(tlas, kTlasRefBytes, where);
     h.tlasRoot = refBits(tlas.root, tlasOffsets);
     writeNodes(image, tlas, h.tlasNodeBase, nodeSize, width, tlasOffsets);
     for (std::size_t l = 0; l < tlas.leaves.size(); ++l) {
         const BvhLeaf& leaf = tlas.leaves[l];
-        if (leaf.refCount > gpucheck::kMaxTlasLeafRefs)
-            throw InputError("gpucheck-export", "a TLAS leaf over 32 instances");
+        if (leaf.refCount > gpucheck::kMaxTlasLeafRefs) throw InputError(where, "a TLAS leaf over 32 instances");
         const std::uint64_t at = h.tlasLeafBase + tlasOffsets[l];
         if (at != layout.tlasLeaf(leaf, static_cast<std::uint32_t>(l)).address)
             throw std::logic_error("gpucheck export: TLAS leaf address differs from the layout's");
@@ -161,14 +161,13 @@ MemoryImage buildImage(const rtcore_sim::ModelScene& scene, const rtcore_sim::Me
         const Blas* blas = scene.blas(m);
         if (blas) info.magnitude = blas->magnitude;
         if (blas && blas->hasProcedural)
-            throw InputError("gpucheck-export",
-                             "the scene has procedural geometry (the GPU check traces triangles only)");
+            throw InputError(where, "the scene has procedural geometry (the GPU check traces triangles only)");
         if (blas && !blas->bvh.empty()) {
             const Bvh& bvh = blas->bvh;
             info.nodeBase =
                 bvh.nodes.empty() ? layout.blasLeaf(m, bvh.leaves[0], 0).address : layout.blasNode(m, 0).address;
             info.leafBase = info.nodeBase + std::uint64_t(bvh.nodes.size()) * nodeSize;
-            const std::vector<std::uint32_t> offsets = leafOffsets(bvh, kBlasSlotBytes);
+            const std::vector<std::uint32_t> offsets = leafOffsets(bvh, kBlasSlotBytes, where);
             info.root = refBits(bvh.root, offsets);
             writeNodes(image, bvh, info.nodeBase, nodeSize, width, offsets);
             for (std::size_t l = 0; l < bvh.leaves.size(); ++l) {
@@ -280,7 +279,8 @@ GpuCheckExportResult exportGpuCheck(const RayTraceFile& file, const rtcore_sim::
     // Step: the memory image at the layout's addresses.
     MemoryLayout layout;
     layout.build(scene);
-    const MemoryImage image = buildImage(scene, layout);
+    const MemoryImage image =
+        buildImage(scene, layout, selection.scene.empty() ? file.path().string() : selection.scene);
     result.imageBytes = layout.totalBytes();
 
     // Step: the model's answer per ray, with the bytes, sectors and checksum of its fetches.

@@ -20,6 +20,7 @@ struct GpuCheckSelection {
     std::uint32_t rayTypeMask = 0xffff;  // ray types (RayContributionToHitGroupIndex & 0xf) to export
     std::uint64_t maxRays = 0;           // 0: all selected rays; else the first maxRays of them
     std::string label;                   // a name for the workload in model.json (e.g. "terrain-primary")
+    std::string scene;                   // the scene source, named in errors about the scene
 };
 
 struct GpuCheckExportResult {
