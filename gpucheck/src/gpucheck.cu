@@ -1,4 +1,4 @@
-// gpucheck EXPORT_DIR [--repeat N] [--io-only] [--json FILE]
+// gpucheck EXPORT_DIR [--repeat N] [--io-only] [--blocks-per-sm B] [--json FILE]
 //
 // Replays the rays of an export (rtlab gpucheck-export) on an NVIDIA GPU,
 // one thread per ray, with the model's traversal (traversal.hpp) over the
@@ -126,19 +126,22 @@ int main(int argc, char** argv) {
     std::string dir, jsonPath;
     int repeat = 10;
     bool ioOnly = false;
+    int wantBlocksPerSm = 0;  // 0: as many as fit
     for (int a = 1; a < argc; ++a) {
         const std::string arg = argv[a];
         if (arg == "--repeat" && a + 1 < argc) repeat = std::max(1, std::atoi(argv[++a]));
         else if (arg == "--io-only") ioOnly = true;
+        else if (arg == "--blocks-per-sm" && a + 1 < argc) wantBlocksPerSm = std::max(1, std::atoi(argv[++a]));
         else if (arg == "--json" && a + 1 < argc) jsonPath = argv[++a];
         else if (dir.empty() && arg[0] != '-') dir = arg;
         else {
-            std::fprintf(stderr, "usage: gpucheck EXPORT_DIR [--repeat N] [--io-only] [--json FILE]\n");
+            std::fprintf(stderr,
+                         "usage: gpucheck EXPORT_DIR [--repeat N] [--io-only] [--blocks-per-sm B] [--json FILE]\n");
             return 2;
         }
     }
     if (dir.empty()) {
-        std::fprintf(stderr, "usage: gpucheck EXPORT_DIR [--repeat N] [--io-only] [--json FILE]\n");
+        std::fprintf(stderr, "usage: gpucheck EXPORT_DIR [--repeat N] [--io-only] [--blocks-per-sm B] [--json FILE]\n");
         return 2;
     }
     gpucheck::CheckData d;
@@ -197,6 +200,21 @@ int main(int argc, char** argv) {
                      blocksAfter, blocksPerSm);
         return 3;
     }
+    // --blocks-per-sm B: fewer resident blocks (rays in flight) with the same L1: each block
+    // reserves dynamic shared memory so that B of them fill what the full occupancy used.
+    int dynamicShared = 0;
+    if (wantBlocksPerSm > 0 && wantBlocksPerSm < blocksPerSm) {
+        dynamicShared = blocksPerSm * sharedPerBlock / wantBlocksPerSm - sharedPerBlock;
+        CHECK(cudaFuncSetAttribute(traverse, cudaFuncAttributeMaxDynamicSharedMemorySize, dynamicShared));
+        int blocksWith = 0;
+        CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&blocksWith, traverse, kBlock, dynamicShared));
+        if (blocksWith != wantBlocksPerSm) {
+            std::fprintf(stderr, "gpucheck: %d bytes of dynamic shared memory give %d blocks per SM, not %d\n",
+                         dynamicShared, blocksWith, wantBlocksPerSm);
+            return 3;
+        }
+        blocksPerSm = blocksWith;
+    }
     // --io-only: the same kernel over an empty scene (no fetch at all).
     gpucheck::SceneHeader header = d.header;
     if (ioOnly) header.tlasRoot = gpucheck::kInvalidRef;
@@ -212,7 +230,8 @@ int main(int argc, char** argv) {
         CHECK(cudaMemset(out, 0xff, std::size_t(n) * sizeof(gpucheck::RayOut)));
         CHECK(cudaMemset(overflowPushes, 0, sizeof(unsigned long long)));
         CHECK(cudaEventRecord(start));
-        traverse<<<blocks, kBlock>>>(scene, rays, out, n, overflow, overflowEntries, overflowPushes, corruptRays);
+        traverse<<<blocks, kBlock, dynamicShared>>>(scene, rays, out, n, overflow, overflowEntries, overflowPushes,
+                                                    corruptRays);
         CHECK(cudaGetLastError());
         CHECK(cudaEventRecord(stop));
         CHECK(cudaEventSynchronize(stop));
