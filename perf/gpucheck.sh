@@ -18,19 +18,15 @@ exports=${1:?usage: perf/gpucheck.sh EXPORTS OUT}
 out=${2:?usage: perf/gpucheck.sh EXPORTS OUT}
 here=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
-if [[ -f "$exports" ]]; then
-  dir=$(mktemp -d)
-  tar -xJf "$exports" -C "$dir"
-  exports=$(find "$dir" -name model.json -printf '%h\n' | xargs -n1 dirname | sort -u | head -1)
-fi
+source "$here/perf/gpucheck_common.sh"
+exports=$(gpucheck_exports "$exports")
 
 # Step: the GPU, driver and clocks; ncu must read counters here.
 { nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,clocks.mem,clocks.max.mem,power.limit --format=csv
   nvcc --version | tail -2; ncu --version | tail -1; } | tee "$out/gpu.txt"
 
 # Step: build (CMake and the CUDA toolkit only).
-cmake -S "$here/gpucheck" -B "$here/build/gpucheck" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$here/build/gpucheck" >/dev/null
+gpucheck_build "$here"
 bin="$here/build/gpucheck"
 
 metrics=l1tex__t_sectors_pipe_lsu_mem_global_op_ld.sum,l1tex__t_sectors_pipe_lsu_mem_global_op_ld_lookup_hit.sum,\

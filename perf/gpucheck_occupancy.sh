@@ -11,13 +11,9 @@ exports=${1:?usage: perf/gpucheck_occupancy.sh EXPORTS OUT "B..." WORKLOAD...}
 out=${2:?}; counts=${3:?}; shift 3
 here=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$out"
-if [[ -f "$exports" ]]; then
-  dir=$(mktemp -d)
-  tar -xJf "$exports" -C "$dir"
-  exports=$(find "$dir" -name model.json -printf '%h\n' | xargs -n1 dirname | sort -u | head -1)
-fi
-cmake -S "$here/gpucheck" -B "$here/build/gpucheck" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build "$here/build/gpucheck" >/dev/null
+source "$here/perf/gpucheck_common.sh"
+exports=$(gpucheck_exports "$exports")
+gpucheck_build "$here"
 bin="$here/build/gpucheck/gpucheck"
 metrics=l1tex__t_sectors_pipe_lsu_mem_global_op_ld.sum,l1tex__t_sectors_pipe_lsu_mem_global_op_ld_lookup_hit.sum,\
 l1tex__t_sectors_pipe_lsu_mem_global_op_ld_lookup_miss.sum,lts__t_sectors_srcunit_tex_op_read.sum,\
