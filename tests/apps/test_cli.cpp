@@ -169,6 +169,47 @@ TEST(Cli, RenderThirdPartyGltf) {
 // (Draco and points/lines files included); the malformed ones, and the one
 // that requires an extension outside the supported list, exit 2 with one
 // line naming the file and the problem.
+TEST(Cli, EveryAssimpObjRendersOrExitsTwoWithOneLine) {
+    // Debian's assimp-testmodels: models/OBJ and the OBJ files of models/invalid.
+    const fs::path models = "/usr/share/assimp/models";
+    ASSERT_TRUE(fs::exists(models / "OBJ")) << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    const std::map<std::string, std::string> exitTwo = {
+        {"OBJ/box_UTF16BE.obj", "UTF-16"},
+        {"OBJ/point_cloud.obj", "no faces"},
+        {"OBJ/testline.obj", "no faces"},
+        {"OBJ/testpoints.obj", "no faces"},
+        {"invalid/empty.obj", "no faces"},
+        {"invalid/malformed.obj", "zero value for face index"},
+        {"invalid/malformed2.obj", "a face of 0 corner(s)"},
+    };
+    std::vector<fs::path> files;
+    for (const char* dir : {"OBJ", "invalid"})
+        for (const auto& e : fs::directory_iterator(models / dir))
+            if (e.is_regular_file() && e.path().extension() == ".obj") files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    ASSERT_GE(files.size(), 25u);
+    std::size_t rendered = 0;
+    for (const fs::path& f : files) {
+        const std::string rel = fs::relative(f, models).string();
+        const fs::path out = freshDir("assimp_obj");
+        const CliRun r =
+            runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
+        const auto expected = exitTwo.find(rel);
+        if (expected == exitTwo.end()) {
+            EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
+            EXPECT_TRUE(fs::exists(out / "frame_0000.png")) << rel;
+            rendered += r.exitCode == 0;
+        } else {
+            EXPECT_EQ(r.exitCode, 2) << rel << "\n" << r.out;
+            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << rel << "\n" << r.out;
+            EXPECT_NE(r.out.find(f.filename().string()), std::string::npos) << rel << "\n" << r.out;
+            EXPECT_NE(r.out.find(expected->second), std::string::npos) << rel << "\n" << r.out;
+            EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << rel;
+        }
+    }
+    EXPECT_EQ(rendered, files.size() - exitTwo.size());
+}
+
 TEST(Cli, EveryAssimpGltfRendersOrExitsTwoWithOneLine) {
     if (!fs::exists(kAssimp)) GTEST_SKIP() << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
     const std::map<std::string, std::string> exitTwo = {

@@ -27,10 +27,11 @@ void loadScene(World& world, const std::string& source) {
         if (std::filesystem::is_directory(path, ec)) throw InputError(source, "is a directory, not a scene file");
         const std::string ext = lowercaseExtension(path);
         if (ext == ".gltf" || ext == ".glb") loadGltf(world, path);
+        else if (ext == ".obj") loadObj(world, path);
         else if (ext == ".json") loadSceneJson(world, path);
         else
-            throw InputError(source,
-                             "unknown scene type '" + ext + "' (expected builtin:NAME, .gltf, .glb or a scene .json)");
+            throw InputError(
+                source, "unknown scene type '" + ext + "' (expected builtin:NAME, .gltf, .glb, .obj or a scene .json)");
     }
     addDefaultCameraAndLight(world);
 }

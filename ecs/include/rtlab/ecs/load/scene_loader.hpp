@@ -1,6 +1,6 @@
 #pragma once
-// Scene sources (DESIGN.md): "builtin:NAME", a .gltf/.glb file, or a scene
-// .json that references glTF and VDB files. Every loader throws
+// Scene sources (DESIGN.md): "builtin:NAME", a .gltf/.glb or .obj file, or a
+// scene .json that references glTF and VDB files. Every loader throws
 // rtlab::InputError naming the file and the problem on bad input; it never
 // crashes, hangs or leaves a half-built World behind a successful return.
 #include <rtlab/ecs/world.hpp>
@@ -22,6 +22,13 @@ void loadScene(World& world, const std::string& source);
 // `parent` when it is valid. Returns the entities created for the glTF scene's
 // root nodes.
 std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
+
+// Wavefront OBJ + MTL through tinyobjloader (docs/scene-format.md, "OBJ and
+// MTL"): one entity and mesh per object or group, a geometry per material,
+// polygons triangulated (concave ones by ear clipping), normals computed where
+// missing; a missing .mtl or texture is a warning in world.loadReport().
+// Returns the entities created (parented to `parent` when it is valid).
+std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
 
 // Scene description JSON (docs/scene-format.md).
 void loadSceneJson(World& world, const std::filesystem::path& path);

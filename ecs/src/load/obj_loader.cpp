@@ -1,0 +1,329 @@
+// Wavefront OBJ + MTL through tinyobjloader 2.0 (docs/scene-format.md, "OBJ and MTL"):
+// polygons triangulated here by ear clipping (concave ones too), objects and
+// groups kept as meshes, per-face materials as geometries, normals computed
+// where the file has none, MTL colours, shininess, dissolve, emission, index
+// of refraction and the base-colour map (its alpha channel as an alpha mask).
+// A missing .mtl or texture is a warning (World::loadReport) and a default
+// material; points and lines are skipped with a warning; anything malformed
+// is an InputError naming the file.
+#define STBI_NO_STDIO
+#include <rtlab/core/error.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
+
+#include <stb/stb_image.h>
+#include <tiny_obj_loader.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <tuple>
+#include <unordered_map>
+
+namespace rtlab::ecs::load {
+namespace {
+
+std::string firstLine(const std::string& text) {
+    std::string line = text.substr(0, text.find('\n'));
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    return line.empty() ? "not a readable OBJ file" : line;
+}
+
+// Triangles of a simple polygon (indices into `p`, its corners in order) by
+// ear clipping in the plane of its Newell normal; a polygon ear clipping
+// cannot finish (self-intersecting, degenerate) falls back to a fan.
+void triangulate(const std::vector<vec3>& p, std::vector<std::uint32_t>& out) {
+    const std::size_t n = p.size();
+    if (n < 3) return;
+    if (n == 3) {
+        out.insert(out.end(), {0u, 1u, 2u});
+        return;
+    }
+    // Step: the plane, by the Newell normal; project onto its two other axes.
+    vec3 normal(0.f);
+    for (std::size_t i = 0; i < n; ++i) {
+        const vec3& a = p[i];
+        const vec3& b = p[(i + 1) % n];
+        normal += vec3((a.y - b.y) * (a.z + b.z), (a.z - b.z) * (a.x + b.x), (a.x - b.x) * (a.y + b.y));
+    }
+    const vec3 m = glm::abs(normal);
+    const int drop = m.x >= m.y && m.x >= m.z ? 0 : (m.y >= m.z ? 1 : 2);
+    const int u = drop == 0 ? 1 : 0, v = drop == 2 ? 1 : 2;
+    const float sign = normal[drop] >= 0.f ? 1.f : -1.f;
+    std::vector<vec2> q(n);
+    for (std::size_t i = 0; i < n; ++i) q[i] = vec2(p[i][u], p[i][v] * sign);
+    auto cross2 = [](const vec2& a, const vec2& b, const vec2& c) {
+        return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    };
+    // Step: clip convex corners whose triangle holds no other corner.
+    std::vector<std::uint32_t> left(n);
+    for (std::size_t i = 0; i < n; ++i) left[i] = static_cast<std::uint32_t>(i);
+    const std::size_t first = out.size();
+    std::size_t guard = 0;
+    while (left.size() > 3 && guard < 2 * n * n) {
+        bool clipped = false;
+        for (std::size_t i = 0; i < left.size() && !clipped; ++i, ++guard) {
+            const std::uint32_t a = left[(i + left.size() - 1) % left.size()], b = left[i],
+                                c = left[(i + 1) % left.size()];
+            if (cross2(q[a], q[b], q[c]) <= 0.f) continue;  // reflex or flat corner
+            bool inside = false;
+            for (const std::uint32_t k : left) {
+                if (k == a || k == b || k == c) continue;
+                if (cross2(q[a], q[b], q[k]) >= 0.f && cross2(q[b], q[c], q[k]) >= 0.f &&
+                    cross2(q[c], q[a], q[k]) >= 0.f) {
+                    inside = true;
+                    break;
+                }
+            }
+            if (inside) continue;
+            out.insert(out.end(), {a, b, c});
+            left.erase(left.begin() + static_cast<std::ptrdiff_t>(i));
+            clipped = true;
+        }
+        if (!clipped) break;
+    }
+    if (left.size() == 3) {
+        out.insert(out.end(), {left[0], left[1], left[2]});
+        return;
+    }
+    out.resize(first);  // ear clipping failed: a fan over the corners
+    for (std::uint32_t i = 1; i + 1 < n; ++i) out.insert(out.end(), {0u, i, i + 1});
+}
+
+// An image file as an 8-bit RGBA texture; nothing (and a warning) when it cannot be read.
+std::optional<Texture> loadTexture(const std::filesystem::path& path, World& world, const std::string& where) {
+    std::ifstream f(path, std::ios::binary);
+    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    int w = 0, h = 0, channels = 0;
+    stbi_uc* pixels = bytes.empty()
+                          ? nullptr
+                          : stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &w, &h, &channels, 4);
+    if (!pixels) {
+        world.loadReport().warnings.push_back(where + ": texture " + path.string() +
+                                              (bytes.empty() ? " not found" : " not readable") + ", left out");
+        return std::nullopt;
+    }
+    Texture t;
+    t.name = path.filename().string();
+    t.width = w;
+    t.height = h;
+    t.rgba8.assign(pixels, pixels + std::size_t(w) * std::size_t(h) * 4);
+    stbi_image_free(pixels);
+    return t;
+}
+
+bool hasTransparentTexel(const Texture& t) {
+    for (std::size_t i = 3; i < t.rgba8.size(); i += 4)
+        if (t.rgba8[i] < 255) return true;
+    return false;
+}
+
+}  // namespace
+
+std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Entity parent) {
+    const std::string where = path.string();
+    // Step: parse (tinyobjloader), the .mtl beside the file; polygons kept whole.
+    tinyobj::ObjReaderConfig config;
+    config.triangulate = false;
+    config.vertex_color = false;
+    config.mtl_search_path = path.parent_path().string();
+    {
+        // What tinyobjloader accepts silently: UTF-16 text (a byte-order mark;
+        // it would read "no faces") and faces of fewer than three corners.
+        std::ifstream f(path, std::ios::binary);
+        unsigned char bom[2] = {0, 0};
+        f.read(reinterpret_cast<char*>(bom), 2);
+        if ((bom[0] == 0xfe && bom[1] == 0xff) || (bom[0] == 0xff && bom[1] == 0xfe))
+            throw InputError(where, "UTF-16 text: rtlab reads OBJ files as ASCII or UTF-8 (convert it, e.g. iconv)");
+        f.clear();
+        f.seekg(0);
+        std::string line;
+        for (std::size_t number = 1; std::getline(f, line); ++number) {
+            std::size_t at = line.find_first_not_of(" \t");
+            if (at == std::string::npos || line[at] != 'f' ||
+                (at + 1 < line.size() && !std::isspace(static_cast<unsigned char>(line[at + 1]))))
+                continue;
+            std::istringstream corners(line.substr(at + 1));
+            std::string corner;
+            int count = 0;
+            while (corners >> corner && corner[0] != '#') ++count;
+            if (count < 3)
+                throw InputError(where, "line " + std::to_string(number) + ": a face of " + std::to_string(count) +
+                                            " corner(s) (at least 3)");
+        }
+    }
+    tinyobj::ObjReader reader;
+    if (!reader.ParseFromFile(path.string(), config)) throw InputError(where, firstLine(reader.Error()));
+    std::vector<std::string> warnings;
+    {
+        std::istringstream lines(reader.Warning());
+        std::string line;
+        while (std::getline(lines, line))
+            if (!line.empty()) warnings.push_back(where + ": " + line);
+    }
+    const tinyobj::attrib_t& attrib = reader.GetAttrib();
+    const std::size_t vertexCount = attrib.vertices.size() / 3, normalCount = attrib.normals.size() / 3,
+                      uvCount = attrib.texcoords.size() / 2;
+    for (const float f : attrib.vertices)
+        if (!std::isfinite(f)) throw InputError(where, "a vertex coordinate is not a finite number");
+
+    // Step: materials (MTL -> rtlab, docs/scene-format.md), textures staged.
+    std::vector<Texture> textures;
+    std::vector<Material> materials;
+    for (const tinyobj::material_t& mt : reader.GetMaterials()) {
+        Material m;
+        m.name = mt.name;
+        m.baseColor = vec4(mt.diffuse[0], mt.diffuse[1], mt.diffuse[2], std::clamp(float(mt.dissolve), 0.f, 1.f));
+        m.emissive = vec3(mt.emission[0], mt.emission[1], mt.emission[2]);
+        // Phong exponent -> roughness (the Blinn-Phong / GGX correspondence alpha = sqrt(2 / (Ns + 2))).
+        m.roughness = std::clamp(std::sqrt(2.f / (std::max(float(mt.shininess), 0.f) + 2.f)), 0.f, 1.f);
+        if (mt.ior > 0.f) m.ior = mt.ior;
+        if (m.baseColor.a < 1.f) m.alphaMode = AlphaMode::Blend;
+        if (!mt.diffuse_texname.empty()) {
+            std::string name = mt.diffuse_texname;  // Windows paths (".\\wall.jpg") as written by many exporters
+            std::replace(name.begin(), name.end(), '\\', '/');
+            std::optional<Texture> t = loadTexture(path.parent_path() / name, world, where);
+            if (t) {
+                if (hasTransparentTexel(*t)) m.alphaMode = AlphaMode::Mask;  // cut-outs (foliage, chains)
+                m.baseColorTexture = static_cast<TextureId>(textures.size());
+                textures.push_back(std::move(*t));
+            }
+        }
+        if (!mt.alpha_texname.empty() && m.alphaMode != AlphaMode::Mask)
+            warnings.push_back(where + ": material " + mt.name +
+                               ": map_d is not read (an alpha mask comes from map_Kd's alpha channel)");
+        materials.push_back(std::move(m));
+    }
+    const MaterialId defaultMaterial = static_cast<MaterialId>(materials.size());
+    materials.push_back(Material{"default"});
+
+    // Step: each shape (object or group) a mesh; its faces by material a geometry.
+    std::vector<MeshAsset> meshes;
+    std::uint32_t skippedLines = 0, skippedPoints = 0;
+    for (const tinyobj::shape_t& shape : reader.GetShapes()) {
+        skippedLines += static_cast<std::uint32_t>(shape.lines.num_line_vertices.size());
+        skippedPoints += static_cast<std::uint32_t>(shape.points.indices.size());
+        const tinyobj::mesh_t& mesh = shape.mesh;
+        if (mesh.num_face_vertices.empty()) continue;
+        std::map<MaterialId, std::size_t> geometryOf;
+        MeshAsset asset;
+        asset.name = shape.name.empty() ? "object " + std::to_string(meshes.size()) : shape.name;
+        struct Build {
+            std::unordered_map<std::uint64_t, std::uint32_t> vertexOf;  // (v, vn, vt) -> vertex
+            bool allNormals = true, allUvs = true;
+        };
+        std::vector<Build> builds;
+        std::size_t corner = 0;
+        std::vector<vec3> polygon;
+        std::vector<std::uint32_t> polygonVertices, triangles;
+        for (std::size_t face = 0; face < mesh.num_face_vertices.size(); ++face) {
+            const std::size_t n = mesh.num_face_vertices[face];
+            if (corner + n > mesh.indices.size()) throw InputError(where, "a face has more corners than indices");
+            const int mid = face < mesh.material_ids.size() ? mesh.material_ids[face] : -1;
+            const MaterialId material =
+                mid >= 0 && std::size_t(mid) < reader.GetMaterials().size() ? MaterialId(mid) : defaultMaterial;
+            auto [it, added] = geometryOf.try_emplace(material, asset.geometries.size());
+            if (added) {
+                asset.geometries.emplace_back();
+                asset.geometries.back().material = material;
+                builds.emplace_back();
+            }
+            Geometry& g = asset.geometries[it->second];
+            Build& b = builds[it->second];
+            polygon.clear();
+            polygonVertices.clear();
+            for (std::size_t k = 0; k < n; ++k) {
+                const tinyobj::index_t& ix = mesh.indices[corner + k];
+                if (ix.vertex_index < 0 || std::size_t(ix.vertex_index) >= vertexCount)
+                    throw InputError(where, "face " + std::to_string(face + 1) + " of " + asset.name +
+                                                " refers to vertex " + std::to_string(ix.vertex_index + 1) + " of " +
+                                                std::to_string(vertexCount));
+                if (ix.normal_index >= 0 && std::size_t(ix.normal_index) >= normalCount)
+                    throw InputError(where, "a face refers to a normal that does not exist");
+                if (ix.texcoord_index >= 0 && std::size_t(ix.texcoord_index) >= uvCount)
+                    throw InputError(where, "a face refers to a texture coordinate that does not exist");
+                const std::uint64_t key = (std::uint64_t(std::uint32_t(ix.vertex_index)) << 42) ^
+                                          (std::uint64_t(std::uint32_t(ix.normal_index + 1)) << 21) ^
+                                          std::uint64_t(std::uint32_t(ix.texcoord_index + 1));
+                auto [v, fresh] = b.vertexOf.try_emplace(key, static_cast<std::uint32_t>(g.positions.size()));
+                if (fresh) {
+                    const float* p = &attrib.vertices[3 * std::size_t(ix.vertex_index)];
+                    g.positions.emplace_back(p[0], p[1], p[2]);
+                    if (ix.normal_index >= 0) {
+                        const float* nn = &attrib.normals[3 * std::size_t(ix.normal_index)];
+                        g.normals.emplace_back(nn[0], nn[1], nn[2]);
+                    } else {
+                        g.normals.emplace_back(0.f);
+                        b.allNormals = false;
+                    }
+                    if (ix.texcoord_index >= 0) {
+                        const float* t = &attrib.texcoords[2 * std::size_t(ix.texcoord_index)];
+                        g.uv0.emplace_back(t[0], 1.f - t[1]);  // OBJ's v runs up, rtlab's (glTF's) down
+                    } else {
+                        g.uv0.emplace_back(0.f);
+                        b.allUvs = false;
+                    }
+                }
+                polygon.push_back(g.positions[v->second]);
+                polygonVertices.push_back(v->second);
+            }
+            corner += n;
+            triangles.clear();
+            triangulate(polygon, triangles);
+            for (const std::uint32_t t : triangles) g.indices.push_back(polygonVertices[t]);
+        }
+        for (std::size_t i = 0; i < asset.geometries.size(); ++i) {
+            Geometry& g = asset.geometries[i];
+            bool usable = builds[i].allNormals;
+            for (vec3& nrm : g.normals) {
+                const float len = glm::length(nrm);
+                if (!(len > 0.f) || !std::isfinite(len)) usable = false;
+                else nrm /= len;
+            }
+            if (!usable) g.normals = generateVertexNormals(g.positions, g.indices);
+            if (!builds[i].allUvs) g.uv0.clear();
+        }
+        meshes.push_back(std::move(asset));
+    }
+    if (skippedLines || skippedPoints)
+        warnings.push_back(where + ": skipped " + std::to_string(skippedLines) + " line(s) and " +
+                           std::to_string(skippedPoints) + " point(s) (rtlab traces triangles)");
+    std::size_t triangleCount = 0;
+    for (const MeshAsset& m : meshes) triangleCount += m.triangleCount();
+    if (triangleCount == 0)
+        throw InputError(where, "no faces: " + std::to_string(vertexCount) + " vertices, " +
+                                    std::to_string(skippedLines) + " line(s), " + std::to_string(skippedPoints) +
+                                    " point(s) (rtlab traces triangles)");
+
+    // Step: commit (nothing below can fail on bad input).
+    LoadReport& report = world.loadReport();
+    report.skippedLinePrimitives += skippedLines;
+    report.skippedPointPrimitives += skippedPoints;
+    report.warnings.insert(report.warnings.end(), warnings.begin(), warnings.end());
+    std::vector<TextureId> textureIds;
+    for (Texture& t : textures) textureIds.push_back(world.addTexture(std::move(t)));
+    std::vector<MaterialId> materialIds;
+    for (Material& m : materials) {
+        if (m.baseColorTexture != kNoTexture) m.baseColorTexture = textureIds[m.baseColorTexture];
+        materialIds.push_back(world.addMaterial(std::move(m)));
+    }
+    std::vector<Entity> entities;
+    const bool parentAlive = world.alive(parent);
+    for (MeshAsset& mesh : meshes) {
+        for (Geometry& g : mesh.geometries) g.material = materialIds[g.material];
+        const std::string name = mesh.name;
+        const MeshId id = world.addMesh(std::move(mesh));
+        const Entity e = world.create(name);
+        world.emplace(e, LocalTransform{});
+        if (parentAlive) world.emplace(e, Parent{parent});
+        world.emplace(e, MeshInstance{id});
+        entities.push_back(e);
+    }
+    return entities;
+}
+
+}  // namespace rtlab::ecs::load
