@@ -59,6 +59,13 @@ struct InfoOptions {
 void addInfoCommand(CLI::App& app, InfoOptions& options);
 int runInfo(const InfoOptions& options);
 
+struct ExportOptions {
+    std::string scene;
+    std::string out;  // FILE.obj or FILE.ply
+};
+void addExportCommand(CLI::App& app, ExportOptions& options);
+int runExport(const ExportOptions& options);
+
 struct CompareOptions {
     std::string a, b;
 };

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
     app::SweepOptions sweep;
     app::ReportOptions reportOptions;
     app::GpuCheckExportOptions gpucheckExport;
+    app::ExportOptions exportOptions;
     app::addRenderCommand(app, render);
     app::addPlanCommand(app, plan);
     app::addInfoCommand(app, info);
@@ -30,6 +31,7 @@ int main(int argc, char** argv) {
     app::addSweepCommand(app, sweep);
     app::addReportCommand(app, reportOptions);
     app::addGpuCheckExportCommand(app, gpucheckExport);
+    app::addExportCommand(app, exportOptions);
 
     try {
         app.parse(argc, argv);
@@ -52,6 +54,7 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("sweep")) return app::runSweep(sweep);
         if (app.got_subcommand("report")) return app::runReport(reportOptions);
         if (app.got_subcommand("gpucheck-export")) return app::runGpuCheckExport(gpucheckExport);
+        if (app.got_subcommand("export")) return app::runExport(exportOptions);
     } catch (const InputError& e) {
         std::cerr << "rtlab: " << e.what() << "\n";
         return static_cast<int>(ExitCode::BadInput);
