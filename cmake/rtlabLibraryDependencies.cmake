@@ -13,6 +13,7 @@ rtlab_find_dependency(TinyGLTF)
 rtlab_find_dependency(draco CONFIG)          # KHR_draco_mesh_compression (libdraco-dev)
 rtlab_find_dependency(meshoptimizer CONFIG)  # EXT_meshopt_compression (libmeshoptimizer-dev)
 rtlab_find_dependency(tinyobjloader CONFIG)  # OBJ + MTL (libtinyobjloader-dev)
+rtlab_find_dependency(assimp CONFIG)         # PLY and FBX (libassimp-dev)
 # Debian's OpenVDB ships a find module, not a config file.
 set(_rtlab_saved_module_path "${CMAKE_MODULE_PATH}")
 list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)

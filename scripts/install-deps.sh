@@ -7,7 +7,7 @@ packages=(
   build-essential cmake ninja-build ccache pkg-config
   libembree-dev libtbb-dev
   libopenvdb-dev libboost-dev libboost-iostreams-dev libimath-dev libblosc-dev zlib1g-dev
-  libglm-dev libtinygltf-dev nlohmann-json3-dev libstb-dev libtinyobjloader-dev
+  libglm-dev libtinygltf-dev nlohmann-json3-dev libstb-dev libtinyobjloader-dev libassimp-dev
   libopenexr-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libdraco-dev libmeshoptimizer-dev

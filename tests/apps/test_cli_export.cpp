@@ -62,6 +62,14 @@ TEST(CliExport, PlyHeaderMatchesItsBody) {
     const std::size_t faces = std::stoul(line(header, "element face").substr(13));
     EXPECT_GT(faces, 0u);
     EXPECT_EQ(bytes.size() - (end + 11), vertices * 24 + faces * (1 + 12 + 4));
+    // Read back through the PLY importer (assimp): the same triangles and bounds as the source.
+    const std::string scene = "'builtin:terrain?triangles=20000'";
+    ASSERT_EQ(runCli("export --scene " + scene + " --out " + (dir / "terrain.ply").string()).exitCode, 0);
+    const CliRun original = runCli("info --scene " + scene);
+    const CliRun reread = runCli("info --scene " + (dir / "terrain.ply").string());
+    ASSERT_EQ(reread.exitCode, 0) << reread.out;
+    EXPECT_EQ(line(reread.out, "triangles:"), line(original.out, "triangles:"));
+    EXPECT_EQ(line(reread.out, "bounds:"), line(original.out, "bounds:"));
 }
 
 TEST(CliExport, BadOutputExitsTwoAndWritesNothing) {

@@ -28,10 +28,11 @@ void loadScene(World& world, const std::string& source) {
         const std::string ext = lowercaseExtension(path);
         if (ext == ".gltf" || ext == ".glb") loadGltf(world, path);
         else if (ext == ".obj") loadObj(world, path);
+        else if (ext == ".ply" || ext == ".fbx") loadWithAssimp(world, path);
         else if (ext == ".json") loadSceneJson(world, path);
         else
-            throw InputError(
-                source, "unknown scene type '" + ext + "' (expected builtin:NAME, .gltf, .glb, .obj or a scene .json)");
+            throw InputError(source, "unknown scene type '" + ext +
+                                         "' (expected builtin:NAME, .gltf, .glb, .obj, .ply, .fbx or a scene .json)");
     }
     addDefaultCameraAndLight(world);
 }

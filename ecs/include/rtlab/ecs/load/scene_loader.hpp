@@ -1,6 +1,6 @@
 #pragma once
-// Scene sources (DESIGN.md): "builtin:NAME", a .gltf/.glb or .obj file, or a
-// scene .json that references glTF and VDB files. Every loader throws
+// Scene sources (DESIGN.md): "builtin:NAME", a .gltf/.glb, .obj, .ply or .fbx
+// file, or a scene .json that references glTF and VDB files. Every loader throws
 // rtlab::InputError naming the file and the problem on bad input; it never
 // crashes, hangs or leaves a half-built World behind a successful return.
 #include <rtlab/ecs/world.hpp>
@@ -29,6 +29,12 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
 // missing; a missing .mtl or texture is a warning in world.loadReport().
 // Returns the entities created (parented to `parent` when it is valid).
 std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
+
+// PLY and FBX through assimp (docs/scene-format.md, "PLY and FBX"): the node
+// tree as entities, triangle meshes (points and lines skipped with a
+// warning), normals computed where missing, UV0, materials and their diffuse
+// textures. Returns the root entities (parented to `parent` when it is valid).
+std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
 
 // Scene description JSON (docs/scene-format.md).
 void loadSceneJson(World& world, const std::filesystem::path& path);

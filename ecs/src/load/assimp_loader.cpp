@@ -1,0 +1,233 @@
+// PLY and FBX scenes through assimp 5.2 (docs/scene-format.md, "PLY and FBX"):
+// the importer's node hierarchy as entities with their transforms, each
+// mesh's triangles (assimp triangulates; points and lines are skipped with a
+// warning), normals (computed where missing), UV0 and materials (diffuse
+// colour and texture, opacity, shininess, emission, refraction index).
+// Anything the importer rejects is an InputError naming the file.
+#include <rtlab/core/error.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
+
+#include <assimp/Importer.hpp>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <stb/stb_image.h>
+
+#include <glm/gtx/matrix_decompose.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <optional>
+
+namespace rtlab::ecs::load {
+namespace {
+
+mat4 toMat4(const aiMatrix4x4& m) {
+    // assimp is row-major with column vectors (a1..a4 the first row); glm is column-major.
+    return mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
+}
+
+// A node matrix as translation, rotation, scale (the glTF loader's rule: a
+// singular or non-finite one keeps its translation and axis lengths).
+LocalTransform toTrs(const mat4& m) {
+    LocalTransform t;
+    vec3 scale, translation, skew;
+    quat rotation;
+    vec4 perspective;
+    const bool ok = glm::decompose(m, scale, rotation, translation, skew, perspective);
+    if (ok && isFinite(scale) && isFinite(translation) && std::isfinite(rotation.w) && std::isfinite(rotation.x) &&
+        std::isfinite(rotation.y) && std::isfinite(rotation.z) && glm::length(rotation) > 0.f) {
+        t.translation = translation;
+        t.rotation = glm::normalize(rotation);
+        t.scale = scale;
+    } else if (isFinite(vec3(m[3]))) {
+        t.translation = vec3(m[3]);
+        t.scale = vec3(glm::length(vec3(m[0])), glm::length(vec3(m[1])), glm::length(vec3(m[2])));
+        if (!isFinite(t.scale)) t.scale = vec3(1.f);
+    }
+    return t;
+}
+
+std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* material, const std::filesystem::path& dir,
+                                 std::vector<std::string>& warnings, const std::string& where) {
+    aiString name;
+    if (material->GetTexture(aiTextureType_DIFFUSE, 0, &name) != AI_SUCCESS) return std::nullopt;
+    int w = 0, h = 0, channels = 0;
+    stbi_uc* pixels = nullptr;
+    std::string label = name.C_Str();
+    if (const aiTexture* embedded = scene->GetEmbeddedTexture(name.C_Str())) {
+        if (embedded->mHeight == 0)  // compressed (png, jpg, ...): mWidth bytes
+            pixels = stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(embedded->pcData),
+                                           static_cast<int>(embedded->mWidth), &w, &h, &channels, 4);
+        label = "embedded " + label;
+    } else {
+        std::string file = name.C_Str();
+        std::replace(file.begin(), file.end(), '\\', '/');
+        std::filesystem::path path = dir / file;
+        pixels = stbi_load(path.string().c_str(), &w, &h, &channels, 4);
+        if (!pixels) {  // an absolute path of the author's machine: the file name beside the scene
+            const std::filesystem::path beside = dir / std::filesystem::path(file).filename();
+            pixels = stbi_load(beside.string().c_str(), &w, &h, &channels, 4);
+            if (pixels) path = beside;
+        }
+        label = path.string();
+    }
+    if (!pixels) {
+        warnings.push_back(where + ": texture " + label + " not found or not readable, left out");
+        return std::nullopt;
+    }
+    Texture t;
+    t.name = label;
+    t.width = w;
+    t.height = h;
+    t.rgba8.assign(pixels, pixels + std::size_t(w) * std::size_t(h) * 4);
+    stbi_image_free(pixels);
+    return t;
+}
+
+}  // namespace
+
+std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent) {
+    const std::string where = path.string();
+    Assimp::Importer importer;
+    // Points and lines become their own meshes (SortByPType) and are skipped below.
+    const unsigned flags = aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_JoinIdenticalVertices |
+                           aiProcess_ValidateDataStructure | aiProcess_FindInvalidData;
+    const aiScene* scene = importer.ReadFile(path.string(), flags);
+    if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode) {
+        std::string error = importer.GetErrorString();
+        if (error.empty()) error = "not a readable scene";
+        if (error.find("contains no faces") != std::string::npos)
+            error = "no triangles (points or lines only: rtlab traces triangles; assimp: " + error + ")";
+        throw InputError(where, error.substr(0, error.find('\n')));
+    }
+    std::vector<std::string> warnings;
+
+    // Step: materials and their textures.
+    std::vector<Texture> textures;
+    std::vector<Material> materials;
+    for (unsigned i = 0; i < scene->mNumMaterials; ++i) {
+        const aiMaterial* am = scene->mMaterials[i];
+        Material m;
+        aiString name;
+        if (am->Get(AI_MATKEY_NAME, name) == AI_SUCCESS) m.name = name.C_Str();
+        aiColor3D c;
+        if (am->Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) m.baseColor = vec4(c.r, c.g, c.b, 1.f);
+        if (am->Get(AI_MATKEY_COLOR_EMISSIVE, c) == AI_SUCCESS) m.emissive = vec3(c.r, c.g, c.b);
+        float v = 0.f;
+        if (am->Get(AI_MATKEY_OPACITY, v) == AI_SUCCESS && std::isfinite(v) && v < 1.f) {
+            m.baseColor.a = std::clamp(v, 0.f, 1.f);
+            m.alphaMode = AlphaMode::Blend;
+        }
+        if (am->Get(AI_MATKEY_SHININESS, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f)
+            m.roughness = std::clamp(std::sqrt(2.f / (v + 2.f)), 0.f, 1.f);
+        if (am->Get(AI_MATKEY_REFRACTI, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f) m.ior = v;
+        if (std::optional<Texture> t = textureOf(scene, am, path.parent_path(), warnings, where)) {
+            m.baseColorTexture = static_cast<TextureId>(textures.size());
+            textures.push_back(std::move(*t));
+        }
+        for (float& x : {std::ref(m.baseColor.r), std::ref(m.baseColor.g), std::ref(m.baseColor.b)})
+            if (!std::isfinite(x)) x = 1.f;
+        materials.push_back(std::move(m));
+    }
+    const MaterialId defaultMaterial = static_cast<MaterialId>(materials.size());
+    materials.push_back(Material{"default"});
+
+    // Step: meshes (triangles only).
+    std::vector<std::optional<MeshAsset>> meshes(scene->mNumMeshes);
+    std::uint32_t skippedPoints = 0, skippedLines = 0;
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
+        const aiMesh* am = scene->mMeshes[i];
+        if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) {
+            if (am->mPrimitiveTypes & aiPrimitiveType_POINT) skippedPoints += am->mNumFaces;
+            else skippedLines += am->mNumFaces;
+            continue;
+        }
+        Geometry g;
+        g.positions.reserve(am->mNumVertices);
+        for (unsigned v = 0; v < am->mNumVertices; ++v) {
+            const aiVector3D& p = am->mVertices[v];
+            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+                throw InputError(where, "mesh " + std::to_string(i) + ": a vertex coordinate is not a finite number");
+            g.positions.emplace_back(p.x, p.y, p.z);
+        }
+        for (unsigned f = 0; f < am->mNumFaces; ++f) {
+            const aiFace& face = am->mFaces[f];
+            if (face.mNumIndices != 3) continue;  // a point or line of a mixed mesh (SortByPType split them)
+            for (unsigned k = 0; k < 3; ++k) {
+                if (face.mIndices[k] >= am->mNumVertices)
+                    throw InputError(where, "mesh " + std::to_string(i) + ": a face index out of range");
+                g.indices.push_back(face.mIndices[k]);
+            }
+        }
+        if (g.indices.empty()) continue;
+        bool normalsUsable = am->HasNormals();
+        if (normalsUsable) {
+            for (unsigned v = 0; v < am->mNumVertices; ++v) {
+                vec3 n(am->mNormals[v].x, am->mNormals[v].y, am->mNormals[v].z);
+                const float len = glm::length(n);
+                if (!(len > 0.f) || !std::isfinite(len)) normalsUsable = false;
+                g.normals.push_back(normalsUsable ? n / len : vec3(0.f));
+            }
+        }
+        if (!normalsUsable) g.normals = generateVertexNormals(g.positions, g.indices);
+        if (am->HasTextureCoords(0))
+            for (unsigned v = 0; v < am->mNumVertices; ++v)
+                g.uv0.emplace_back(am->mTextureCoords[0][v].x, 1.f - am->mTextureCoords[0][v].y);
+        g.material = am->mMaterialIndex < scene->mNumMaterials ? MaterialId(am->mMaterialIndex) : defaultMaterial;
+        MeshAsset asset;
+        asset.name = am->mName.length ? am->mName.C_Str() : "mesh " + std::to_string(i);
+        asset.geometries.push_back(std::move(g));
+        meshes[i] = std::move(asset);
+    }
+    std::size_t triangles = 0;
+    for (const auto& m : meshes)
+        if (m) triangles += m->triangleCount();
+    if (triangles == 0)
+        throw InputError(where, "no triangles (" + std::to_string(skippedLines) + " line(s), " +
+                                    std::to_string(skippedPoints) + " point(s); rtlab traces triangles)");
+    if (skippedLines || skippedPoints)
+        warnings.push_back(where + ": skipped " + std::to_string(skippedLines) + " line(s) and " +
+                           std::to_string(skippedPoints) + " point(s) (rtlab traces triangles)");
+
+    // Step: commit; the node tree as entities (nothing below can fail on bad input).
+    LoadReport& report = world.loadReport();
+    report.skippedLinePrimitives += skippedLines;
+    report.skippedPointPrimitives += skippedPoints;
+    report.warnings.insert(report.warnings.end(), warnings.begin(), warnings.end());
+    std::vector<TextureId> textureIds;
+    for (Texture& t : textures) textureIds.push_back(world.addTexture(std::move(t)));
+    std::vector<MaterialId> materialIds;
+    for (Material& m : materials) {
+        if (m.baseColorTexture != kNoTexture) m.baseColorTexture = textureIds[m.baseColorTexture];
+        materialIds.push_back(world.addMaterial(std::move(m)));
+    }
+    std::vector<MeshId> meshIds(meshes.size(), ~MeshId(0));
+    for (std::size_t i = 0; i < meshes.size(); ++i) {
+        if (!meshes[i]) continue;
+        for (Geometry& g : meshes[i]->geometries) g.material = materialIds[g.material];
+        meshIds[i] = world.addMesh(std::move(*meshes[i]));
+    }
+    std::vector<Entity> roots;
+    const std::function<void(const aiNode*, Entity, int)> visit = [&](const aiNode* node, Entity up, int depth) {
+        if (depth > 1000) return;  // a deeper tree than any real file: its rest is left out
+        const Entity e = world.create(node->mName.C_Str());
+        world.emplace(e, toTrs(toMat4(node->mTransformation)));
+        if (world.alive(up)) world.emplace(e, Parent{up});
+        else roots.push_back(e);
+        for (unsigned k = 0; k < node->mNumMeshes; ++k) {
+            const unsigned mesh = node->mMeshes[k];
+            if (mesh >= meshIds.size() || meshIds[mesh] == ~MeshId(0)) continue;
+            const Entity child = node->mNumMeshes == 1 ? e : world.create(node->mName.C_Str());
+            if (child != e) world.emplace(child, LocalTransform{}), world.emplace(child, Parent{e});
+            world.emplace(child, MeshInstance{meshIds[mesh]});
+        }
+        for (unsigned k = 0; k < node->mNumChildren; ++k) visit(node->mChildren[k], e, depth + 1);
+    };
+    visit(scene->mRootNode, parent, 0);
+    return roots;
+}
+
+}  // namespace rtlab::ecs::load
