@@ -34,7 +34,11 @@ std::vector<FrameOptionField> makeFields() {
     // Step: one row per option. Ranges are those the command line always had.
     const unsigned all = kUseRender | kUseConverge | kUseReplay | kUsePlan;
     return {
-        field("--scene", "scene", &F::scene, all, "builtin:NAME[?k=v&...], .gltf/.glb, or scene .json"),
+        field("--scene", "scene", &F::scene, all,
+              "builtin:NAME[?k=v&...], .gltf/.glb, .obj, .ply, .fbx, or scene .json"),
+        field("--camera", "camera", &F::camera, kRenderLike | kUseConverge,
+              "The camera instead of the scene's: eyeX,eyeY,eyeZ,targetX,targetY,targetZ[,upX,upY,upZ[,fovYDegrees]] "
+              "(up defaults to +Y, the field of view to 45 degrees)"),
         field("--width", "width", &F::width, kRenderLike | kUseConverge, "Image width in pixels").range(1, 16384),
         field("--height", "height", &F::height, kRenderLike | kUseConverge, "Image height in pixels").range(1, 16384),
         field("--spp", "spp", &F::spp, kRenderLike, "Samples per pixel per effect").range(1, 1 << 20),

@@ -8,6 +8,9 @@
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 
 #include <iostream>
+#include <cstdlib>
+#include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 namespace rtlab::session {
@@ -32,9 +35,45 @@ FrameSession::FrameSession(FrameOptions options, Stages stages, tracer::AccelOpt
 
 FrameSession::~FrameSession() = default;
 
+namespace {
+
+// --camera "ex,ey,ez,tx,ty,tz[,ux,uy,uz[,fovYDegrees]]": a camera entity, made the active one.
+void setCommandLineCamera(ecs::World& world, const std::string& text) {
+    std::vector<float> v;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        char* end = nullptr;
+        const float x = std::strtof(item.c_str(), &end);
+        if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
+            throw InputError("--camera", "'" + item + "' is not a finite number");
+        v.push_back(x);
+    }
+    if (v.size() != 6 && v.size() != 9 && v.size() != 10)
+        throw InputError("--camera", "expected 6, 9 or 10 numbers: eye, target[, up[, fovY in degrees]] (got " +
+                                         std::to_string(v.size()) + ")");
+    const vec3 eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]);
+    const vec3 up = v.size() >= 9 ? vec3(v[6], v[7], v[8]) : vec3(0.f, 1.f, 0.f);
+    const float fovY = v.size() == 10 ? v[9] : 45.f;
+    const vec3 along = target - eye;
+    if (!(glm::length(along) > 0.f)) throw InputError("--camera", "eye and target are the same point");
+    if (!(glm::length(glm::cross(along, up)) > 1e-6f * glm::length(along) * glm::length(up)))
+        throw InputError("--camera", "the up vector is zero or along the view direction");
+    if (!(fovY > 0.f && fovY < 180.f)) throw InputError("--camera", "fovY must be in (0, 180) degrees");
+    const ecs::Entity e = world.create("command-line camera");
+    world.emplace(
+        e, ecs::LocalTransform{eye, orientationLookingAlong(glm::normalize(along), glm::normalize(up)), vec3(1.f)});
+    const float distance = glm::length(along);
+    world.emplace(e, ecs::Camera{glm::radians(fovY), distance * 1e-4f, distance * 1e4f, 0.f});
+    world.setActiveCamera(e);
+}
+
+}  // namespace
+
 void FrameSession::load() {
     if (loaded_) throw std::logic_error("FrameSession::load: the scene is already loaded");
     ecs::load::loadScene(*world_, options_.scene);
+    if (!options_.camera.empty()) setCommandLineCamera(*world_, options_.camera);
     for (const std::string& w : world_->loadReport().warnings) std::cerr << "rtlab: warning: " << w << "\n";
     loaded_ = true;
 }

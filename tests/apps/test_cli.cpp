@@ -595,3 +595,26 @@ TEST(Cli, ConvergeAcceptsSampleCountsThatAreNotPowersOfTwo) {
     EXPECT_EQ(bad.exitCode, 2) << bad.out;
     EXPECT_FALSE(fs::exists(badOut));
 }
+
+TEST(Cli, CameraOptionReplacesTheScenesCamera) {
+    // The LightWave polygon of assimp-testmodels lies in a plane x = const: the
+    // default camera (from +Z) sees it edge-on; --camera looks at its face.
+    const std::string obj = "/usr/share/assimp/models/OBJ/concave_polygon.obj";
+    ASSERT_TRUE(fs::exists(obj)) << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    const fs::path out = freshDir("camera");
+    const CliRun r = runCli("render --width 32 --height 24 --denoise none --scene " + obj +
+                            " --camera 3,2.4,2.35,-1.146,2.4,2.35,0,1,0,40 --out " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    const rtlab::Image img = rtlab::readExr(out / "frame_0000.exr");
+    const float* albedo = img.channel("albedo.R");
+    ASSERT_NE(albedo, nullptr);
+    std::size_t covered = 0;
+    for (int i = 0; i < img.width() * img.height(); ++i) covered += albedo[i] > 0.f;
+    EXPECT_GT(covered, std::size_t(img.width() * img.height() / 10));  // the polygon, face on
+    for (const char* bad : {"1,2,3", "0,0,0,0,0,0", "0,0,1,0,0,0,0,0,1", "0,0,1,0,0,0,0,1,0,200", "a,b,c,d,e,f"}) {
+        const CliRun b = runCli("render --width 8 --height 8 --scene builtin:cornell --camera " + std::string(bad) +
+                                " --out " + (out / "bad").string());
+        EXPECT_EQ(b.exitCode, 2) << bad << "\n" << b.out;
+        EXPECT_NE(b.out.find("--camera"), std::string::npos) << b.out;
+    }
+}

@@ -24,7 +24,8 @@
 namespace rtlab::session {
 
 struct FrameOptions {
-    std::string scene = "builtin:showcase";  // builtin:NAME[?k=v...], .gltf/.glb, or scene .json
+    std::string scene = "builtin:showcase";  // builtin:NAME[?k=v...], .gltf/.glb, .obj, .ply, .fbx, or scene .json
+    std::string camera;  // "" = the scene's (or the default); else "ex,ey,ez,tx,ty,tz[,ux,uy,uz[,fovYDegrees]]"
     int width = 640;
     int height = 360;
     int spp = 1;  // samples per pixel per effect
