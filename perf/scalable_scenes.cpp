@@ -5,7 +5,11 @@
 //   BM_TerrainAccelScaling/N        terrain of N = 1e4 .. 4e6 triangles: Embree build
 //                                   time and memory (Embree's bytes + the watertight
 //                                   clusters'); perf/summarize.py fits their log-log slopes
+//   BM_LoadSceneFile/<format>      scene files read back (loadScene): terrain 300k exported as OBJ
+//                                  and as PLY (rtlab export's writers), and a glTF of
+//                                  assimp-testmodels beside them; MB/s and triangles/s
 #include <rtlab/ecs/load/scene_loader.hpp>
+#include <rtlab/ecs/save/scene_writer.hpp>
 #include <rtlab/ecs/snapshot.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
@@ -13,7 +17,9 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <filesystem>
 #include <string>
+#include <unistd.h>
 
 namespace {
 
@@ -69,6 +75,47 @@ BENCHMARK(BM_TerrainAccelScaling)
     ->Arg(4000000)
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
+
+// The file of `format`: terrain 300k written once per process (removed at exit), or a glTF.
+std::filesystem::path sceneFile(const std::string& format) {
+    if (format == "gltf") return "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
+    struct Files {
+        std::filesystem::path dir =
+            std::filesystem::temp_directory_path() / ("rtlab_bench_" + std::to_string(::getpid()));
+        ~Files() {
+            std::error_code ec;
+            std::filesystem::remove_all(dir, ec);
+        }
+    };
+    static Files files;
+    const std::filesystem::path path = files.dir / ("terrain300k." + format);
+    if (!std::filesystem::exists(path)) {
+        std::filesystem::create_directories(files.dir);
+        ecs::World world;
+        ecs::load::loadScene(world, "builtin:terrain?triangles=300000");
+        if (format == "obj") ecs::save::writeObj(world, path);
+        else ecs::save::writePly(world, path);
+    }
+    return path;
+}
+
+void BM_LoadSceneFile(benchmark::State& state, const std::string& format) {
+    const std::filesystem::path path = sceneFile(format);
+    const double bytes = static_cast<double>(std::filesystem::file_size(path));
+    double triangles = 0.0;
+    for (auto _ : state) {
+        ecs::World world;
+        ecs::load::loadScene(world, path.string());
+        triangles = 0.0;
+        for (const ecs::MeshAsset& m : world.meshes()) triangles += static_cast<double>(m.triangleCount());
+    }
+    state.counters["fileMB"] = bytes * 1e-6;
+    state.counters["MBPerSecond"] = benchmark::Counter(bytes * 1e-6, benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["trianglesPerSecond"] = benchmark::Counter(triangles, benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK_CAPTURE(BM_LoadSceneFile, obj, std::string("obj"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_LoadSceneFile, ply, std::string("ply"))->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_LoadSceneFile, gltf, std::string("gltf"))->Unit(benchmark::kMillisecond)->UseRealTime();
 
 #define SCALABLE(name, source) \
     BENCHMARK_CAPTURE(BM_LoadScalableScene, name, std::string(source))->Iterations(1)->Unit(benchmark::kMillisecond)
