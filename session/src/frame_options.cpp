@@ -36,7 +36,7 @@ std::vector<FrameOptionField> makeFields() {
     return {
         field("--scene", "scene", &F::scene, all,
               "builtin:NAME[?k=v&...], .gltf/.glb, .obj, .ply, .fbx, or scene .json"),
-        field("--camera", "camera", &F::camera, kRenderLike | kUseConverge,
+        field("--camera", "camera", &F::camera, kUseRender | kUseStatsEcho | kUseConverge,
               "The camera instead of the scene's: eyeX,eyeY,eyeZ,targetX,targetY,targetZ[,upX,upY,upZ[,fovYDegrees]] "
               "(up defaults to +Y, the field of view to 45 degrees)"),
         field("--width", "width", &F::width, kRenderLike | kUseConverge, "Image width in pixels").range(1, 16384),

@@ -14,8 +14,6 @@
 
 #include <stb/stb_image.h>
 
-#include <glm/gtx/matrix_decompose.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -27,27 +25,6 @@ namespace {
 mat4 toMat4(const aiMatrix4x4& m) {
     // assimp is row-major with column vectors (a1..a4 the first row); glm is column-major.
     return mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
-}
-
-// A node matrix as translation, rotation, scale (the glTF loader's rule: a
-// singular or non-finite one keeps its translation and axis lengths).
-LocalTransform toTrs(const mat4& m) {
-    LocalTransform t;
-    vec3 scale, translation, skew;
-    quat rotation;
-    vec4 perspective;
-    const bool ok = glm::decompose(m, scale, rotation, translation, skew, perspective);
-    if (ok && isFinite(scale) && isFinite(translation) && std::isfinite(rotation.w) && std::isfinite(rotation.x) &&
-        std::isfinite(rotation.y) && std::isfinite(rotation.z) && glm::length(rotation) > 0.f) {
-        t.translation = translation;
-        t.rotation = glm::normalize(rotation);
-        t.scale = scale;
-    } else if (isFinite(vec3(m[3]))) {
-        t.translation = vec3(m[3]);
-        t.scale = vec3(glm::length(vec3(m[0])), glm::length(vec3(m[1])), glm::length(vec3(m[2])));
-        if (!isFinite(t.scale)) t.scale = vec3(1.f);
-    }
-    return t;
 }
 
 std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* material, const std::filesystem::path& dir,
@@ -92,15 +69,14 @@ std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* materia
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent) {
     const std::string where = path.string();
     Assimp::Importer importer;
-    // Points and lines become their own meshes (SortByPType) and are skipped below.
-    const unsigned flags = aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_JoinIdenticalVertices |
-                           aiProcess_ValidateDataStructure | aiProcess_FindInvalidData;
+    // Points and lines are skipped below (and counted), face by face.
+    // (No aiProcess_ValidateDataStructure: it rejects point clouds, meshes without faces; the indices
+    // and coordinates rtlab uses are checked below.)
+    const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices;
     const aiScene* scene = importer.ReadFile(path.string(), flags);
     if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode) {
         std::string error = importer.GetErrorString();
         if (error.empty()) error = "not a readable scene";
-        if (error.find("contains no faces") != std::string::npos)
-            error = "no triangles (points or lines only: rtlab traces triangles; assimp: " + error + ")";
         throw InputError(where, error.substr(0, error.find('\n')));
     }
     std::vector<std::string> warnings;
@@ -140,11 +116,16 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     std::uint32_t skippedPoints = 0, skippedLines = 0;
     for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
         const aiMesh* am = scene->mMeshes[i];
+        if (am->mNumFaces == 0) {  // a point cloud (PLY without faces)
+            skippedPoints += am->mNumVertices;
+            continue;
+        }
         if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) {
             if (am->mPrimitiveTypes & aiPrimitiveType_POINT) skippedPoints += am->mNumFaces;
             else skippedLines += am->mNumFaces;
             continue;
         }
+        if (!am->mVertices || !am->mFaces) throw InputError(where, "mesh " + std::to_string(i) + " has no vertex data");
         Geometry g;
         g.positions.reserve(am->mNumVertices);
         for (unsigned v = 0; v < am->mNumVertices; ++v) {
@@ -155,7 +136,10 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         }
         for (unsigned f = 0; f < am->mNumFaces; ++f) {
             const aiFace& face = am->mFaces[f];
-            if (face.mNumIndices != 3) continue;  // a point or line of a mixed mesh (SortByPType split them)
+            if (face.mNumIndices != 3) {  // a point or line of a mixed mesh
+                (face.mNumIndices == 1 ? skippedPoints : skippedLines) += 1;
+                continue;
+            }
             for (unsigned k = 0; k < 3; ++k) {
                 if (face.mIndices[k] >= am->mNumVertices)
                     throw InputError(where, "mesh " + std::to_string(i) + ": a face index out of range");
@@ -185,25 +169,15 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     std::size_t triangles = 0;
     for (const auto& m : meshes)
         if (m) triangles += m->triangleCount();
-    if (triangles == 0)
-        throw InputError(where, "no triangles (" + std::to_string(skippedLines) + " line(s), " +
-                                    std::to_string(skippedPoints) + " point(s); rtlab traces triangles)");
+    if (triangles == 0 && skippedLines == 0 && skippedPoints == 0)
+        throw InputError(where, "no geometry (no triangle, line or point)");
     if (skippedLines || skippedPoints)
         warnings.push_back(where + ": skipped " + std::to_string(skippedLines) + " line(s) and " +
                            std::to_string(skippedPoints) + " point(s) (rtlab traces triangles)");
 
     // Step: commit; the node tree as entities (nothing below can fail on bad input).
-    LoadReport& report = world.loadReport();
-    report.skippedLinePrimitives += skippedLines;
-    report.skippedPointPrimitives += skippedPoints;
-    report.warnings.insert(report.warnings.end(), warnings.begin(), warnings.end());
-    std::vector<TextureId> textureIds;
-    for (Texture& t : textures) textureIds.push_back(world.addTexture(std::move(t)));
-    std::vector<MaterialId> materialIds;
-    for (Material& m : materials) {
-        if (m.baseColorTexture != kNoTexture) m.baseColorTexture = textureIds[m.baseColorTexture];
-        materialIds.push_back(world.addMaterial(std::move(m)));
-    }
+    const std::vector<MaterialId> materialIds =
+        commitMaterials(world, std::move(textures), std::move(materials), skippedLines, skippedPoints, warnings);
     std::vector<MeshId> meshIds(meshes.size(), ~MeshId(0));
     for (std::size_t i = 0; i < meshes.size(); ++i) {
         if (!meshes[i]) continue;
@@ -214,7 +188,7 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     const std::function<void(const aiNode*, Entity, int)> visit = [&](const aiNode* node, Entity up, int depth) {
         if (depth > 1000) return;  // a deeper tree than any real file: its rest is left out
         const Entity e = world.create(node->mName.C_Str());
-        world.emplace(e, toTrs(toMat4(node->mTransformation)));
+        world.emplace(e, localTransformOf(toMat4(node->mTransformation)));
         if (world.alive(up)) world.emplace(e, Parent{up});
         else roots.push_back(e);
         for (unsigned k = 0; k < node->mNumMeshes; ++k) {

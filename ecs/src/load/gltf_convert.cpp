@@ -4,8 +4,6 @@
 
 #include "gltf_internal.hpp"
 
-#include <glm/gtx/matrix_decompose.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -151,21 +149,7 @@ LocalTransform GltfConverter::nodeTransform(int index) const {
             for (int r = 0; r < 4; ++r) m[c][r] = static_cast<float>(node.matrix[static_cast<std::size_t>(c * 4 + r)]);
         if (m[0][3] != 0.f || m[1][3] != 0.f || m[2][3] != 0.f || m[3][3] != 1.f)
             fail_(cat(nodeLabel(index), ": matrix has a projective part (last row must be 0 0 0 1)"));
-        vec3 scale, translation, skew;
-        quat rotation;
-        vec4 perspective;
-        const bool ok = glm::decompose(m, scale, rotation, translation, skew, perspective);
-        if (ok && isFinite(scale) && isFinite(translation) && std::isfinite(rotation.w) && std::isfinite(rotation.x) &&
-            std::isfinite(rotation.y) && std::isfinite(rotation.z) && glm::length(rotation) > 0.f) {
-            t.translation = translation;
-            t.rotation = glm::normalize(rotation);
-            t.scale = scale;
-        } else {
-            // Singular (e.g. zero-scale) matrix: keep translation and axis
-            // lengths; the rotation cannot be recovered.
-            t.translation = vec3(m[3]);
-            t.scale = vec3(glm::length(vec3(m[0])), glm::length(vec3(m[1])), glm::length(vec3(m[2])));
-        }
+        t = localTransformOf(m);
         return t;
     }
     if (!node.translation.empty()) {

@@ -294,23 +294,17 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
                            std::to_string(skippedPoints) + " point(s) (rtlab traces triangles)");
     std::size_t triangleCount = 0;
     for (const MeshAsset& m : meshes) triangleCount += m.triangleCount();
-    if (triangleCount == 0)
-        throw InputError(where, "no faces: " + std::to_string(vertexCount) + " vertices, " +
-                                    std::to_string(skippedLines) + " line(s), " + std::to_string(skippedPoints) +
-                                    " point(s) (rtlab traces triangles)");
+    if (triangleCount == 0) {
+        // As glTF: a file of points or lines renders as an empty scene with a warning; a file of nothing is an error.
+        if (vertexCount == 0) throw InputError(where, "no geometry (no vertex, no face)");
+        warnings.push_back(where + ": no faces (" + std::to_string(vertexCount) + " vertices, " +
+                           std::to_string(skippedLines) + " line(s), " + std::to_string(skippedPoints) +
+                           " point(s)): an empty scene, rtlab traces triangles");
+    }
 
     // Step: commit (nothing below can fail on bad input).
-    LoadReport& report = world.loadReport();
-    report.skippedLinePrimitives += skippedLines;
-    report.skippedPointPrimitives += skippedPoints;
-    report.warnings.insert(report.warnings.end(), warnings.begin(), warnings.end());
-    std::vector<TextureId> textureIds;
-    for (Texture& t : textures) textureIds.push_back(world.addTexture(std::move(t)));
-    std::vector<MaterialId> materialIds;
-    for (Material& m : materials) {
-        if (m.baseColorTexture != kNoTexture) m.baseColorTexture = textureIds[m.baseColorTexture];
-        materialIds.push_back(world.addMaterial(std::move(m)));
-    }
+    const std::vector<MaterialId> materialIds =
+        commitMaterials(world, std::move(textures), std::move(materials), skippedLines, skippedPoints, warnings);
     std::vector<Entity> entities;
     const bool parentAlive = world.alive(parent);
     for (MeshAsset& mesh : meshes) {

@@ -2,7 +2,10 @@
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 
+#include <glm/gtx/matrix_decompose.hpp>
+
 #include <algorithm>
+#include <cmath>
 #include <cctype>
 
 namespace rtlab::ecs::load {
@@ -35,6 +38,43 @@ void loadScene(World& world, const std::string& source) {
                                          "' (expected builtin:NAME, .gltf, .glb, .obj, .ply, .fbx or a scene .json)");
     }
     addDefaultCameraAndLight(world);
+}
+
+LocalTransform localTransformOf(const mat4& m) {
+    LocalTransform t;
+    vec3 scale, translation, skew;
+    quat rotation;
+    vec4 perspective;
+    const bool ok = glm::decompose(m, scale, rotation, translation, skew, perspective);
+    if (ok && isFinite(scale) && isFinite(translation) && std::isfinite(rotation.w) && std::isfinite(rotation.x) &&
+        std::isfinite(rotation.y) && std::isfinite(rotation.z) && glm::length(rotation) > 0.f) {
+        t.translation = translation;
+        t.rotation = glm::normalize(rotation);
+        t.scale = scale;
+    } else {
+        // Singular (e.g. zero-scale) matrix: keep translation and axis
+        // lengths; the rotation cannot be recovered.
+        t.translation = vec3(m[3]);
+        t.scale = vec3(glm::length(vec3(m[0])), glm::length(vec3(m[1])), glm::length(vec3(m[2])));
+    }
+    return t;
+}
+
+std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& textures,
+                                        std::vector<Material>&& materials, std::uint32_t skippedLines,
+                                        std::uint32_t skippedPoints, const std::vector<std::string>& warnings) {
+    LoadReport& report = world.loadReport();
+    report.skippedLinePrimitives += skippedLines;
+    report.skippedPointPrimitives += skippedPoints;
+    report.warnings.insert(report.warnings.end(), warnings.begin(), warnings.end());
+    std::vector<TextureId> textureIds;
+    for (Texture& t : textures) textureIds.push_back(world.addTexture(std::move(t)));
+    std::vector<MaterialId> materialIds;
+    for (Material& m : materials) {
+        if (m.baseColorTexture != kNoTexture) m.baseColorTexture = textureIds[m.baseColorTexture];
+        materialIds.push_back(world.addMaterial(std::move(m)));
+    }
+    return materialIds;
 }
 
 std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, const std::vector<std::uint32_t>& indices) {

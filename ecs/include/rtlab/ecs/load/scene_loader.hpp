@@ -52,6 +52,17 @@ std::vector<std::string> builtinSceneNames();
 // active camera, and a directional light when it has no light at all.
 void addDefaultCameraAndLight(World& world);
 
+// Helpers shared by the file loaders (glTF, OBJ, assimp).
+// A node matrix (affine, finite) as translation, rotation and scale; a
+// singular one keeps its translation and axis lengths (its rotation is lost).
+LocalTransform localTransformOf(const mat4& matrix);
+// Adds staged textures and materials to the world (a material's
+// baseColorTexture indexes `textures`), and a loader's skipped primitives and
+// warnings to its load report; returns the world's id of each material.
+std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& textures,
+                                        std::vector<Material>&& materials, std::uint32_t skippedLines,
+                                        std::uint32_t skippedPoints, const std::vector<std::string>& warnings);
+
 // Geometry helpers shared by the loaders and builtin scenes.
 // Area-weighted vertex normals; degenerate ones become (0, 0, 1).
 std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, const std::vector<std::uint32_t>& indices);
