@@ -25,6 +25,35 @@ namespace {
 
 const fs::path kAssimp = "/usr/share/assimp/models/glTF2";
 
+// Renders every file (8x8): those in `exitTwo` (path relative to `root` -> a
+// part of the message) must exit 2 with one line naming the file and no
+// output; every other one renders. The assimp-testmodels tests share it.
+void expectEachRendersOrExitsTwo(const std::vector<fs::path>& files, const fs::path& root,
+                                 const std::map<std::string, std::string>& exitTwo) {
+    std::size_t rendered = 0, rejected = 0;
+    for (const fs::path& f : files) {
+        const std::string rel = fs::relative(f, root).string();
+        const fs::path out = freshDir("assimp");
+        const CliRun r =
+            runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
+        const auto expected = exitTwo.find(rel);
+        if (expected == exitTwo.end()) {
+            EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
+            EXPECT_TRUE(fs::exists(out / "frame_0000.png")) << rel;
+            rendered += r.exitCode == 0;
+        } else {
+            EXPECT_EQ(r.exitCode, 2) << rel << "\n" << r.out;
+            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << rel << "\n" << r.out;
+            EXPECT_NE(r.out.find(f.filename().string()), std::string::npos) << rel << "\n" << r.out;
+            EXPECT_NE(r.out.find(expected->second), std::string::npos) << rel << "\n" << r.out;
+            EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << rel;
+            rejected += r.exitCode == 2;
+        }
+    }
+    EXPECT_EQ(rejected, exitTwo.size());
+    EXPECT_EQ(rendered, files.size() - exitTwo.size());
+}
+
 }  // namespace
 
 TEST(Cli, RenderShowcaseThreeFramesWritesOutputsAndUpdateCounts) {
@@ -187,26 +216,7 @@ TEST(Cli, EveryAssimpObjRendersOrExitsTwoWithOneLine) {
             if (e.is_regular_file() && e.path().extension() == ".obj") files.push_back(e.path());
     std::sort(files.begin(), files.end());
     ASSERT_GE(files.size(), 25u);
-    std::size_t rendered = 0;
-    for (const fs::path& f : files) {
-        const std::string rel = fs::relative(f, models).string();
-        const fs::path out = freshDir("assimp_obj");
-        const CliRun r =
-            runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
-        const auto expected = exitTwo.find(rel);
-        if (expected == exitTwo.end()) {
-            EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
-            EXPECT_TRUE(fs::exists(out / "frame_0000.png")) << rel;
-            rendered += r.exitCode == 0;
-        } else {
-            EXPECT_EQ(r.exitCode, 2) << rel << "\n" << r.out;
-            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << rel << "\n" << r.out;
-            EXPECT_NE(r.out.find(f.filename().string()), std::string::npos) << rel << "\n" << r.out;
-            EXPECT_NE(r.out.find(expected->second), std::string::npos) << rel << "\n" << r.out;
-            EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << rel;
-        }
-    }
-    EXPECT_EQ(rendered, files.size() - exitTwo.size());
+    expectEachRendersOrExitsTwo(files, models, exitTwo);
 }
 
 TEST(Cli, EveryAssimpPlyAndFbxRendersOrExitsTwoWithOneLine) {
@@ -229,26 +239,7 @@ TEST(Cli, EveryAssimpPlyAndFbxRendersOrExitsTwoWithOneLine) {
     }
     std::sort(files.begin(), files.end());
     ASSERT_GE(files.size(), 27u);
-    std::size_t rendered = 0;
-    for (const fs::path& f : files) {
-        const std::string rel = fs::relative(f, models).string();
-        const fs::path out = freshDir("assimp_plyfbx");
-        const CliRun r =
-            runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
-        const auto expected = exitTwo.find(rel);
-        if (expected == exitTwo.end()) {
-            EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
-            EXPECT_TRUE(fs::exists(out / "frame_0000.png")) << rel;
-            rendered += r.exitCode == 0;
-        } else {
-            EXPECT_EQ(r.exitCode, 2) << rel << "\n" << r.out;
-            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << rel << "\n" << r.out;
-            EXPECT_NE(r.out.find(f.filename().string()), std::string::npos) << rel << "\n" << r.out;
-            EXPECT_NE(r.out.find(expected->second), std::string::npos) << rel << "\n" << r.out;
-            EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << rel;
-        }
-    }
-    EXPECT_EQ(rendered, files.size() - exitTwo.size());
+    expectEachRendersOrExitsTwo(files, models, exitTwo);
 }
 
 TEST(Cli, EveryAssimpGltfRendersOrExitsTwoWithOneLine) {
@@ -275,28 +266,7 @@ TEST(Cli, EveryAssimpGltfRendersOrExitsTwoWithOneLine) {
             files.push_back(e.path());
     std::sort(files.begin(), files.end());
     ASSERT_GE(files.size(), 40u);
-    std::size_t rendered = 0, rejected = 0;
-    for (const fs::path& f : files) {
-        const std::string rel = fs::relative(f, kAssimp).string();
-        const fs::path out = freshDir("assimp");
-        const CliRun r =
-            runCli("render --width 8 --height 8 --denoise none --scene " + f.string() + " --out " + out.string());
-        const auto expected = exitTwo.find(rel);
-        if (expected == exitTwo.end()) {
-            EXPECT_EQ(r.exitCode, 0) << rel << "\n" << r.out;
-            EXPECT_TRUE(fs::exists(out / "frame_0000.png")) << rel;
-            rendered += r.exitCode == 0;
-        } else {
-            EXPECT_EQ(r.exitCode, 2) << rel << "\n" << r.out;
-            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << rel << "\n" << r.out;
-            EXPECT_NE(r.out.find(f.filename().string()), std::string::npos) << rel << "\n" << r.out;
-            EXPECT_NE(r.out.find(expected->second), std::string::npos) << rel << "\n" << r.out;
-            EXPECT_FALSE(fs::exists(out / "frame_0000.exr")) << rel;
-            rejected += r.exitCode == 2;
-        }
-    }
-    EXPECT_EQ(rejected, exitTwo.size());
-    EXPECT_EQ(rendered, files.size() - exitTwo.size());
+    expectEachRendersOrExitsTwo(files, kAssimp, exitTwo);
 }
 
 // A file with only points or lines: an empty frame, one warning line, the
