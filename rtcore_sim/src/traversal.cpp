@@ -13,15 +13,10 @@
 namespace rtlab::rtcore_sim {
 namespace {
 
-constexpr float kMachineEpsilon = std::numeric_limits<float>::epsilon() * 0.5f;
-// gamma(n) of pbrt-v4: bound on the relative error of n rounded operations.
-constexpr float errorGamma(int n) { return (n * kMachineEpsilon) / (1.f - n * kMachineEpsilon); }
-
 // The slab test, inlined into the traversal step: true with the entry
 // distance in tEntry when the box is hit.
 inline bool slabTest(const Aabb& box, const vec3& origin, const vec3& invDirection, float tMin, float tMax,
                      float& tEntry, float padding = 0.f) {
-    constexpr float kFarScale = 1.f + 2.f * errorGamma(3);
     float tNear = tMin;
     float tFar = tMax;
     for (int a = 0; a < 3; ++a) {
@@ -32,7 +27,7 @@ inline bool slabTest(const Aabb& box, const vec3& origin, const vec3& invDirecti
         const float nearPlane = negative ? box.hi[a] + padding : box.lo[a] - padding;
         const float farPlane = negative ? box.lo[a] - padding : box.hi[a] + padding;
         const float tA = (nearPlane - origin[a]) * invDirection[a];
-        const float tB = (farPlane - origin[a]) * invDirection[a] * kFarScale;
+        const float tB = (farPlane - origin[a]) * invDirection[a] * kSlabFarScale;
         tNear = tA > tNear ? tA : tNear;
         tFar = tB < tFar ? tB : tFar;
     }

@@ -48,9 +48,6 @@ int policyOf(std::span<const std::uint32_t> words) {
     return gpucheck::kCommitAll;
 }
 
-constexpr float kMachineEpsilon = std::numeric_limits<float>::epsilon() * 0.5f;
-constexpr float errorGamma(int n) { return (n * kMachineEpsilon) / (1.f - n * kMachineEpsilon); }
-
 // The model's memory image (format.hpp) at MemoryLayout's addresses.
 struct MemoryImage {
     std::vector<std::uint32_t> words;
@@ -116,7 +113,7 @@ MemoryImage buildImage(const rtcore_sim::ModelScene& scene, const rtcore_sim::Me
     h.imageBytes = layout.totalBytes();
     h.tlasMagnitude = scene.tlasMagnitude();
     h.tlasConditioning = scene.tlasConditioning();
-    h.farScale = 1.f + 2.f * errorGamma(3);
+    h.farScale = kSlabFarScale;
     if (scene.instances().size() >= (1u << gpucheck::kInstanceIndexBits))
         throw InputError(where, "more than 2^24 instances");
 

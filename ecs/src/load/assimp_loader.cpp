@@ -12,8 +12,6 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
-#include <stb/stb_image.h>
-
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -27,40 +25,20 @@ mat4 toMat4(const aiMatrix4x4& m) {
     return mat4(m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2, m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4);
 }
 
+// A material's diffuse texture: embedded in the file (compressed) or a file beside it.
 std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* material, const std::filesystem::path& dir,
                                  std::vector<std::string>& warnings, const std::string& where) {
     aiString name;
     if (material->GetTexture(aiTextureType_DIFFUSE, 0, &name) != AI_SUCCESS) return std::nullopt;
-    int w = 0, h = 0, channels = 0;
-    stbi_uc* pixels = nullptr;
-    std::string label = name.C_Str();
+    std::optional<Texture> t;
     if (const aiTexture* embedded = scene->GetEmbeddedTexture(name.C_Str())) {
         if (embedded->mHeight == 0)  // compressed (png, jpg, ...): mWidth bytes
-            pixels = stbi_load_from_memory(reinterpret_cast<const stbi_uc*>(embedded->pcData),
-                                           static_cast<int>(embedded->mWidth), &w, &h, &channels, 4);
-        label = "embedded " + label;
+            t = decodeTexture(reinterpret_cast<const unsigned char*>(embedded->pcData), embedded->mWidth,
+                              std::string("embedded ") + name.C_Str());
     } else {
-        std::string file = name.C_Str();
-        std::replace(file.begin(), file.end(), '\\', '/');
-        std::filesystem::path path = dir / file;
-        pixels = stbi_load(path.string().c_str(), &w, &h, &channels, 4);
-        if (!pixels) {  // an absolute path of the author's machine: the file name beside the scene
-            const std::filesystem::path beside = dir / std::filesystem::path(file).filename();
-            pixels = stbi_load(beside.string().c_str(), &w, &h, &channels, 4);
-            if (pixels) path = beside;
-        }
-        label = path.string();
+        t = readTextureNamed(dir, name.C_Str());
     }
-    if (!pixels) {
-        warnings.push_back(where + ": texture " + label + " not found or not readable, left out");
-        return std::nullopt;
-    }
-    Texture t;
-    t.name = label;
-    t.width = w;
-    t.height = h;
-    t.rgba8.assign(pixels, pixels + std::size_t(w) * std::size_t(h) * 4);
-    stbi_image_free(pixels);
+    if (!t) warnings.push_back(where + ": texture " + name.C_Str() + " not found or not readable, left out");
     return t;
 }
 
@@ -98,14 +76,14 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
             m.alphaMode = AlphaMode::Blend;
         }
         if (am->Get(AI_MATKEY_SHININESS, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f)
-            m.roughness = std::clamp(std::sqrt(2.f / (v + 2.f)), 0.f, 1.f);
+            m.roughness = roughnessFromPhongExponent(v);
         if (am->Get(AI_MATKEY_REFRACTI, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f) m.ior = v;
         if (std::optional<Texture> t = textureOf(scene, am, path.parent_path(), warnings, where)) {
             m.baseColorTexture = static_cast<TextureId>(textures.size());
             textures.push_back(std::move(*t));
         }
-        for (float& x : {std::ref(m.baseColor.r), std::ref(m.baseColor.g), std::ref(m.baseColor.b)})
-            if (!std::isfinite(x)) x = 1.f;
+        for (int k = 0; k < 3; ++k)
+            if (!std::isfinite(m.baseColor[k])) m.baseColor[k] = 1.f;
         materials.push_back(std::move(m));
     }
     const MaterialId defaultMaterial = static_cast<MaterialId>(materials.size());

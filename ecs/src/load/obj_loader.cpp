@@ -6,22 +6,18 @@
 // A missing .mtl or texture is a warning (World::loadReport) and a default
 // material; points and lines are skipped with a warning; anything malformed
 // is an InputError naming the file.
-#define STBI_NO_STDIO
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 
-#include <stb/stb_image.h>
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <optional>
 #include <sstream>
-#include <tuple>
 #include <unordered_map>
 
 namespace rtlab::ecs::load {
@@ -94,34 +90,6 @@ void triangulate(const std::vector<vec3>& p, std::vector<std::uint32_t>& out) {
     for (std::uint32_t i = 1; i + 1 < n; ++i) out.insert(out.end(), {0u, i, i + 1});
 }
 
-// An image file as an 8-bit RGBA texture; nothing (and a warning) when it cannot be read.
-std::optional<Texture> loadTexture(const std::filesystem::path& path, World& world, const std::string& where) {
-    std::ifstream f(path, std::ios::binary);
-    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    int w = 0, h = 0, channels = 0;
-    stbi_uc* pixels = bytes.empty()
-                          ? nullptr
-                          : stbi_load_from_memory(bytes.data(), static_cast<int>(bytes.size()), &w, &h, &channels, 4);
-    if (!pixels) {
-        world.loadReport().warnings.push_back(where + ": texture " + path.string() +
-                                              (bytes.empty() ? " not found" : " not readable") + ", left out");
-        return std::nullopt;
-    }
-    Texture t;
-    t.name = path.filename().string();
-    t.width = w;
-    t.height = h;
-    t.rgba8.assign(pixels, pixels + std::size_t(w) * std::size_t(h) * 4);
-    stbi_image_free(pixels);
-    return t;
-}
-
-bool hasTransparentTexel(const Texture& t) {
-    for (std::size_t i = 3; i < t.rgba8.size(); i += 4)
-        if (t.rgba8[i] < 255) return true;
-    return false;
-}
-
 }  // namespace
 
 std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Entity parent) {
@@ -180,13 +148,13 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
         m.baseColor = vec4(mt.diffuse[0], mt.diffuse[1], mt.diffuse[2], std::clamp(float(mt.dissolve), 0.f, 1.f));
         m.emissive = vec3(mt.emission[0], mt.emission[1], mt.emission[2]);
         // Phong exponent -> roughness (the Blinn-Phong / GGX correspondence alpha = sqrt(2 / (Ns + 2))).
-        m.roughness = std::clamp(std::sqrt(2.f / (std::max(float(mt.shininess), 0.f) + 2.f)), 0.f, 1.f);
+        m.roughness = roughnessFromPhongExponent(float(mt.shininess));
         if (mt.ior > 0.f) m.ior = mt.ior;
         if (m.baseColor.a < 1.f) m.alphaMode = AlphaMode::Blend;
         if (!mt.diffuse_texname.empty()) {
-            std::string name = mt.diffuse_texname;  // Windows paths (".\\wall.jpg") as written by many exporters
-            std::replace(name.begin(), name.end(), '\\', '/');
-            std::optional<Texture> t = loadTexture(path.parent_path() / name, world, where);
+            std::optional<Texture> t = readTextureNamed(path.parent_path(), mt.diffuse_texname);
+            if (!t)
+                warnings.push_back(where + ": texture " + mt.diffuse_texname + " not found or not readable, left out");
             if (t) {
                 if (hasTransparentTexel(*t)) m.alphaMode = AlphaMode::Mask;  // cut-outs (foliage, chains)
                 m.baseColorTexture = static_cast<TextureId>(textures.size());

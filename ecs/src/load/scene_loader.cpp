@@ -3,9 +3,13 @@
 #include <rtlab/ecs/load/scene_loader.hpp>
 
 #include <glm/gtx/matrix_decompose.hpp>
+#include <stb/stb_image.h>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <cctype>
 
 namespace rtlab::ecs::load {
@@ -75,6 +79,43 @@ std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& tex
         materialIds.push_back(world.addMaterial(std::move(m)));
     }
     return materialIds;
+}
+
+std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name) {
+    int w = 0, h = 0, channels = 0;
+    stbi_uc* pixels = size == 0 || size > std::size_t(std::numeric_limits<int>::max())
+                          ? nullptr
+                          : stbi_load_from_memory(bytes, static_cast<int>(size), &w, &h, &channels, 4);
+    if (!pixels) return std::nullopt;
+    Texture t;
+    t.name = name;
+    t.width = w;
+    t.height = h;
+    t.rgba8.assign(pixels, pixels + std::size_t(w) * std::size_t(h) * 4);
+    stbi_image_free(pixels);
+    return t;
+}
+
+std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written) {
+    std::replace(written.begin(), written.end(), '\\', '/');
+    const std::filesystem::path asWritten = dir / written;
+    const std::filesystem::path beside = dir / std::filesystem::path(written).filename();
+    for (const std::filesystem::path& path : {asWritten, beside}) {
+        std::ifstream f(path, std::ios::binary);
+        const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+        if (std::optional<Texture> t = decodeTexture(bytes.data(), bytes.size(), path.filename().string())) return t;
+    }
+    return std::nullopt;
+}
+
+bool hasTransparentTexel(const Texture& t) {
+    for (std::size_t i = 3; i < t.rgba8.size(); i += 4)
+        if (t.rgba8[i] < 255) return true;
+    return false;
+}
+
+float roughnessFromPhongExponent(float exponent) {
+    return std::clamp(std::sqrt(2.f / (std::max(exponent, 0.f) + 2.f)), 0.f, 1.f);
 }
 
 std::vector<vec3> generateVertexNormals(const std::vector<vec3>& positions, const std::vector<std::uint32_t>& indices) {

@@ -14,10 +14,18 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <vector>
 
 namespace rtlab::rtcore_sim {
+
+// The slab test's far-distance scale, 1 + 2 gamma(3) (pbrt-v4's gamma(n):
+// a bound on the relative error of n rounded float operations).
+inline constexpr float kSlabFarScale = [] {
+    constexpr float eps = std::numeric_limits<float>::epsilon() * 0.5f;
+    return 1.f + 2.f * ((3 * eps) / (1.f - 3 * eps));
+}();
 
 // The reciprocal direction a slab test uses: 1/d per component, +-inf for a
 // zero component (the slab test handles it, see intersectBox).

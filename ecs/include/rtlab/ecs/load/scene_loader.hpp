@@ -6,6 +6,7 @@
 #include <rtlab/ecs/world.hpp>
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,19 @@ LocalTransform localTransformOf(const mat4& matrix);
 std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& textures,
                                         std::vector<Material>&& materials, std::uint32_t skippedLines,
                                         std::uint32_t skippedPoints, const std::vector<std::string>& warnings);
+
+// Compressed image bytes (anything stb_image reads) as an 8-bit RGBA texture;
+// nothing when they do not decode.
+std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name);
+// The texture a scene file names: `written` as in the file, relative to `dir`
+// (Windows separators accepted); when that is not there, its file name in
+// `dir` (an absolute path of the author's machine). Nothing when not found or
+// unreadable.
+std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written);
+// Whether some texel is not fully opaque (the texture cuts out: an alpha mask).
+bool hasTransparentTexel(const Texture& texture);
+// A Phong / MTL shininess exponent as roughness: sqrt(2 / (Ns + 2)), in [0, 1].
+float roughnessFromPhongExponent(float exponent);
 
 // Geometry helpers shared by the loaders and builtin scenes.
 // Area-weighted vertex normals; degenerate ones become (0, 0, 1).
