@@ -128,6 +128,7 @@ SCALABLE(forest_1e5, "builtin:forest?instances=100000");
 SCALABLE(hairball_1e5, "builtin:hairball?triangles=100000");
 SCALABLE(hairball_1e6, "builtin:hairball?triangles=1000000");
 SCALABLE(hairball_1e7, "builtin:hairball?triangles=10000000");
+SCALABLE(slivers_1e6, "builtin:slivers?triangles=1000000");
 
 }  // namespace
 

@@ -18,6 +18,7 @@ doc = pathlib.Path(argv[3] if len(argv) > 3 else "docs/workloads.md")
 
 WIDTH, HEIGHT, DEPTH = 160, 90, 2
 ENGINE = "/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb"
+SPIDER = "/usr/share/assimp/models/OBJ/spider.obj"  # OBJ + MTL + JPEG textures, through the OBJ importer
 WORKLOADS = [
     ("showcase", "builtin:showcase"),
     ("cornell", "builtin:cornell"),
@@ -25,9 +26,50 @@ WORKLOADS = [
     ("terrain 1M", "builtin:terrain?triangles=1000000"),
     ("forest 10k", "builtin:forest?instances=10000"),
     ("hairball 1M", "builtin:hairball?triangles=1000000"),
+    ("slivers 1M", "builtin:slivers?triangles=1000000"),
+    ("spider (OBJ)", SPIDER),
 ]
 RAY_TYPES = [("primary", "primary"), ("shadow", "shadow"), ("ao", "AO"), ("pathBounce", "pathtrace bounce")]
 CACHES = [(32768, "32 KiB"), (1048576, "1 MiB")]
+
+
+# The scenes RT-hardware and traversal papers report on: where each is
+# published, its licence as the publisher states it, and the commands that run
+# it. Not downloaded by rtlab (no network in CI); a user fetches and unpacks them.
+STANDARD_SCENES = """## The standard scenes of RT-hardware papers
+
+rtlab reads the formats these scenes ship in (`docs/scene-format.md`: OBJ + MTL, FBX, PLY, glTF). They
+are not part of this repository or its tests (sizes and licences); download and unpack one, then run
+it with the commands below. Licences are as the publisher's page states them: check the page before
+you redistribute renders or the files.
+
+| scene | where it is published | format | licence (as published) | camera |
+|---|---|---|---|---|
+| Crytek Sponza (262k triangles, alpha-masked foliage and chains) | Morgan McGuire's Computer Graphics Archive, https://casual-effects.com/data/ (`sponza.zip`) | OBJ + MTL + textures | CC BY 3.0 (Frank Meinl, Crytek) | `--camera interior` |
+| San Miguel (10M triangles, alpha-masked leaves) | the same archive (`San_Miguel.zip`) | OBJ + MTL + textures | CC BY 3.0 (Guillermo M. Leal Llaguno) | `--camera interior` or the file's bounds |
+| Hairball (2.9M triangles of curly strands) | the same archive (`hairball.zip`; Samuli Laine, NVIDIA Research) | OBJ | CC BY 3.0 | default (`builtin:hairball` is its look-alike) |
+| Conference room (331k triangles) | the same archive (`conference.zip`; Anat Grynberg and Greg Ward) | OBJ + MTL | as the archive's page states | `--camera interior` |
+| Fairy Forest (174k triangles, animated) | Utah 3D Animation Repository, https://www.sci.utah.edu/~wald/animrep/ | OBJ per frame | free for research, credit the repository | default |
+| Amazon Lumberyard Bistro (exterior 2.8M, interior 1M triangles) | NVIDIA ORCA, https://developer.nvidia.com/orca/amazon-lumberyard-bistro | FBX | CC BY 4.0 (Amazon Lumberyard) | `--camera interior` or a `--camera` of your own |
+| Stanford Bunny, Dragon, Armadillo, Happy Buddha | Stanford 3D Scanning Repository, https://graphics.stanford.edu/data/3Dscanrep/ | PLY | research use; credit the Stanford Computer Graphics Laboratory; no commercial use without permission | default |
+
+Sponza, with one command each (the scene file as unpacked; any scene above works the same way):
+
+```sh
+rtlab render --scene sponza/sponza.obj --camera interior --out out/sponza
+rtlab render --scene sponza/sponza.obj --camera interior --effects shadows,ao,pathtrace --max-depth 2 --width 160 --height 90 --denoise none --record-rays out/sponza/rays --out out/sponza/recorded
+rtlab replay --scene sponza/sponza.obj --rays out/sponza/rays --backend rtcore --ray-types primary --out out/sponza/primary
+echo '{"workloads": [{"scene": "sponza/sponza.obj", "camera": "interior"}], "render": {"width": 128, "height": 72}, "grid": {"cache.sizeBytes": [16384, 65536]}}' > sponza-study.json
+rtlab sweep sponza-study.json --out out/sponza-study && rtlab report out/sponza-study
+```
+
+- A file whose parts are not found (a missing .mtl or texture) still renders, with a warning in
+  stats.json `load` and a default material (`docs/scene-format.md`).
+- `rtlab info --scene FILE` prints the triangle counts and the bounds, from which a `--camera` of your
+  own can be chosen (`--camera ex,ey,ez,tx,ty,tz[,ux,uy,uz[,fovYDegrees]]`).
+- `rtlab export --scene 'builtin:terrain?triangles=300000' --out terrain.obj` writes the builtin
+  workloads the other way, for Arches, pbrt or Blender.
+""".splitlines()
 
 
 def run(args):
@@ -137,6 +179,7 @@ lines += [
     *commands,
     "```",
     "",
+    *STANDARD_SCENES,
 ]
 doc.write_text("\n".join(lines))
 print(f"workloads: {len(rows)} rows, {out / 'workloads.json'} and {doc}", file=sys.stderr)

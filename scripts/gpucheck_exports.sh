@@ -21,8 +21,8 @@ rows=(
   "terrain|builtin:terrain?triangles=200000|ao|ao"
   "forest|builtin:forest?instances=500|gbuffer|primary"
   "forest|builtin:forest?instances=500|pathtrace|pathBounce"
-  "hairball|builtin:hairball?triangles=200000|gbuffer|primary"
-  "hairball|builtin:hairball?triangles=200000|shadows|shadow"
+  "slivers|builtin:slivers?triangles=200000|gbuffer|primary"
+  "slivers|builtin:slivers?triangles=200000|shadows|shadow"
   "engine|$engine|gbuffer|primary"
   "engine|$engine|pathtrace|pathBounce"
 )

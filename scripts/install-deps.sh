@@ -12,8 +12,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libdraco-dev libmeshoptimizer-dev
   libopenmpi-dev openmpi-bin
-  python3 python3-matplotlib chromium
-  assimp-testmodels
+  python3 python3-matplotlib chromium librsvg2-bin poppler-utils fonts-dejavu-core
+  assimp-testmodels assimp-utils
 )
 
 missing=()

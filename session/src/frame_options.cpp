@@ -6,6 +6,8 @@
 #include <rtlab/shaders_cpp/effect_table.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <sstream>
 #include <type_traits>
@@ -38,7 +40,8 @@ std::vector<FrameOptionField> makeFields() {
               "builtin:NAME[?k=v&...], .gltf/.glb, .obj, .ply, .fbx, or scene .json"),
         field("--camera", "camera", &F::camera, kUseRender | kUseStatsEcho | kUseConverge,
               "The camera instead of the scene's: eyeX,eyeY,eyeZ,targetX,targetY,targetZ[,upX,upY,upZ[,fovYDegrees]] "
-              "(up defaults to +Y, the field of view to 45 degrees)"),
+              "(up defaults to +Y, the field of view to 45 degrees), or interior (inside the scene's bounds, looking "
+              "along their longer horizontal axis: an atrium or room such as Sponza)"),
         field("--width", "width", &F::width, kRenderLike | kUseConverge, "Image width in pixels").range(1, 16384),
         field("--height", "height", &F::height, kRenderLike | kUseConverge, "Image height in pixels").range(1, 16384),
         field("--spp", "spp", &F::spp, kRenderLike, "Samples per pixel per effect").range(1, 1 << 20),
@@ -130,6 +133,39 @@ const FrameOptionField* frameOptionByKey(std::string_view key) {
     return nullptr;
 }
 
+CameraPlacement parseCameraPlacement(const std::string& text, const std::string& flag) {
+    if (text == "interior") {
+        CameraPlacement c;
+        c.interior = true;
+        c.fovYDegrees = 60.f;
+        return c;
+    }
+    std::vector<float> v;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        char* end = nullptr;
+        const float x = std::strtof(item.c_str(), &end);
+        if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
+            throw InputError(flag, "'" + item + "' is not a finite number");
+        v.push_back(x);
+    }
+    if (v.size() != 6 && v.size() != 9 && v.size() != 10)
+        throw InputError(flag, "expected 6, 9 or 10 numbers: eye, target[, up[, fovY in degrees]] (got " +
+                                   std::to_string(v.size()) + ")");
+    CameraPlacement c;
+    c.eye = vec3(v[0], v[1], v[2]);
+    c.target = vec3(v[3], v[4], v[5]);
+    if (v.size() >= 9) c.up = vec3(v[6], v[7], v[8]);
+    if (v.size() == 10) c.fovYDegrees = v[9];
+    const vec3 along = c.target - c.eye;
+    if (!(glm::length(along) > 0.f)) throw InputError(flag, "eye and target are the same point");
+    if (!(glm::length(glm::cross(along, c.up)) > 1e-6f * glm::length(along) * glm::length(c.up)))
+        throw InputError(flag, "the up vector is zero or along the view direction");
+    if (!(c.fovYDegrees > 0.f && c.fovYDegrees < 180.f)) throw InputError(flag, "fovY must be in (0, 180) degrees");
+    return c;
+}
+
 void FrameOptions::validate() const {
     // Step: each field in its range or among its choices.
     for (const FrameOptionField& f : frameOptionFields()) {
@@ -149,6 +185,7 @@ void FrameOptions::validate() const {
             },
             f.member);
     }
+    if (!camera.empty()) parseCameraPlacement(camera);
     // Step: options that only mean something for the RT-core model.
     if (backend != "rtcore") {
         if (!rtcoreConfig.empty()) throw InputError("--rtcore-config", "only applies to --backend rtcore");

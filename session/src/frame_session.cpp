@@ -7,7 +7,16 @@
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include <unistd.h>
 #include <cstdlib>
 #include <cmath>
 #include <sstream>
@@ -37,42 +46,90 @@ FrameSession::~FrameSession() = default;
 
 namespace {
 
-// --camera "ex,ey,ez,tx,ty,tz[,ux,uy,uz[,fovYDegrees]]": a camera entity, made the active one.
+// --camera: a camera entity, made the active one.
 void setCommandLineCamera(ecs::World& world, const std::string& text) {
-    std::vector<float> v;
-    std::stringstream in(text);
-    std::string item;
-    while (std::getline(in, item, ',')) {
-        char* end = nullptr;
-        const float x = std::strtof(item.c_str(), &end);
-        if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(x))
-            throw InputError("--camera", "'" + item + "' is not a finite number");
-        v.push_back(x);
+    CameraPlacement c = parseCameraPlacement(text);
+    if (c.interior) {
+        // Step: from the bounds; a flat or empty scene still gets a valid view.
+        Aabb bounds = ecs::load::worldBounds(world);
+        if (bounds.empty()) bounds = Aabb{vec3(-1.f), vec3(1.f)};
+        const vec3 size = glm::max(bounds.extent(), vec3(1e-6f * std::max(1.f, glm::length(bounds.extent()))));
+        const vec3 along = size.x >= size.z ? vec3(1.f, 0.f, 0.f) : vec3(0.f, 0.f, 1.f);
+        c.eye = vec3(bounds.center().x, bounds.lo.y + 0.35f * size.y, bounds.center().z);
+        c.target = c.eye + 0.5f * std::max(size.x, size.z) * along;
     }
-    if (v.size() != 6 && v.size() != 9 && v.size() != 10)
-        throw InputError("--camera", "expected 6, 9 or 10 numbers: eye, target[, up[, fovY in degrees]] (got " +
-                                         std::to_string(v.size()) + ")");
-    const vec3 eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]);
-    const vec3 up = v.size() >= 9 ? vec3(v[6], v[7], v[8]) : vec3(0.f, 1.f, 0.f);
-    const float fovY = v.size() == 10 ? v[9] : 45.f;
-    const vec3 along = target - eye;
-    if (!(glm::length(along) > 0.f)) throw InputError("--camera", "eye and target are the same point");
-    if (!(glm::length(glm::cross(along, up)) > 1e-6f * glm::length(along) * glm::length(up)))
-        throw InputError("--camera", "the up vector is zero or along the view direction");
-    if (!(fovY > 0.f && fovY < 180.f)) throw InputError("--camera", "fovY must be in (0, 180) degrees");
+    const vec3 along = c.target - c.eye;
     const ecs::Entity e = world.create("command-line camera");
     world.emplace(
-        e, ecs::LocalTransform{eye, orientationLookingAlong(glm::normalize(along), glm::normalize(up)), vec3(1.f)});
+        e, ecs::LocalTransform{c.eye, orientationLookingAlong(glm::normalize(along), glm::normalize(c.up)), vec3(1.f)});
     const float distance = glm::length(along);
-    world.emplace(e, ecs::Camera{glm::radians(fovY), distance * 1e-4f, distance * 1e4f, 0.f});
+    world.emplace(e, ecs::Camera{glm::radians(c.fovYDegrees), distance * 1e-4f, distance * 1e4f, 0.f});
     world.setActiveCamera(e);
 }
+
+// A load that takes longer than a second says so on stderr: on a terminal,
+// "loading SRC (SIZE)..." once the second has passed (cleared when done);
+// then, if it succeeded, one line "rtlab: loaded SRC in T s (N triangles)" (a
+// log sees only that, and a failed load only its error).
+// RTLAB_LOAD_NOTICE_SECONDS sets the threshold (tests use 0).
+class SlowLoadNotice {
+public:
+    explicit SlowLoadNotice(std::string source) : source_(std::move(source)) {
+        double threshold = 1.0;
+        if (const char* text = std::getenv("RTLAB_LOAD_NOTICE_SECONDS")) {
+            char* end = nullptr;
+            const double v = std::strtod(text, &end);
+            if (end != text && std::isfinite(v) && v >= 0.0) threshold = v;
+        }
+        watcher_ = std::thread([this, threshold] {
+            std::unique_lock lock(mutex_);
+            if (done_.wait_for(lock, std::chrono::duration<double>(threshold), [&] { return finished_; })) return;
+            std::string size;
+            std::error_code ec;
+            const auto bytes = std::filesystem::file_size(source_, ec);
+            if (!ec) size = " (" + std::to_string((bytes + 524288) / 1048576) + " MB)";
+            if (isatty(STDERR_FILENO)) std::cerr << "rtlab: loading " << source_ << size << "..." << std::flush;
+            announced_ = true;
+        });
+    }
+    // Ends the watch; with `triangles`, says how long the load took if it was announced.
+    void finish(std::optional<std::size_t> triangles) {
+        {
+            std::lock_guard lock(mutex_);
+            finished_ = true;
+        }
+        done_.notify_all();
+        if (watcher_.joinable()) watcher_.join();
+        if (announced_ && isatty(STDERR_FILENO)) std::cerr << "\r\033[K" << std::flush;
+        if (announced_ && triangles) {
+            char seconds[32];
+            std::snprintf(seconds, sizeof seconds, "%.1f", timer_.elapsedMs() / 1000.0);
+            std::cerr << "rtlab: loaded " << source_ << " in " << seconds << " s (" << *triangles << " triangles)"
+                      << std::endl;
+        }
+    }
+    ~SlowLoadNotice() { finish(std::nullopt); }
+
+private:
+    std::string source_;
+    Stopwatch timer_;
+    std::mutex mutex_;
+    std::condition_variable done_;
+    bool finished_ = false, announced_ = false;
+    std::thread watcher_;
+};
 
 }  // namespace
 
 void FrameSession::load() {
     if (loaded_) throw std::logic_error("FrameSession::load: the scene is already loaded");
+    SlowLoadNotice notice(options_.scene);
     ecs::load::loadScene(*world_, options_.scene);
+    std::size_t triangles = 0;
+    world_->each<ecs::MeshInstance>([&](ecs::Entity, const ecs::MeshInstance& inst) {
+        if (inst.mesh < world_->meshes().size()) triangles += world_->mesh(inst.mesh).triangleCount();
+    });
+    notice.finish(triangles);
     if (!options_.camera.empty()) setCommandLineCamera(*world_, options_.camera);
     for (const std::string& w : world_->loadReport().warnings) std::cerr << "rtlab: warning: " << w << "\n";
     loaded_ = true;

@@ -91,7 +91,7 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
         const ecs::Material& m = materialOf(ctx);
         vec3 n = sp.shadingNormal;
         if (glm::dot(n, ctx.worldRayDirection) > 0.f) n = -n;  // face the viewer
-        p.albedo = vec3(baseColorAt(m, textures, sp.uv));
+        p.albedo = vec3(baseColorAt(m, textures, sp));
         p.normal = n;
         p.depth = ctx.rayTCurrent * glm::dot(ctx.worldRayDirection, cameraForward);
         p.color = p.albedo * (0.2f + 0.8f * std::abs(glm::dot(n, ctx.worldRayDirection))) + m.emissive;
@@ -99,8 +99,8 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     const auto alphaTest = [&](const tracer::HitContext& ctx, PreviewPayload&, const tracer::HitAttributes& attr) {
         const ecs::Material& m = materialOf(ctx);
         const SurfacePoint sp = surfacePoint(scene, accel.instanceFacts(ctx.instanceIndex).normalFromObject, ctx, attr);
-        return baseColorAt(m, textures, sp.uv).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
-                                                                 : tracer::AnyHitResult::Accept;
+        return baseColorAt(m, textures, sp).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
+                                                              : tracer::AnyHitResult::Accept;
     };
     desc.hitGroups = tracer::buildMaterialShaderTable<PreviewPayload>(
         accel, scene, 1, [&](const ecs::Material& material, const ecs::Geometry&, std::uint32_t) {
@@ -175,6 +175,7 @@ SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const mat3& normalFro
                            ? toWorld(w0 * g.normals[i0] + b.x * g.normals[i1] + b.y * g.normals[i2])
                            : sp.geometricNormal;
     if (g.uv0.size() == g.positions.size()) sp.uv = w0 * g.uv0[i0] + b.x * g.uv0[i1] + b.y * g.uv0[i2];
+    if (g.colors.size() == g.positions.size()) sp.color = w0 * g.colors[i0] + b.x * g.colors[i1] + b.y * g.colors[i2];
     return sp;
 }
 

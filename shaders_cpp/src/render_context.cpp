@@ -32,7 +32,7 @@ void surfaceClosestHit(const RenderContext& ctx, const tracer::HitContext& hc, H
     if (glm::dot(p.shadingNormal, p.geometricNormal) <= 0.f) p.shadingNormal = p.geometricNormal;
     p.uv = sp.uv;
     p.material = g.material;
-    p.albedo = vec3(baseColorAt(ctx.material(g.material), *ctx.scene.textures, sp.uv));
+    p.albedo = vec3(baseColorAt(ctx.material(g.material), *ctx.scene.textures, sp));
     p.errorScale = errorScaleOf(sp.position, hc.worldRayOrigin);
 }
 
@@ -66,8 +66,8 @@ RenderContext::RenderContext(const tracer::AccelManager& accel_, const ecs::Scen
         const ecs::Geometry& g = (*scene.meshes)[hc.instance->mesh].geometries[hc.geometryIndex];
         const ecs::Material& m = material(g.material);
         const SurfacePoint sp = surfacePoint(scene, accel.instanceFacts(hc.instanceIndex).normalFromObject, hc, attr);
-        return baseColorAt(m, *scene.textures, sp.uv).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
-                                                                        : tracer::AnyHitResult::Accept;
+        return baseColorAt(m, *scene.textures, sp).a < m.alphaCutoff ? tracer::AnyHitResult::Ignore
+                                                                     : tracer::AnyHitResult::Accept;
     };
     desc.hitGroups = tracer::buildMaterialShaderTable<HitPayload>(
         accel, scene, kRayTypeCount, [&](const ecs::Material& m, const ecs::Geometry&, std::uint32_t rayType) {

@@ -67,7 +67,7 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
     if (w.is_string()) {
         workload.scene = w.get<std::string>();
     } else if (w.is_object()) {
-        rejectUnknownKeys(w, {"scene", "rays"}, where, path + ".");
+        rejectUnknownKeys(w, {"scene", "rays", "camera"}, where, path + ".");
         if (!w.contains("scene"))
             throw InputError(where, path + ": needs \"scene\" (a scene source; with \"rays\", the recorded scene)");
         workload.scene = stringField(w, "scene", "", where, path + ".scene");
@@ -79,6 +79,12 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
             std::error_code ec;
             if (!std::filesystem::exists(workload.rays, ec))
                 throw InputError(where, path + ".rays: " + workload.rays + ": no such file or directory");
+        }
+        if (w.contains("camera")) {
+            workload.camera = stringField(w, "camera", "", where, path + ".camera");
+            if (!workload.rays.empty())
+                throw InputError(where, path + ".camera: a recorded workload replays its rays as recorded (no camera)");
+            session::parseCameraPlacement(workload.camera, where + ": " + path + ".camera");
         }
     } else {
         throw InputError(where, path + ": must be a scene source string or {\"scene\": SRC} (got " + w.dump() + ")");
@@ -105,6 +111,7 @@ std::string hex64(std::uint64_t v) {
 json Workload::toJson() const {
     json j = {{"scene", scene}};
     if (!rays.empty()) j["rays"] = rays;
+    if (!camera.empty()) j["camera"] = camera;
     return j;
 }
 
@@ -342,6 +349,7 @@ std::vector<std::string> renderArguments(const Study& study, const Point& point,
         a = {"replay", "--scene", point.workload.scene, "--rays", point.workload.rays, "--backend", s.backend};
     } else {
         a = {"render", "--scene", point.workload.scene};
+        if (!point.workload.camera.empty()) a.insert(a.end(), {"--camera", point.workload.camera});
         session::FrameOptions render = s;
         render.rtcoreConfig.clear();  // added below, for both
         render.threads = 0;           // added below: the sweep's choice

@@ -14,6 +14,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 #include <sys/wait.h>
@@ -580,5 +582,106 @@ TEST(Cli, CameraOptionReplacesTheScenesCamera) {
                                 " --out " + (out / "bad").string());
         EXPECT_EQ(b.exitCode, 2) << bad << "\n" << b.out;
         EXPECT_NE(b.out.find("--camera"), std::string::npos) << b.out;
+    }
+    // --camera interior: inside the Cornell box every pixel sees a wall.
+    const CliRun inside = runCli(
+        "render --width 16 --height 12 --effects gbuffer --denoise none --scene builtin:cornell "
+        "--camera interior --out " +
+        (out / "interior").string());
+    ASSERT_EQ(inside.exitCode, 0) << inside.out;
+    std::ifstream statsFile(out / "interior" / "stats.json");
+    const nlohmann::json stats = nlohmann::json::parse(statsFile);
+    EXPECT_EQ(stats["frames"][0]["rays"]["primary"]["hits"], 16 * 12);
+}
+
+// A load over a second says how long it took (one line; the threshold is
+// RTLAB_LOAD_NOTICE_SECONDS, 0 here); a quick load says nothing.
+TEST(Cli, ASlowLoadSaysHowLongItTook) {
+    const CliRun slow = runCommand("RTLAB_LOAD_NOTICE_SECONDS=0 " + std::string(RTLAB_CLI) +
+                                   " info --scene 'builtin:hairball?triangles=2000'");
+    ASSERT_EQ(slow.exitCode, 0) << slow.out;
+    EXPECT_NE(slow.out.find("rtlab: loaded builtin:hairball?triangles=2000 in "), std::string::npos) << slow.out;
+    EXPECT_NE(slow.out.find(" s (2000 triangles)\n"), std::string::npos) << slow.out;
+    const CliRun quick = runCli("info --scene builtin:cornell");
+    ASSERT_EQ(quick.exitCode, 0) << quick.out;
+    EXPECT_EQ(quick.out.find("rtlab: loaded"), std::string::npos) << quick.out;
+    const CliRun failed =
+        runCommand("RTLAB_LOAD_NOTICE_SECONDS=0 " + std::string(RTLAB_CLI) + " info --scene /nonexistent/file.obj");
+    EXPECT_EQ(failed.exitCode, 2) << failed.out;
+    EXPECT_EQ(std::count(failed.out.begin(), failed.out.end(), '\n'), 1) << failed.out;
+}
+
+// docs/scene-format.md's table of every OBJ, PLY and FBX file of
+// assimp-testmodels holds row by row: rtlab info's outcome (triangles, an
+// empty scene with its warning, or exit 2 with one line) and assimp info's
+// verdict (assimp-utils); and the table lists every such file.
+TEST(Cli, TheAssimpTestModelTableHolds) {
+    const fs::path models = "/usr/share/assimp/models";
+    ASSERT_TRUE(fs::exists(models / "OBJ")) << "assimp-testmodels not installed (scripts/install-deps.sh installs it)";
+    ASSERT_TRUE(fs::exists("/usr/bin/assimp")) << "assimp-utils not installed (scripts/install-deps.sh installs it)";
+    std::ifstream doc(fs::path(RTLAB_SOURCE_DIR) / "docs" / "scene-format.md");
+    std::string line;
+    bool inTable = false;
+    std::map<std::string, std::pair<std::string, std::string>> table;  // file -> (assimp, rtlab)
+    const auto trim = [](std::string s) {
+        s.erase(0, s.find_first_not_of(' '));
+        s.erase(s.find_last_not_of(' ') + 1);
+        return s;
+    };
+    while (std::getline(doc, line)) {
+        if (line.find("<!-- assimp-testmodels table") == 0) inTable = true;
+        else if (line.find("<!-- end of assimp-testmodels table") == 0) inTable = false;
+        else if (inTable && line.rfind("| `", 0) == 0) {
+            std::vector<std::string> cells;
+            std::stringstream row(line.substr(1));
+            std::string cell;
+            while (std::getline(row, cell, '|')) cells.push_back(trim(cell));
+            ASSERT_GE(cells.size(), 4u) << line;
+            table[cells[0].substr(1, cells[0].size() - 2)] = {cells[2], cells[3]};
+        }
+    }
+    // Step: the table lists every OBJ, PLY and FBX file of OBJ/, PLY/, FBX/ and invalid/.
+    std::set<std::string> files;
+    for (const auto& e : fs::recursive_directory_iterator(models)) {
+        std::string ext = e.path().extension().string();
+        std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+        const std::string rel = fs::relative(e.path(), models).string();
+        const std::string top = rel.substr(0, rel.find('/'));
+        if (e.is_regular_file() && (ext == ".obj" || ext == ".ply" || ext == ".fbx") &&
+            (top == "OBJ" || top == "PLY" || top == "FBX" || top == "invalid"))
+            files.insert(rel);
+    }
+    std::set<std::string> listed;
+    for (const auto& [file, outcome] : table) listed.insert(file);
+    EXPECT_EQ(listed, files);
+    ASSERT_GE(table.size(), 50u);
+    // Step: each row, against rtlab info and assimp info.
+    for (const auto& [file, outcome] : table) {
+        const auto& [assimpVerdict, rtlabOutcome] = outcome;
+        const std::string path = (models / file).string();
+        const CliRun r = runCli("info --scene '" + path + "'");
+        if (rtlabOutcome.rfind("renders: ", 0) == 0) {
+            EXPECT_EQ(r.exitCode, 0) << file << "\n" << r.out;
+            const std::string count = rtlabOutcome.substr(9, rtlabOutcome.find(' ', 9) - 9);
+            EXPECT_NE(r.out.find("triangles: " + count + " unique"), std::string::npos) << file << "\n" << r.out;
+        } else if (rtlabOutcome.rfind("empty scene: ", 0) == 0) {
+            EXPECT_EQ(r.exitCode, 0) << file << "\n" << r.out;
+            EXPECT_NE(r.out.find("triangles: 0 unique"), std::string::npos) << file << "\n" << r.out;
+            EXPECT_NE(r.out.find(rtlabOutcome.substr(13)), std::string::npos) << file << "\n" << r.out;
+        } else {
+            ASSERT_EQ(rtlabOutcome.rfind("exit 2: ", 0), 0u) << file << ": " << rtlabOutcome;
+            EXPECT_EQ(r.exitCode, 2) << file << "\n" << r.out;
+            EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << file << "\n" << r.out;
+            EXPECT_NE(r.out.find(rtlabOutcome.substr(8)), std::string::npos) << file << "\n" << r.out;
+            EXPECT_NE(r.out.find(fs::path(file).filename().string()), std::string::npos) << file << "\n" << r.out;
+        }
+        const CliRun a = runCommand("assimp info '" + path + "'");
+        if (assimpVerdict == "loads") {
+            EXPECT_EQ(a.exitCode, 0) << file << ": assimp info\n" << a.out.substr(0, 2000);
+        } else {
+            ASSERT_EQ(assimpVerdict.rfind("rejects: ", 0), 0u) << file << ": " << assimpVerdict;
+            EXPECT_NE(a.exitCode, 0) << file << ": assimp info";
+            EXPECT_NE(a.out.find(assimpVerdict.substr(9)), std::string::npos) << file << "\n" << a.out.substr(0, 2000);
+        }
     }
 }

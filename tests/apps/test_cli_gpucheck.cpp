@@ -58,7 +58,7 @@ TEST(GpuCheck, HostTwinTraversesAsTheModelOnEveryWorkload) {
     expectHostTwinAgrees(forest);
     EXPECT_GT(forest.model["policies"]["commitAll"].get<std::uint64_t>(), 0u);
     EXPECT_GT(forest.model["policies"]["firstHit"].get<std::uint64_t>(), 0u);
-    expectHostTwinAgrees(recordAndExport("hairball_shadow", "builtin:hairball?triangles=20000", "shadows", "shadow"));
+    expectHostTwinAgrees(recordAndExport("slivers_shadow", "builtin:slivers?triangles=20000", "shadows", "shadow"));
     expectHostTwinAgrees(recordAndExport("engine_primary", kEngine, "gbuffer", "primary"));
 }
 

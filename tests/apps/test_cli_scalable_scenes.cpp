@@ -1,4 +1,4 @@
-// End-to-end: the scalable builtin scenes (terrain, forest, hairball) through
+// End-to-end: the scalable builtin scenes (terrain, forest, hairball, slivers) through
 // the rtlab executable: parameter errors, `rtlab info`, thread-count determinism.
 #include "cli_test_util.hpp"
 
@@ -26,11 +26,11 @@ TEST(CliScalableScenes, ParameterErrorsExitTwoWithOneLineNamingTheParameter) {
         {"builtin:forest?instances=0", "parameter 'instances' is 0, out of range (1 to 1000000)"},
         {"builtin:forest?instances=10&instances=20", "parameter 'instances' given twice"},
         {"builtin:forest?seed", "expected key=value, got 'seed'"},
-        {"builtin:hairball?seed=99999999999", "parameter 'seed' has value '99999999999'"},
+        {"builtin:slivers?seed=99999999999", "parameter 'seed' has value '99999999999'"},
         {"builtin:showcase?seed=1", "unknown parameter 'seed' (builtin:showcase takes no parameters)"},
         {"builtin:cornell?triangles=1000", "unknown parameter 'triangles' (builtin:cornell takes no parameters)"},
         {"builtin:nope?triangles=1000",
-         "unknown builtin scene (available: showcase, cornell, terrain, forest, hairball)"},
+         "unknown builtin scene (available: showcase, cornell, terrain, forest, hairball, slivers)"},
     };
     for (const Case& c : cases)
         for (const std::string command : {"info", "plan", "render --width 8 --height 8 --out /tmp/rtlab_cli_never"}) {
@@ -58,6 +58,10 @@ TEST(CliScalableScenes, InfoShowsParametersAndUniqueAndInstancedTriangles) {
     const CliRun hair = runCli("info --scene 'builtin:hairball?triangles=2000'");
     ASSERT_EQ(hair.exitCode, 0) << hair.out;
     EXPECT_NE(hair.out.find("triangles: 2000 unique, 2000 instanced"), std::string::npos) << hair.out;
+    EXPECT_NE(hair.out.find("generated: 2000 triangles in 125 curly strands"), std::string::npos) << hair.out;
+    const CliRun slivers = runCli("info --scene 'builtin:slivers?triangles=2000'");
+    ASSERT_EQ(slivers.exitCode, 0) << slivers.out;
+    EXPECT_NE(slivers.out.find("generated: 2000 slivers"), std::string::npos) << slivers.out;
 
     // The forest: one ground plus 40 hashed instances of four meshes, so more
     // instanced than unique triangles.
@@ -74,8 +78,8 @@ TEST(CliScalableScenes, InfoShowsParametersAndUniqueAndInstancedTriangles) {
 }
 
 TEST(CliScalableScenes, GbufferFramesAreBitIdenticalOnOneAndTwoThreads) {
-    for (const std::string scene :
-         {"builtin:terrain?triangles=4000&seed=3", "builtin:forest?instances=60", "builtin:hairball?triangles=3000"}) {
+    for (const std::string scene : {"builtin:terrain?triangles=4000&seed=3", "builtin:forest?instances=60",
+                                    "builtin:hairball?triangles=3000", "builtin:slivers?triangles=3000"}) {
         SCOPED_TRACE(scene);
         const ThreadCountRuns r = renderWithOneAndTwoThreads(
             "scalable", "render --scene '" + scene + "' --effects gbuffer --width 32 --height 24");

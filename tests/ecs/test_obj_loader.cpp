@@ -7,6 +7,7 @@
 
 #include <rtlab/core/error.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
+#include <rtlab/ecs/save/scene_writer.hpp>
 #include <rtlab/ecs/world.hpp>
 
 #include <cmath>
@@ -99,6 +100,68 @@ TEST(ObjLoader, PolygonsGroupsMaterialsAndTheMtlMapping) {
     EXPECT_TRUE(textureWarning);
 }
 
+// map_d (Sponza's foliage and chains): its grey level becomes the base colour
+// texture's alpha, resampled onto map_Kd's texels, or a white texture of its
+// own where there is no map_Kd; either way an alpha mask (any-hit).
+TEST(ObjLoader, MapDIsTheAlphaMask) {
+    const fs::path dir = test::freshTempDir("obj_map_d");
+    fs::create_directories(dir);
+    writeFile(dir / "mask.pgm", std::string("P5\n2 1\n255\n\xff\x00", 13));
+    writeFile(dir / "chain.ppm", std::string("P6\n4 1\n255\n", 11) + std::string(12, '\x80'));
+    writeFile(dir / "scene.mtl",
+              "newmtl leaf\nKd 0.2 0.8 0.2\nmap_d mask.pgm\n"
+              "newmtl chain\nKd 1 1 1\nmap_Kd chain.ppm\nmap_d mask.pgm\n"
+              "newmtl lost\nKd 1 1 1\nmap_d nowhere.png\n");
+    writeFile(dir / "scene.obj",
+              "mtllib scene.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+              "usemtl leaf\nf 1/1 2/2 3/3\nusemtl chain\nf 1/1 2/2 3/3\nusemtl lost\nf 1/1 2/2 3/3\n");
+    World world;
+    load::loadObj(world, dir / "scene.obj");
+    ASSERT_EQ(world.meshes().size(), 1u);
+    const MeshAsset& mesh = world.meshes()[0];
+    ASSERT_EQ(mesh.geometries.size(), 3u);
+    const Material& leaf = world.materials()[mesh.geometries[0].material];
+    const Material& chain = world.materials()[mesh.geometries[1].material];
+    const Material& lost = world.materials()[mesh.geometries[2].material];
+    EXPECT_EQ(leaf.alphaMode, AlphaMode::Mask);
+    EXPECT_EQ(chain.alphaMode, AlphaMode::Mask);
+    EXPECT_EQ(lost.alphaMode, AlphaMode::Opaque);
+    ASSERT_LT(leaf.baseColorTexture, world.textures().size());
+    const Texture& white = world.textures()[leaf.baseColorTexture];
+    EXPECT_EQ(white.rgba8, (std::vector<std::uint8_t>{255, 255, 255, 255, 255, 255, 255, 0}));
+    EXPECT_FLOAT_EQ(leaf.baseColor.g, 0.8f);
+    ASSERT_LT(chain.baseColorTexture, world.textures().size());
+    const Texture& links = world.textures()[chain.baseColorTexture];
+    ASSERT_EQ(links.width, 4);
+    EXPECT_EQ(links.rgba8,
+              (std::vector<std::uint8_t>{128, 128, 128, 255, 128, 128, 128, 255, 128, 128, 128, 0, 128, 128, 128, 0}));
+    bool warned = false;
+    for (const std::string& w : world.loadReport().warnings)
+        warned = warned || w.find("nowhere.png") != std::string::npos;
+    EXPECT_TRUE(warned);
+}
+
+// Vertex colours ("v x y z r g b") when every vertex has one, clamped to
+// [0, 1]; written back by the OBJ export, and read back the same.
+TEST(ObjLoader, VertexColoursWhenEveryVertexHasOneAndTheExportKeepsThem) {
+    const fs::path dir = test::freshTempDir("obj_colours");
+    fs::create_directories(dir);
+    writeFile(dir / "all.obj", "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 2\nv 5 5 5 0.5 0.5 0.5\nf 1 2 3\n");
+    writeFile(dir / "some.obj", "v 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    World all, some, back;
+    load::loadObj(all, dir / "all.obj");
+    load::loadObj(some, dir / "some.obj");
+    const Geometry& g = all.meshes()[0].geometries[0];
+    ASSERT_EQ(g.colors.size(), 3u);
+    EXPECT_EQ(g.colors[0], vec4(1.f, 0.f, 0.f, 1.f));
+    EXPECT_EQ(g.colors[1], vec4(0.f, 1.f, 0.f, 1.f));
+    EXPECT_EQ(g.colors[2], vec4(0.f, 0.f, 1.f, 1.f));
+    EXPECT_TRUE(some.meshes()[0].geometries[0].colors.empty());
+    save::writeObj(all, dir / "back.obj");
+    load::loadObj(back, dir / "back.obj");
+    EXPECT_EQ(back.meshes()[0].geometries[0].colors, g.colors);
+}
+
 TEST(ObjLoader, PointsOrLinesOnlyAreAnEmptySceneWithAWarning) {
     const fs::path dir = test::freshTempDir("obj_points");
     fs::create_directories(dir);
@@ -107,7 +170,8 @@ TEST(ObjLoader, PointsOrLinesOnlyAreAnEmptySceneWithAWarning) {
     EXPECT_TRUE(world.meshes().empty());
     EXPECT_EQ(world.loadReport().skippedLinePrimitives, 1u);
     bool noFaces = false;
-    for (const std::string& w : world.loadReport().warnings) noFaces = noFaces || w.find("no faces") != std::string::npos;
+    for (const std::string& w : world.loadReport().warnings)
+        noFaces = noFaces || w.find("no faces") != std::string::npos;
     EXPECT_TRUE(noFaces);
 }
 

@@ -1,4 +1,4 @@
-// The scalable builtin scenes (terrain, forest, hairball) at small sizes:
+// The scalable builtin scenes (terrain, forest, hairball, slivers) at small sizes:
 // parameters, triangle counts, placement, determinism. Large sizes are for
 // the benchmarks (perf/scalable_scenes.cpp).
 #include <rtlab/core/error.hpp>
@@ -100,7 +100,8 @@ TEST(ScalableScenes, ParameterErrorsNameTheParameterAndWhatIsAccepted) {
               "builtin:forest?seed=4294967296: parameter 'seed' has value '4294967296', expected an integer from 0 "
               "to 4294967295");
     EXPECT_EQ(loadError("builtin:mountains"),
-              "builtin:mountains: unknown builtin scene (available: showcase, cornell, terrain, forest, hairball)");
+              "builtin:mountains: unknown builtin scene (available: showcase, cornell, terrain, forest, hairball, "
+              "slivers)");
     EXPECT_EQ(loadError("builtin:forest?seed=4294967295&instances=1"), "(no error)");
 }
 
@@ -204,9 +205,60 @@ TEST(ScalableScenes, ForestInstancesStandOnTheGround) {
     EXPECT_EQ(world.get<Name>(world.activeCamera())->value, "camera");
 }
 
-TEST(ScalableScenes, HairballIsThinSliversInsideTheUnitBall) {
+TEST(ScalableScenes, HairballIsExactlyNTrianglesOfThinCurlyStrandsInABall) {
+    for (const std::uint32_t requested : {1000u, 1001u, 3000u, 4096u}) {
+        World world;
+        load::loadScene(world, "builtin:hairball?seed=2&triangles=" + std::to_string(requested));
+        ASSERT_EQ(world.meshes().size(), 1u);
+        const Geometry& g = world.mesh(0).geometries[0];
+        ASSERT_EQ(g.triangleCount(), requested);
+        EXPECT_TRUE(world.materials().at(g.material).doubleSided);
+        std::vector<bool> used(g.positions.size(), false);
+        for (const std::uint32_t i : g.indices) {
+            ASSERT_LT(i, g.positions.size());
+            used[i] = true;
+        }
+        EXPECT_EQ(std::count(used.begin(), used.end(), false), 0) << requested << ": every vertex is used";
+        for (const vec3& p : g.positions) EXPECT_LE(glm::length(p), 1.3f);
+        for (const vec3& n : g.normals) EXPECT_NEAR(glm::length(n), 1.f, 1e-4f);
+        EXPECT_EQ(load::degenerateTriangleCount(world.mesh(0)), 0u);
+        // Thin: every quad's first triangle spans the ribbon's width (at most
+        // 0.004) across and one segment (0.03 to 0.06) along.
+        for (std::size_t t = 0; t < g.indices.size(); t += 6) {
+            const vec3 a = g.positions[g.indices[t]], b = g.positions[g.indices[t + 1]],
+                       c = g.positions[g.indices[t + 2]];
+            EXPECT_LE(glm::distance(a, b), 0.004f + 1e-5f);
+            EXPECT_GE(glm::distance(a, c), 0.03f);
+            EXPECT_LE(glm::distance(a, c), 0.06f);
+        }
+    }
+    // Curly: a whole strand (18 vertices, 9 along its centre line) is far
+    // shorter root to tip than along its curve; strands point anywhere.
     World world;
-    load::loadScene(world, "builtin:hairball?triangles=3000&seed=2");
+    load::loadScene(world, "builtin:hairball?triangles=16000&seed=3");
+    const Geometry& g = world.mesh(0).geometries[0];
+    ASSERT_EQ(g.positions.size(), 1000u * 18u);
+    float chordOverArc = 0.f;
+    vec3 meanDirection(0.f);
+    for (std::size_t strand = 0; strand < 1000; ++strand) {
+        const auto centre = [&](std::size_t k) {
+            return 0.5f * (g.positions[18 * strand + 2 * k] + g.positions[18 * strand + 2 * k + 1]);
+        };
+        float arc = 0.f;
+        for (std::size_t k = 0; k < 8; ++k) arc += glm::distance(centre(k), centre(k + 1));
+        EXPECT_GE(arc, 0.25f - 1e-3f);
+        EXPECT_LE(arc, 0.45f + 1e-3f);
+        chordOverArc += glm::distance(centre(0), centre(8)) / arc / 1000.f;
+        meanDirection += glm::normalize(centre(1) - centre(0)) / 1000.f;
+    }
+    EXPECT_LT(chordOverArc, 0.8f);
+    EXPECT_GT(chordOverArc, 0.1f);
+    EXPECT_LT(glm::length(meanDirection), 0.1f);
+}
+
+TEST(ScalableScenes, SliversAreThinSliversInsideTheUnitBall) {
+    World world;
+    load::loadScene(world, "builtin:slivers?triangles=3000&seed=2");
     ASSERT_EQ(world.meshes().size(), 1u);
     const Geometry& g = world.mesh(0).geometries[0];
     ASSERT_EQ(g.triangleCount(), 3000u);
@@ -227,8 +279,8 @@ TEST(ScalableScenes, HairballIsThinSliversInsideTheUnitBall) {
 }
 
 TEST(ScalableScenes, SameSeedSameGeometryOnAnyThreadCountOtherSeedOther) {
-    for (const std::string scene :
-         {"builtin:terrain?triangles=20000", "builtin:forest?instances=100", "builtin:hairball?triangles=20000"}) {
+    for (const std::string scene : {"builtin:terrain?triangles=20000", "builtin:forest?instances=100",
+                                    "builtin:hairball?triangles=20000", "builtin:slivers?triangles=20000"}) {
         const std::uint32_t h = loadedHash(scene + "&seed=11", 1);
         EXPECT_EQ(h, loadedHash(scene + "&seed=11", 2)) << scene;
         EXPECT_EQ(h, loadedHash("builtin:" + scene.substr(8, scene.find('?') - 8) + "?seed=11&" +

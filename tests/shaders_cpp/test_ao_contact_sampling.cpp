@@ -238,16 +238,16 @@ TEST(AoContactSampling, TheBudgetSplitsEvenlyAndIgnoresThePixelsOwnSamples) {
     EXPECT_EQ(near[p], far[p]) << "P's count moved with its own samples";
 }
 
-// Where contacts are everywhere (a hairball: nearly every pixel flagged) the
+// Where contacts are everywhere (the slivers: nearly every pixel flagged) the
 // extra rays stay within the budget: AO traces at most three times its
 // uniform rays, and still more than them.
 TEST(AoContactSampling, ExtraRaysStayWithinTheBudget) {
-    AoOnly hairball;
-    ecs::load::loadScene(hairball.world, "builtin:hairball?triangles=20000");
-    hairball.prepare();
-    const std::uint64_t uniform = aoRays(hairball.render(0, 0));
-    const std::uint64_t contact = aoRays(hairball.render(8, 0));
-    const std::uint64_t more = aoRays(hairball.render(16, 0));
+    AoOnly slivers;
+    ecs::load::loadScene(slivers.world, "builtin:slivers?triangles=20000");
+    slivers.prepare();
+    const std::uint64_t uniform = aoRays(slivers.render(0, 0));
+    const std::uint64_t contact = aoRays(slivers.render(8, 0));
+    const std::uint64_t more = aoRays(slivers.render(16, 0));
     ASSERT_GT(uniform, 100u);
     EXPECT_GT(contact, uniform);
     EXPECT_LE(contact, 3 * uniform);

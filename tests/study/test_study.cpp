@@ -94,6 +94,26 @@ TEST(StudyParse, GridThenListTimesWorkloads) {
     EXPECT_EQ(expandPoints(parseStudy(json::parse(R"({"workloads": ["builtin:cornell"]})"), "s.json")).size(), 1u);
 }
 
+// A workload may carry a camera (--camera's value): it reaches the point's
+// render command, its label and the fingerprint; none leaves both as they were.
+TEST(StudyParse, AWorkloadsCameraReachesItsRenderCommandAndLabel) {
+    const Study s = parseStudy(json::parse(R"({"workloads": [{"scene": "builtin:cornell",
+        "camera": "0,1,3,0,1,0,0,1,0,60"}, "builtin:cornell"]})"),
+                               "s.json");
+    const std::vector<Point> points = expandPoints(s);
+    ASSERT_EQ(points.size(), 2u);
+    EXPECT_EQ(points[0].workload.label(), "builtin:cornell [camera 0,1,3,0,1,0,0,1,0,60]");
+    EXPECT_EQ(points[1].workload.label(), "builtin:cornell");
+    EXPECT_NE(shellCommand(renderArguments(s, points[0], "o", 0)).find("--camera 0,1,3,0,1,0,0,1,0,60"),
+              std::string::npos);
+    EXPECT_EQ(shellCommand(renderArguments(s, points[1], "o", 0)).find("--camera"), std::string::npos);
+    EXPECT_EQ(points[0].workload.toJson()["camera"], "0,1,3,0,1,0,0,1,0,60");
+    EXPECT_FALSE(points[1].workload.toJson().contains("camera"));
+    EXPECT_NE(
+        s.fingerprint(),
+        parseStudy(json::parse(R"({"workloads": ["builtin:cornell", "builtin:cornell"]})"), "s.json").fingerprint());
+}
+
 TEST(StudyParse, BadStudiesNameFileAndKey) {
     const std::vector<std::pair<std::string, std::string>> cases = {
         {R"([1])", "s.json: a study must be a JSON object"},
@@ -102,6 +122,12 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
         {R"({"workloads": [{"scene": "builtin:cornell", "x": 1}]})", "s.json: workloads[0].x: unknown key"},
         {R"({"workloads": [{"rays": "t.rtrays", "scene": "builtin:cornell"}]})",
          "s.json: workloads[0].rays: t.rtrays: no such file"},
+        {R"({"workloads": [{"scene": "builtin:cornell", "camera": "0,0,1,0,0,1"}]})",
+         "s.json: workloads[0].camera: eye and target are the same point"},
+        {R"({"workloads": [{"scene": "builtin:cornell", "camera": ""}]})",
+         "s.json: workloads[0].camera: must be a non-empty string"},
+        {R"({"workloads": ["builtin:cornell"], "render": {"camera": "0,0,1,0,0,0"}})",
+         "s.json: render.camera: unknown key"},
         {R"({"workloads": ["builtin:cornell"], "render": {"width": 0}})", "s.json: render.width: must be an integer"},
         {R"({"workloads": ["builtin:cornell"], "render": {"gi": "x"}})", "s.json: render.gi: must be one of"},
         // Unknown keys before any value; the effect lists checked as rtlab render checks them.

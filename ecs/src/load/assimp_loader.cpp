@@ -13,8 +13,12 @@
 #include <assimp/scene.h>
 
 #include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <sstream>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <optional>
 
 namespace rtlab::ecs::load {
@@ -42,10 +46,83 @@ std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* materia
     return t;
 }
 
+// A PLY header's element counts against the file's size, before assimp
+// reserves memory for them (a 1 KB file declaring 2e8 vertices made it touch
+// 2.4 GB): each element needs at least its scalar properties' bytes (binary)
+// or two characters per property (ascii: a digit and a separator), a list at
+// least its count, within a small slack. InputError naming the element otherwise; a header that is
+// not PLY's is left to assimp's own message.
+void checkPlyCounts(const std::filesystem::path& path, const std::string& where) {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    std::size_t headerBytes = 0;
+    bool binary = false, ended = false;
+    struct Element {
+        std::string name;
+        std::uint64_t count = 0, minBytes = 0;
+    };
+    std::vector<Element> elements;
+    const auto scalarBytes = [](const std::string& type) -> std::uint64_t {
+        if (type == "char" || type == "uchar" || type == "int8" || type == "uint8") return 1;
+        if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") return 2;
+        if (type == "double" || type == "float64") return 8;
+        return 4;  // int, uint, float and their sized names
+    };
+    while (headerBytes < (1u << 16) && std::getline(in, line)) {
+        headerBytes += line.size() + 1;
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        std::istringstream words(line);
+        std::string keyword;
+        words >> keyword;
+        if (keyword == "format") {
+            std::string format;
+            words >> format;
+            binary = format.rfind("binary", 0) == 0;
+        } else if (keyword == "element") {
+            Element e;
+            std::string count;
+            words >> e.name >> count;
+            if (count.empty() || count.size() > 19 || count.find_first_not_of("0123456789") != std::string::npos)
+                throw InputError(where, "PLY element '" + e.name + "' has count '" + count + "', not a whole number");
+            e.count = std::stoull(count);
+            elements.push_back(e);
+        } else if (keyword == "property" && !elements.empty()) {
+            std::string type, countType;
+            words >> type;
+            if (type == "list") words >> countType;
+            elements.back().minBytes += binary ? scalarBytes(type == "list" ? countType : type) : 2;
+        } else if (keyword == "end_header") {
+            ended = true;
+            break;
+        }
+    }
+    if (!ended) return;  // assimp says what is wrong
+    std::error_code ec;
+    const std::uint64_t fileBytes = std::filesystem::file_size(path, ec);
+    if (ec) return;
+    // (+1: an ascii file's last value may lack its separator.)
+    const std::uint64_t bodyBytes = (fileBytes > headerBytes ? fileBytes - headerBytes : 0) + (binary ? 0 : 1);
+    long double needed = 0.0L;
+    // Slack of 1% + 4 KB: a file that ends a few elements early (assimp-testmodels'
+    // pond.0.ply lacks 69 bytes) is assimp's to read; the allocation stays bounded.
+    const long double limit = static_cast<long double>(bodyBytes) * 1.01L + 4096.0L;
+    for (const Element& e : elements) {
+        needed += static_cast<long double>(e.count) * static_cast<long double>(e.minBytes);
+        if (needed > limit)
+            throw InputError(where, "PLY header declares " + std::to_string(e.count) + " '" + e.name +
+                                        "' elements, more than the " + std::to_string(bodyBytes) +
+                                        " bytes after the header can hold (truncated or corrupt)");
+    }
+}
+
 }  // namespace
 
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent) {
     const std::string where = path.string();
+    std::string extension = path.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
+    if (extension == ".ply") checkPlyCounts(path, where);
     Assimp::Importer importer;
     // Points and lines are skipped below (and counted), face by face.
     // (No aiProcess_ValidateDataStructure: it rejects point clouds, meshes without faces; the indices
@@ -138,6 +215,14 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         if (am->HasTextureCoords(0))
             for (unsigned v = 0; v < am->mNumVertices; ++v)
                 g.uv0.emplace_back(am->mTextureCoords[0][v].x, 1.f - am->mTextureCoords[0][v].y);
+        if (am->HasVertexColors(0))  // PLY red/green/blue[/alpha], FBX LayerElementColor: clamped to [0, 1]
+            for (unsigned v = 0; v < am->mNumVertices; ++v) {
+                const aiColor4D& c = am->mColors[0][v];
+                const vec4 color(c.r, c.g, c.b, c.a);
+                const bool finite =
+                    std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b) && std::isfinite(c.a);
+                g.colors.push_back(finite ? glm::clamp(color, vec4(0.f), vec4(1.f)) : vec4(1.f));
+            }
         g.material = am->mMaterialIndex < scene->mNumMaterials ? MaterialId(am->mMaterialIndex) : defaultMaterial;
         MeshAsset asset;
         asset.name = am->mName.length ? am->mName.C_Str() : "mesh " + std::to_string(i);
@@ -162,6 +247,46 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         for (Geometry& g : meshes[i]->geometries) g.material = materialIds[g.material];
         meshIds[i] = world.addMesh(std::move(*meshes[i]));
     }
+    // Step: the file's cameras, by the node that carries each (as assimp names
+    // them); non-finite ones are left out. Lights are not read: assimp folds an
+    // FBX light's intensity (a percentage, no physical unit) into its colour, so
+    // a file's lamp would light the scene arbitrarily; the default sun does.
+    std::map<std::string, const aiCamera*> cameraOf;
+    for (unsigned i = 0; i < scene->mNumCameras; ++i)
+        cameraOf.emplace(scene->mCameras[i]->mName.C_Str(), scene->mCameras[i]);
+    const auto finite3 = [](const aiVector3D& v) {
+        return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
+    const auto toVec3 = [](const aiVector3D& v) { return vec3(v.x, v.y, v.z); };
+    // A child of `node`'s entity at `position`, looking along `along` (its -Z).
+    const auto placed = [&](Entity node, const std::string& name, const aiVector3D& position, const aiVector3D& along,
+                            const aiVector3D& up) {
+        const Entity child = world.create(name);
+        vec3 u = toVec3(up);
+        if (!(glm::length(glm::cross(toVec3(along), u)) > 0.f))
+            u = std::abs(along.y) < 0.9f ? vec3(0, 1, 0) : vec3(1, 0, 0);
+        world.emplace(child, LocalTransform{toVec3(position),
+                                            orientationLookingAlong(glm::normalize(toVec3(along)), glm::normalize(u)),
+                                            vec3(1.f)});
+        world.emplace(child, Parent{node});
+        return child;
+    };
+    std::vector<Entity> cameras;
+    const auto addCamera = [&](Entity node, const aiCamera& c) {
+        const float aspect = c.mAspect > 0.f && std::isfinite(c.mAspect) ? c.mAspect : 16.f / 9.f;
+        const float yfov = 2.f * std::atan(std::tan(c.mHorizontalFOV) / aspect);  // assimp's is half the horizontal
+        if (!finite3(c.mPosition) || !finite3(c.mLookAt) || !finite3(c.mUp) ||
+            !(glm::length(toVec3(c.mLookAt)) > 0.f) || !(yfov > 1e-3f && yfov < 3.1f)) {
+            world.loadReport().warnings.push_back(where + ": camera " + c.mName.C_Str() +
+                                                  " left out (degenerate or non-finite)");
+            return;
+        }
+        const float znear = c.mClipPlaneNear > 0.f && std::isfinite(c.mClipPlaneNear) ? c.mClipPlaneNear : 0.01f;
+        const float zfar = c.mClipPlaneFar > znear && std::isfinite(c.mClipPlaneFar) ? c.mClipPlaneFar : 1e4f * znear;
+        const Entity camera = placed(node, std::string("camera ") + c.mName.C_Str(), c.mPosition, c.mLookAt, c.mUp);
+        world.emplace(camera, Camera{yfov, znear, zfar, 0.f});
+        cameras.push_back(camera);
+    };
     std::vector<Entity> roots;
     const std::function<void(const aiNode*, Entity, int)> visit = [&](const aiNode* node, Entity up, int depth) {
         if (depth > 1000) return;  // a deeper tree than any real file: its rest is left out
@@ -169,6 +294,7 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         world.emplace(e, localTransformOf(toMat4(node->mTransformation)));
         if (world.alive(up)) world.emplace(e, Parent{up});
         else roots.push_back(e);
+        if (const auto c = cameraOf.find(node->mName.C_Str()); c != cameraOf.end()) addCamera(e, *c->second);
         for (unsigned k = 0; k < node->mNumMeshes; ++k) {
             const unsigned mesh = node->mMeshes[k];
             if (mesh >= meshIds.size() || meshIds[mesh] == ~MeshId(0)) continue;
@@ -179,6 +305,13 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         for (unsigned k = 0; k < node->mNumChildren; ++k) visit(node->mChildren[k], e, depth + 1);
     };
     visit(scene->mRootNode, parent, 0);
+    // Step: clip planes are in the camera node's units; the node tree may scale
+    // them (Blender's FBX: centimetres, a node scale of 100), rays run in the world's.
+    for (const Entity e : cameras) {
+        const float scale = glm::length(vec3(world.computeInstanceWorldFromObject(e)[0]));
+        if (std::isfinite(scale) && scale > 0.f)
+            world.patch<Camera>(e, [&](Camera& c) { c.znear *= scale, c.zfar *= scale; });
+    }
     return roots;
 }
 

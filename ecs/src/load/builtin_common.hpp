@@ -1,6 +1,7 @@
 #pragma once
 // Shared by the builtin scene builders (builtin_scenes.cpp: the fixed scenes
-// and the parameter parser; scalable_scenes.cpp: terrain, forest, hairball).
+// and the parameter parser; scalable_scenes.cpp: terrain, forest, hairball,
+// slivers).
 #include <rtlab/ecs/world.hpp>
 
 #include <cstdint>
@@ -25,5 +26,6 @@ using Parameters = std::map<std::string, std::uint32_t>;
 void buildTerrain(World& world, const Parameters& p);   // "triangles", "seed"
 void buildForest(World& world, const Parameters& p);    // "instances", "seed"
 void buildHairball(World& world, const Parameters& p);  // "triangles", "seed"
+void buildSlivers(World& world, const Parameters& p);   // "triangles", "seed"
 
 }  // namespace rtlab::ecs::load::builtin

@@ -1,6 +1,6 @@
 // Built-in scenes. `showcase` exercises every effect; `cornell` is diffuse
 // only with one area light (the scene that needs few passes). The scalable
-// scenes (terrain, forest, hairball) live in scalable_scenes.cpp; this file
+// scenes (terrain, forest, hairball, slivers) live in scalable_scenes.cpp; this file
 // parses every builtin source string, "NAME" or "NAME?key=value&key=value".
 #include "builtin_common.hpp"
 
@@ -236,6 +236,7 @@ const std::vector<BuiltinScene>& builtinScenes() {
         {"terrain", buildTerrain, {{"triangles", 100000, 1000, 10000000}, {"seed", 0, 0, kMaxSeed}}},
         {"forest", buildForest, {{"instances", 1000, 1, 1000000}, {"seed", 0, 0, kMaxSeed}}},
         {"hairball", buildHairball, {{"triangles", 100000, 1000, 10000000}, {"seed", 0, 0, kMaxSeed}}},
+        {"slivers", buildSlivers, {{"triangles", 100000, 1000, 10000000}, {"seed", 0, 0, kMaxSeed}}},
     };
     return scenes;
 }

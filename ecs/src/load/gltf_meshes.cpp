@@ -147,6 +147,24 @@ Geometry GltfConverter::convertPrimitive(const tg::Primitive& prim, const std::s
         for (std::size_t i = 0; i < n; ++i) g.uv0[i] = vec2(f[2 * i], f[2 * i + 1]);
     }
 
+    // COLOR_0 (linear RGB or RGBA multiplying the base colour), clamped to [0, 1].
+    if (const int colorAccessor = attribute(prim, "COLOR_0"); colorAccessor >= 0) {
+        const std::string what = cat("COLOR_0 of ", where);
+        const AccessorView v =
+            view(colorAccessor, what, {TINYGLTF_TYPE_VEC3, TINYGLTF_TYPE_VEC4},
+                 {{kFloat}, {kUByte, true}, {kUShort, true}}, "VEC3/VEC4 float or normalized unsigned byte/short");
+        requireCount(v, what, n);
+        const std::vector<float> f = readFloats(v, what);
+        const std::size_t k = f.size() / std::max<std::size_t>(n, 1);
+        g.colors.resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const vec4 c(f[k * i], f[k * i + 1], f[k * i + 2], k == 4 ? f[k * i + 3] : 1.f);
+            g.colors[i] = glm::clamp(c, vec4(0.f), vec4(1.f));
+            if (!std::isfinite(c.r) || !std::isfinite(c.g) || !std::isfinite(c.b) || !std::isfinite(c.a))
+                fail_(cat(what, " has a non-finite value"));
+        }
+    }
+
     const int jointsAccessor = attribute(prim, "JOINTS_0");
     const int weightsAccessor = attribute(prim, "WEIGHTS_0");
     if ((jointsAccessor >= 0) != (weightsAccessor >= 0)) fail_(cat(where, " has only one of JOINTS_0 and WEIGHTS_0"));

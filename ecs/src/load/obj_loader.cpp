@@ -2,7 +2,8 @@
 // polygons triangulated here by ear clipping (concave ones too), objects and
 // groups kept as meshes, per-face materials as geometries, normals computed
 // where the file has none, MTL colours, shininess, dissolve, emission, index
-// of refraction and the base-colour map (its alpha channel as an alpha mask).
+// of refraction, the base-colour map and map_d (alpha channels as alpha masks),
+// vertex colours.
 // A missing .mtl or texture is a warning (World::loadReport) and a default
 // material; points and lines are skipped with a warning; anything malformed
 // is an InputError naming the file.
@@ -27,6 +28,31 @@ std::string firstLine(const std::string& text) {
     std::string line = text.substr(0, text.find('\n'));
     while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
     return line.empty() ? "not a readable OBJ file" : line;
+}
+
+// MTL's map_d as the base colour texture's alpha: the map's alpha channel
+// where it has one, else its grey level (its red channel), nearest-resampled
+// onto the base texture's texels (multiplying any alpha that has); where the
+// material has no base texture, a white one of the map's size (the Kd factor
+// still colours it).
+Texture withDissolveMap(std::optional<Texture> base, const Texture& dissolve) {
+    if (!base) {
+        base = dissolve;
+        std::fill(base->rgba8.begin(), base->rgba8.end(), std::uint8_t{255});
+    }
+    bool ownAlpha = false;
+    for (std::size_t i = 3; i < dissolve.rgba8.size(); i += 4) ownAlpha |= dissolve.rgba8[i] != 255;
+    const int channel = ownAlpha ? 3 : 0;
+    for (int y = 0; y < base->height; ++y) {
+        const int sy = static_cast<int>((static_cast<std::int64_t>(y) * dissolve.height) / base->height);
+        for (int x = 0; x < base->width; ++x) {
+            const int sx = static_cast<int>((static_cast<std::int64_t>(x) * dissolve.width) / base->width);
+            const std::uint8_t a = dissolve.rgba8[(std::size_t(sy) * dissolve.width + sx) * 4 + channel];
+            std::uint8_t& out = base->rgba8[(std::size_t(y) * base->width + x) * 4 + 3];
+            out = static_cast<std::uint8_t>((unsigned(out) * a + 127) / 255);
+        }
+    }
+    return std::move(*base);
 }
 
 // Triangles of a simple polygon (indices into `p`, its corners in order) by
@@ -136,6 +162,12 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
     const tinyobj::attrib_t& attrib = reader.GetAttrib();
     const std::size_t vertexCount = attrib.vertices.size() / 3, normalCount = attrib.normals.size() / 3,
                       uvCount = attrib.texcoords.size() / 2;
+    // Vertex colours ("v x y z r g b") only when every vertex has one
+    // (tinyobjloader keeps them then); finite, clamped to [0, 1].
+    const bool colored = vertexCount > 0 && attrib.colors.size() == attrib.vertices.size();
+    if (colored)
+        for (const float f : attrib.colors)
+            if (!std::isfinite(f)) throw InputError(where, "a vertex colour is not a finite number");
     for (const float f : attrib.vertices)
         if (!std::isfinite(f)) throw InputError(where, "a vertex coordinate is not a finite number");
 
@@ -151,19 +183,24 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
         m.roughness = roughnessFromPhongExponent(float(mt.shininess));
         if (mt.ior > 0.f) m.ior = mt.ior;
         if (m.baseColor.a < 1.f) m.alphaMode = AlphaMode::Blend;
+        std::optional<Texture> t;
         if (!mt.diffuse_texname.empty()) {
-            std::optional<Texture> t = readTextureNamed(path.parent_path(), mt.diffuse_texname);
+            t = readTextureNamed(path.parent_path(), mt.diffuse_texname);
             if (!t)
                 warnings.push_back(where + ": texture " + mt.diffuse_texname + " not found or not readable, left out");
-            if (t) {
-                if (hasTransparentTexel(*t)) m.alphaMode = AlphaMode::Mask;  // cut-outs (foliage, chains)
-                m.baseColorTexture = static_cast<TextureId>(textures.size());
-                textures.push_back(std::move(*t));
-            }
         }
-        if (!mt.alpha_texname.empty() && m.alphaMode != AlphaMode::Mask)
-            warnings.push_back(where + ": material " + mt.name +
-                               ": map_d is not read (an alpha mask comes from map_Kd's alpha channel)");
+        if (!mt.alpha_texname.empty()) {
+            const std::optional<Texture> dissolve = readTextureNamed(path.parent_path(), mt.alpha_texname);
+            if (!dissolve)
+                warnings.push_back(where + ": texture " + mt.alpha_texname +
+                                   " (map_d) not found or not readable, left out");
+            else t = withDissolveMap(std::move(t), *dissolve);
+        }
+        if (t) {
+            if (hasTransparentTexel(*t)) m.alphaMode = AlphaMode::Mask;  // cut-outs (foliage, chains)
+            m.baseColorTexture = static_cast<TextureId>(textures.size());
+            textures.push_back(std::move(*t));
+        }
         materials.push_back(std::move(m));
     }
     const MaterialId defaultMaterial = static_cast<MaterialId>(materials.size());
@@ -221,6 +258,10 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
                 if (fresh) {
                     const float* p = &attrib.vertices[3 * std::size_t(ix.vertex_index)];
                     g.positions.emplace_back(p[0], p[1], p[2]);
+                    if (colored) {
+                        const float* c = &attrib.colors[3 * std::size_t(ix.vertex_index)];
+                        g.colors.emplace_back(glm::clamp(vec3(c[0], c[1], c[2]), vec3(0.f), vec3(1.f)), 1.f);
+                    }
                     if (ix.normal_index >= 0) {
                         const float* nn = &attrib.normals[3 * std::size_t(ix.normal_index)];
                         g.normals.emplace_back(nn[0], nn[1], nn[2]);

@@ -2,7 +2,9 @@
 //   terrain?triangles=N   a displaced height field of about N unique triangles;
 //   forest?instances=M    M instances of four plant/rock meshes on a terrain
 //                         (two-level BVH, many instanced triangles);
-//   hairball?triangles=N  N long thin randomly oriented triangles in a sphere
+//   hairball?triangles=N  N triangles of short, thin, curly strands filling a
+//                         ball (the look of the archive's Hairball);
+//   slivers?triangles=N   N long thin randomly oriented triangles in a sphere
 //                         (heavy box overlap, the classic BVH worst case).
 // Every random choice is a pure function of (seed, index) through the
 // stateless hash in rtlab/core/rng.hpp, so a scene depends only on its
@@ -24,7 +26,7 @@ namespace {
 
 // Hash streams (SampleKey::bounce) so that the scenes' random numbers do not
 // reuse each other's.
-enum Stream : std::uint32_t { kTerrainNoise = 1, kShapeNoise, kInstances, kHairs };
+enum Stream : std::uint32_t { kTerrainNoise = 1, kShapeNoise, kInstances, kHairs, kStrands };
 
 // Uniform [0, 1) for element `index` of a stream; `dimension` picks which number.
 float uniform(std::uint32_t seed, Stream stream, std::uint32_t index, std::uint32_t dimension) {
@@ -250,8 +252,8 @@ void buildForest(World& world, const Parameters& p) {
               0.9f, 3.f * side);
 }
 
-void buildHairball(World& world, const Parameters& p) {
-    world.settings().name = "hairball";
+void buildSlivers(World& world, const Parameters& p) {
+    world.settings().name = "slivers";
     const std::uint32_t count = p.at("triangles"), seed = p.at("seed");
     Material hairMaterial = diffuse("hair", vec3(0.6f, 0.45f, 0.3f));
     hairMaterial.doubleSided = true;
@@ -287,7 +289,7 @@ void buildHairball(World& world, const Parameters& p) {
             }
         }
     });
-    place(world, "hairball", world.addMesh(makeMesh("hairball", std::move(g))), vec3(0.f));
+    place(world, "slivers", world.addMesh(makeMesh("slivers", std::move(g))), vec3(0.f));
     world.settings().generated =
         std::to_string(count) + " slivers (length 0.5 to 1, base width 0.002) in a ball of radius 1";
 
@@ -295,6 +297,92 @@ void buildHairball(World& world, const Parameters& p) {
     Light point{LightType::Point, vec3(1.f, 0.9f, 0.8f), 8.f};
     addLight(world, "key light", point, vec3(2.f, 2.f, 2.5f));
     addCamera(world, vec3(0.f, 0.4f, 3.2f), vec3(0.f), 0.75f);
+}
+
+// Rotates `v` by `angle` about the unit axis `axis` (Rodrigues).
+vec3 rotated(const vec3& v, const vec3& axis, float angle) {
+    const float c = std::cos(angle), s = std::sin(angle);
+    return c * v + s * glm::cross(axis, v) + (1.f - c) * glm::dot(axis, v) * axis;
+}
+
+void buildHairball(World& world, const Parameters& p) {
+    world.settings().name = "hairball";
+    const std::uint32_t count = p.at("triangles"), seed = p.at("seed");
+    // Each strand is a ribbon of kSegments thin quads (two triangles each) along
+    // a smooth curly curve; the last strand is cut short so that the mesh has
+    // exactly `count` triangles and no unused vertex (a strip of t triangles
+    // uses t + 2 vertices).
+    constexpr std::uint32_t kSegments = 8, kTrianglesPerStrand = 2 * kSegments, kVerticesPerStrand = 2 * kSegments + 2;
+    const std::uint32_t strands = (count + kTrianglesPerStrand - 1) / kTrianglesPerStrand;
+    const std::uint32_t lastTriangles = count - (strands - 1) * kTrianglesPerStrand;
+    const std::size_t vertexCount = std::size_t{strands - 1} * kVerticesPerStrand + lastTriangles + 2;
+    Material hairMaterial = diffuse("hair", vec3(0.6f, 0.45f, 0.3f));
+    hairMaterial.doubleSided = true;
+    Geometry g;
+    g.material = world.addMaterial(hairMaterial);
+    g.positions.resize(vertexCount);
+    g.normals.resize(vertexCount);
+    g.indices.resize(3 * static_cast<std::size_t>(count));
+    constexpr std::size_t kBlock = 1024;
+    parallelForEach((strands + kBlock - 1) / kBlock, [&](std::size_t block) {
+        const std::size_t end = std::min<std::size_t>(strands, (block + 1) * kBlock);
+        for (std::size_t strand = block * kBlock; strand < end; ++strand) {
+            const auto u = [&](std::uint32_t d) {
+                return uniform(seed, kStrands, static_cast<std::uint32_t>(strand), d);
+            };
+            const auto unitVector = [](float a, float b) {
+                const float z = 2.f * a - 1.f, r = std::sqrt(std::max(0.f, 1.f - z * z)), phi = 2.f * kPi * b;
+                return vec3(r * std::cos(phi), r * std::sin(phi), z);
+            };
+            // Step: a root within 0.8 of the centre, a heading, and a curl axis
+            // across it (the ribbon's width direction stays along that axis).
+            vec3 position = 0.8f * std::cbrt(u(0)) * unitVector(u(1), u(2));
+            vec3 heading = unitVector(u(3), u(4));
+            vec3 axis = glm::cross(heading, unitVector(u(5), u(6)));
+            axis = glm::length(axis) > 1e-3f
+                       ? glm::normalize(axis)
+                       : glm::normalize(glm::cross(heading, vec3(0.f, 0.f, 1.f)) + vec3(1e-3f, 0.f, 0.f));
+            axis = glm::normalize(axis - glm::dot(axis, heading) * heading);
+            // Step: strand length 0.25..0.45, curl 0.45..1 radian a segment (a
+            // loop in 6 to 14 segments), a slow random twist of the curl axis,
+            // width 0.004 at the root tapering to 0.0012 at the tip.
+            const float segmentLength = (0.25f + 0.2f * u(7)) / kSegments, curl = 0.45f + 0.55f * u(8);
+            const float rootWidth = 0.004f;
+            const std::size_t firstVertex = strand * kVerticesPerStrand, firstTriangle = strand * kTrianglesPerStrand;
+            for (std::uint32_t k = 0; k <= kSegments; ++k) {
+                const float halfWidth = 0.5f * rootWidth * (1.f - 0.7f * static_cast<float>(k) / kSegments);
+                const vec3 normal = glm::normalize(glm::cross(axis, heading));
+                for (std::uint32_t side = 0; side < 2; ++side) {
+                    const std::size_t v = firstVertex + 2 * k + side;
+                    if (v >= vertexCount) break;
+                    g.positions[v] = position + (side == 0 ? -halfWidth : halfWidth) * axis;
+                    g.normals[v] = normal;
+                }
+                position += segmentLength * heading;
+                heading = glm::normalize(rotated(heading, axis, curl));
+                const float twist = 0.8f * (u(9 + k) - 0.5f);
+                axis = glm::normalize(rotated(axis, heading, twist));
+                axis = glm::normalize(axis - glm::dot(axis, heading) * heading);
+            }
+            // Step: quad k joins vertices 2k, 2k+1 with 2k+2, 2k+3.
+            for (std::uint32_t t = 0; t < kTrianglesPerStrand && firstTriangle + t < count; ++t) {
+                const auto v0 = static_cast<std::uint32_t>(firstVertex + 2 * (t / 2));
+                const std::array<std::uint32_t, 3> corners = t % 2 == 0
+                                                                 ? std::array<std::uint32_t, 3>{v0, v0 + 1, v0 + 2}
+                                                                 : std::array<std::uint32_t, 3>{v0 + 1, v0 + 3, v0 + 2};
+                for (std::size_t c = 0; c < 3; ++c) g.indices[3 * (firstTriangle + t) + c] = corners[c];
+            }
+        }
+    });
+    place(world, "hairball", world.addMesh(makeMesh("hairball", std::move(g))), vec3(0.f));
+    world.settings().generated = std::to_string(count) + " triangles in " + std::to_string(strands) +
+                                 " curly strands (8 quads each, length 0.25 to 0.45, width 0.004 tapering to "
+                                 "0.0012) in a ball of radius about 1.2";
+
+    addLight(world, "sun", sun(3.f), vec3(0.f), kSunDirection);
+    Light point{LightType::Point, vec3(1.f, 0.9f, 0.8f), 8.f};
+    addLight(world, "key light", point, vec3(2.f, 2.f, 2.5f));
+    addCamera(world, vec3(0.f, 0.4f, 2.9f), vec3(0.f), 0.75f);
 }
 
 }  // namespace rtlab::ecs::load::builtin

@@ -4,6 +4,7 @@
 #include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/save/scene_writer.hpp>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -14,10 +15,11 @@
 namespace rtlab::ecs::save {
 namespace {
 
-// One flattened geometry: world-space positions and normals, UVs, its material.
+// One flattened geometry: world-space positions and normals, UVs, vertex colours, its material.
 struct Flat {
     std::vector<vec3> positions, normals;
     std::vector<vec2> uv0;
+    std::vector<vec4> colors;
     const std::vector<std::uint32_t>* indices = nullptr;
     MaterialId material = 0;
     std::string object;
@@ -53,6 +55,7 @@ std::vector<Flat> flatten(const World& world, ExportStats& stats) {
                 f.normals.push_back(len > 0.f && std::isfinite(len) ? w / len : vec3(0.f, 0.f, 1.f));
             }
             if (g.uv0.size() == g.positions.size()) f.uv0 = g.uv0;
+            if (g.colors.size() == g.positions.size()) f.colors = g.colors;
             f.indices = &g.indices;
             f.material = g.material;
             stats.triangles += g.indices.size() / 3;
@@ -125,10 +128,19 @@ ExportStats writeObj(const World& world, const std::filesystem::path& objPath) {
     obj += "# rtlab export: " + std::to_string(stats.triangles) + " triangles in world space\nmtllib " +
            mtlPath.filename().string() + "\n";
     std::uint64_t base = 1, uvBase = 1;
+    // Vertex colours ("v x y z r g b") on every vertex when some geometry has
+    // them (readers keep them only when all vertices have one), white elsewhere.
+    const bool colored = std::any_of(flats.begin(), flats.end(), [](const Flat& f) { return !f.colors.empty(); });
     for (const Flat& f : flats) {
         obj += "o " + f.object + "\n";
-        for (const vec3& p : f.positions) {
-            obj += "v ", put(obj, p.x), obj += ' ', put(obj, p.y), obj += ' ', put(obj, p.z), obj += '\n';
+        for (std::size_t v = 0; v < f.positions.size(); ++v) {
+            const vec3& p = f.positions[v];
+            obj += "v ", put(obj, p.x), obj += ' ', put(obj, p.y), obj += ' ', put(obj, p.z);
+            if (colored) {
+                const vec4 c = f.colors.empty() ? vec4(1.f) : f.colors[v];
+                obj += ' ', put(obj, c.r), obj += ' ', put(obj, c.g), obj += ' ', put(obj, c.b);
+            }
+            obj += '\n';
         }
         for (const vec3& n : f.normals) {
             obj += "vn ", put(obj, n.x), obj += ' ', put(obj, n.y), obj += ' ', put(obj, n.z), obj += '\n';

@@ -90,7 +90,7 @@ namespace {
 // column): a 16x16 tile of the dispatch is 256 consecutive pixels of the list.
 constexpr int kListGridWidth = 16;
 // At most this many contact samples per geometry pixel and sample on
-// average: where contacts are everywhere (a hairball, dense foliage) the
+// average: where contacts are everywhere (slivers, a hairball, dense foliage) the
 // per-pixel counts fall so that AO costs at most three times its uniform
 // rays (showcase flags 21 % of the pixels at 96x54, 12 % at 320x180).
 constexpr std::size_t kContactBudgetPerPixel = 2;

@@ -27,8 +27,11 @@ struct MorphTarget {
 // One triangle list with one material (a glTF primitive; a DXR geometry).
 struct Geometry {
     std::vector<vec3> positions;
-    std::vector<vec3> normals;           // one per vertex, unit length
-    std::vector<vec2> uv0;               // empty or one per vertex
+    std::vector<vec3> normals;  // one per vertex, unit length
+    std::vector<vec2> uv0;      // empty or one per vertex
+    // Empty or one per vertex: linear RGBA multiplying the material's base
+    // colour (glTF COLOR_0, OBJ's "v x y z r g b", PLY and FBX vertex colours).
+    std::vector<vec4> colors;
     std::vector<std::uint32_t> indices;  // 3 per triangle, all < positions.size()
     MaterialId material = 0;
 

@@ -10,6 +10,7 @@
 // object through them and writes a point's command line with toArgs(), and
 // stats.json echoes them. A new option is a member here plus one row in
 // frame_options.cpp (and its use in FrameSession::renderSettings).
+#include <rtlab/core/math.hpp>
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/shaders_cpp/frame_plan.hpp>
 
@@ -22,6 +23,22 @@
 #include <vector>
 
 namespace rtlab::session {
+
+// A --camera value, parsed: where the camera is and what it looks at, or
+// "interior": a camera placed from the scene's bounds once it is loaded (at
+// the centre of the horizontal extent, 35% up the height, looking along the
+// longer horizontal axis toward its positive end, 60-degree field of view: the
+// walk-through view of an atrium or a room such as Sponza's).
+struct CameraPlacement {
+    bool interior = false;
+    vec3 eye{0.f}, target{0.f, 0.f, -1.f}, up{0.f, 1.f, 0.f};
+    float fovYDegrees = 45.f;
+};
+// Parses "interior" or "ex,ey,ez,tx,ty,tz[,ux,uy,uz[,fovYDegrees]]" (up
+// defaults to +Y, the field of view to 45 degrees). InputError naming `flag`
+// on anything else: not 6, 9 or 10 finite numbers, eye equal to target, up
+// zero or along the view, a field of view outside (0, 180).
+CameraPlacement parseCameraPlacement(const std::string& text, const std::string& flag = "--camera");
 
 struct FrameOptions {
     std::string scene = "builtin:showcase";  // builtin:NAME[?k=v...], .gltf/.glb, .obj, .ply, .fbx, or scene .json

@@ -74,6 +74,7 @@ struct SurfacePoint {
     vec3 geometricNormal{0.f, 0.f, 1.f};
     vec3 shadingNormal{0.f, 0.f, 1.f};  // interpolated vertex normal (unit)
     vec2 uv{0.f};
+    vec4 color{1.f};  // interpolated vertex colour (white where the geometry has none)
 };
 // normalFromObject: the instance's inverse-transpose 3x3 (AccelManager::instanceFacts).
 SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const mat3& normalFromObject, const tracer::HitContext& ctx,
@@ -81,5 +82,10 @@ SurfacePoint surfacePoint(const ecs::SceneSnapshot& scene, const mat3& normalFro
 
 // Base colour of a material at a surface UV (texture sampled nearest, sRGB decoded).
 vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>& textures, const vec2& uv);
+// Base colour at a surface point: the material's at its UV times its vertex colour.
+inline vec4 baseColorAt(const ecs::Material& material, const std::vector<ecs::Texture>& textures,
+                        const SurfacePoint& sp) {
+    return baseColorAt(material, textures, sp.uv) * sp.color;
+}
 
 }  // namespace rtlab::shaders

@@ -31,11 +31,16 @@ namespace rtlab::study {
 // shading; docs/ray-trace-format.md).
 struct Workload {
     std::string scene;
-    std::string rays;  // empty: render the scene
+    std::string rays;    // empty: render the scene
+    std::string camera;  // empty: the scene's; else a --camera value (rendered workloads only)
 
     nlohmann::json toJson() const;
-    // The label of rows and plots: the scene source, and the rays when replayed.
-    std::string label() const { return rays.empty() ? scene : scene + " [rays " + rays + "]"; }
+    // The label of rows and plots: the scene source, and the rays when
+    // replayed or the camera when set.
+    std::string label() const {
+        if (!rays.empty()) return scene + " [rays " + rays + "]";
+        return camera.empty() ? scene : scene + " [camera " + camera + "]";
+    }
 };
 
 // Settings every point of the study renders with: the `rtlab render`

@@ -41,8 +41,9 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
 void loadSceneJson(World& world, const std::filesystem::path& path);
 
 // Built-in scenes: "showcase" (default; exercises every effect), "cornell",
-// and the scalable "terrain?triangles=N", "forest?instances=M" and
-// "hairball?triangles=N" (each also takes "seed"). `nameAndParameters` is the
+// and the scalable "terrain?triangles=N", "forest?instances=M",
+// "hairball?triangles=N" (curly strands) and "slivers?triangles=N" (the BVH
+// worst case) (each also takes "seed"). `nameAndParameters` is the
 // source after "builtin:", "NAME" or "NAME?key=value&key=value"; unknown names
 // or parameters and bad or out-of-range values throw InputError. The
 // parameters used are recorded in world.settings().parameters.
