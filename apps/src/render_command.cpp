@@ -83,6 +83,28 @@ nlohmann::json writeHeatmaps(const fs::path& base, int width, int height, const 
     return scales;
 }
 
+// The PNG preview: the beauty, unless the planned effects put no light in it
+// (no shadows, GI or path tracing: --effects ao, or gbuffer alone); then the
+// signal that was asked for, the AO visibility (ao.V, grey) where AO ran, else
+// the albedo. Returns the layer shown ("" for the beauty).
+std::string writePreviewPng(const fs::path& png, const shaders::FramePlan& plan, const Image& frame) {
+    using shaders::Pass;
+    const bool lit = plan.has(Pass::Shadows) || plan.has(Pass::GlobalIllumination) || plan.has(Pass::PathTrace);
+    const float* ao = frame.channel("ao.V");
+    if (lit || (!ao && !frame.hasChannel("albedo.R"))) {
+        writePng(png, frame);
+        return "";
+    }
+    Image preview(frame.width(), frame.height());
+    std::vector<vec3> rgb(frame.pixelCount());
+    const auto albedo = frame.rgbPlanes("albedo");
+    for (std::size_t p = 0; p < rgb.size(); ++p)
+        rgb[p] = ao ? vec3(ao[p]) : vec3(albedo[0][p], albedo[1][p], albedo[2][p]);
+    preview.addRgbLayer("", rgb);
+    writePng(png, preview);
+    return ao ? "ao.V" : "albedo";
+}
+
 // stats.json's top level: the scene, the settings, the load report.
 nlohmann::json sessionJson(const session::FrameSession& s, double loadMs) {
     const session::FrameOptions& o = s.options();
@@ -249,7 +271,11 @@ int runRender(const session::FrameOptions& o) {
         // Step: the frame's files.
         const fs::path base = fs::path(o.out) / name;
         writeExr(base.string() + ".exr", out.image, ExrPixelType::Float);
-        writePng(base.string() + ".png", out.image);
+        const std::string preview = writePreviewPng(base.string() + ".png", frame.plan, out.image);
+        if (f == 0 && !preview.empty())
+            std::cerr << "rtlab: " << name << ".png shows " << preview
+                      << (preview == "ao.V" ? " (the AO visibility)" : " (the surfaces' albedo)")
+                      << ": the effects chosen put no light in the beauty; every layer is in the .exr\n";
         if (out.ddgiAtlas.width() > 0) writeExr(base.string() + "_ddgi.exr", out.ddgiAtlas, ExrPixelType::Float);
         nlohmann::json heatmap;
         if (s.rtcore())
@@ -258,6 +284,7 @@ int runRender(const session::FrameOptions& o) {
         // Step: the frame's stats; everything outside "timing" and "measured" is deterministic.
         nlohmann::json fj;
         fj["frame"] = f;
+        fj["preview"] = preview.empty() ? "beauty" : preview;
         addUpdateJson(fj, frame);
         addWorkJson(fj, s, out);
         if (recorder) fj["recordedRays"] = {{"file", raysFile.string()}, {"rays", recorder->recordedRays()}};

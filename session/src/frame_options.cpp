@@ -55,6 +55,9 @@ std::vector<FrameOptionField> makeFields() {
               "Override one RT-core parameter: section.field=value (repeatable)"),
         field("--verify", "verify", &F::verify, kUseRender | kUseStatsEcho,
               "With --backend rtcore: trace every ray on Embree too and report mismatches"),
+        field("--opaque", "opaque", &F::opaque, kRenderLike | kUseConverge | kUsePlan,
+              "Trace alpha-masked materials as opaque (no any-hit alpha test). By default alpha masks are "
+              "geometry: tested on every ray type whatever --effects lists"),
         field("--threads", "threads", &F::threads, kUseRender | kUseConverge | kUseReplay | kUseStudy,
               "Worker threads (0 = all cores)")
             .range(0, 1024),
@@ -198,6 +201,7 @@ shaders::PlanOptions FrameOptions::planOptions() const {
     shaders::PlanOptions options;
     options.requested = shaders::parseEffectList(effects);
     options.gi = gi == "ddgi" ? shaders::GiTechnique::Ddgi : shaders::GiTechnique::Path;
+    options.opaque = opaque;
     options.reflectionMaxRoughness = reflectionRoughness;
     return options;
 }

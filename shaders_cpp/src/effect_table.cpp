@@ -27,11 +27,16 @@ PlannedPass planGBuffer(const SceneFacts& f, const PlanOptions&) {
                         : "no geometry: primary rays all miss"};
 }
 
-PlannedPass planAlphaMask(const SceneFacts& f, const PlanOptions&) {
+PlannedPass planAlphaMask(const SceneFacts& f, const PlanOptions& options) {
+    if (f.maskedMaterials > 0 && options.opaque)
+        return {Pass::AlphaMask, false,
+                "--opaque: " + plural(f.maskedMaterials, "alpha-masked material") +
+                    " traced as opaque (cut-outs closed), no any-hit shader"};
     return {Pass::AlphaMask, f.maskedMaterials > 0,
-            f.maskedMaterials
-                ? plural(f.maskedMaterials, "alpha-masked material") + ": any-hit alpha test on every ray type"
-                : "no alpha-masked material: every ray is FORCE_OPAQUE, no any-hit shader"};
+            f.maskedMaterials ? plural(f.maskedMaterials, "alpha-masked material") +
+                                    ": any-hit alpha test on every ray type (the masks are geometry: --effects "
+                                    "keeps it, --opaque turns it off)"
+                              : "no alpha-masked material: every ray is FORCE_OPAQUE, no any-hit shader"};
 }
 
 PlannedPass planShadows(const SceneFacts& f, const PlanOptions&) {

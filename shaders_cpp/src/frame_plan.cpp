@@ -53,11 +53,12 @@ FramePlan planFrame(const ecs::SceneSnapshot& scene, const PlanOptions& options)
     for (const EffectRow& row : effectTable())
         plan.passes[static_cast<std::size_t>(row.pass)] = row.plan(plan.facts, options);
 
-    // Step: --effects narrows the plan, never forces a pass without its inputs.
+    // Step: --effects narrows the plan, never forces a pass without its
+    // inputs, and never changes geometry as rays see it (the alpha test stays).
     if (!options.requested.empty()) {
         for (std::size_t i = 0; i < kPassCount; ++i) {
             const Pass p = static_cast<Pass>(i);
-            if (p == Pass::GBuffer) continue;
+            if (p == Pass::GBuffer || p == Pass::AlphaMask) continue;
             const bool asked =
                 std::find(options.requested.begin(), options.requested.end(), p) != options.requested.end();
             PlannedPass& pp = plan.passes[i];

@@ -5,6 +5,8 @@
 
 #include <rtlab/core/image.hpp>
 
+#include <stb_image.h>
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -684,4 +686,83 @@ TEST(Cli, TheAssimpTestModelTableHolds) {
             EXPECT_NE(a.out.find(assimpVerdict.substr(9)), std::string::npos) << file << "\n" << a.out.substr(0, 2000);
         }
     }
+}
+
+// An alpha mask is the geometry's shape: --effects gbuffer on showcase still
+// runs the foliage's any-hit alpha test on both back ends (rays pass its
+// holes), and only --opaque closes them; rtlab plan says which.
+TEST(Cli, AlphaMasksAreGeometryWhateverTheEffects) {
+    for (const std::string backend : {"embree", "rtcore"}) {
+        SCOPED_TRACE(backend);
+        const fs::path masked = freshDir("alpha_masked_" + backend), opaque = freshDir("alpha_opaque_" + backend);
+        const std::string common =
+            "render --scene builtin:showcase --effects gbuffer --width 64 --height 36 "
+            "--denoise none --backend " +
+            backend;
+        ASSERT_EQ(runCli(common + " --out " + masked.string()).exitCode, 0);
+        ASSERT_EQ(runCli(common + " --opaque --out " + opaque.string()).exitCode, 0);
+        const auto anyHits = [](const fs::path& dir) {
+            std::ifstream in(dir / "stats.json");
+            return nlohmann::json::parse(in)["frames"][0]["shaders"]["anyHit"].get<long long>();
+        };
+        EXPECT_GT(anyHits(masked), 0);
+        EXPECT_EQ(anyHits(opaque), 0);
+        // The holes: some pixels see another surface through the foliage.
+        const rtlab::Image a = rtlab::readExr(masked / "frame_0000.exr"), b = rtlab::readExr(opaque / "frame_0000.exr");
+        const float *meshA = a.channel("id.mesh"), *meshB = b.channel("id.mesh");
+        ASSERT_NE(meshA, nullptr);
+        ASSERT_NE(meshB, nullptr);
+        int differing = 0;
+        for (int i = 0; i < a.width() * a.height(); ++i) differing += meshA[i] != meshB[i];
+        EXPECT_GT(differing, 0);
+    }
+    const CliRun plan = runCli("plan --scene builtin:showcase --effects gbuffer");
+    ASSERT_EQ(plan.exitCode, 0) << plan.out;
+    EXPECT_NE(plan.out.find("[x] alpha: "), std::string::npos) << plan.out;
+    const CliRun closed = runCli("plan --scene builtin:showcase --effects gbuffer --opaque");
+    ASSERT_EQ(closed.exitCode, 0) << closed.out;
+    EXPECT_NE(closed.out.find("[ ] alpha: --opaque"), std::string::npos) << closed.out;
+}
+
+// The PNG preview shows what was asked for: --effects ao (no light in the
+// beauty) writes the AO visibility, says so on stderr and in stats.json; the
+// default effects write the beauty.
+TEST(Cli, PreviewShowsTheRequestedSignalWhenTheBeautyHasNoLight) {
+    const fs::path ao = freshDir("preview_ao"), beauty = freshDir("preview_beauty");
+    const CliRun r = runCli("render --scene builtin:cornell --effects ao --width 32 --height 24 --denoise none --out " +
+                            ao.string());
+    ASSERT_EQ(r.exitCode, 0) << r.out;
+    EXPECT_NE(r.out.find("frame_0000.png shows ao.V (the AO visibility)"), std::string::npos) << r.out;
+    std::ifstream in(ao / "stats.json");
+    EXPECT_EQ(nlohmann::json::parse(in)["frames"][0]["preview"], "ao.V");
+    // The PNG is the AO layer as grey: not black, and equal to ao.V where it is 0 or 1.
+    const rtlab::Image frame = rtlab::readExr(ao / "frame_0000.exr");
+    const float* v = frame.channel("ao.V");
+    ASSERT_NE(v, nullptr);
+    float brightest = 0.f;
+    for (std::size_t p = 0; p < frame.pixelCount(); ++p) brightest = std::max(brightest, v[p]);
+    EXPECT_GT(brightest, 0.5f);
+    // The PNG: grey (R = G = B) and bright where ao.V is (sRGB-encoded, so compared by order).
+    int w = 0, h = 0, channels = 0;
+    unsigned char* png = stbi_load((ao / "frame_0000.png").c_str(), &w, &h, &channels, 3);
+    ASSERT_NE(png, nullptr);
+    ASSERT_EQ(std::size_t(w) * std::size_t(h), frame.pixelCount());
+    int grey = 0, agrees = 0, pairs = 0;
+    for (std::size_t p = 0; p < frame.pixelCount(); ++p) {
+        grey += png[3 * p] == png[3 * p + 1] && png[3 * p + 1] == png[3 * p + 2];
+        if (p > 0 && std::abs(v[p] - v[p - 1]) > 0.05f) {
+            ++pairs;
+            agrees += (v[p] > v[p - 1]) == (png[3 * p] > png[3 * (p - 1)]);
+        }
+    }
+    stbi_image_free(png);
+    EXPECT_EQ(grey, int(frame.pixelCount()));
+    EXPECT_GT(pairs, 10);
+    EXPECT_EQ(agrees, pairs);
+    const CliRun lit =
+        runCli("render --scene builtin:cornell --width 32 --height 24 --denoise none --out " + beauty.string());
+    ASSERT_EQ(lit.exitCode, 0) << lit.out;
+    EXPECT_EQ(lit.out.find(".png shows"), std::string::npos) << lit.out;
+    std::ifstream litStats(beauty / "stats.json");
+    EXPECT_EQ(nlohmann::json::parse(litStats)["frames"][0]["preview"], "beauty");
 }

@@ -53,6 +53,7 @@ struct FrameOptions {
     std::string rtcoreConfig;            // JSON file of RT-core parameters
     std::vector<std::string> rtcoreSet;  // section.field=value, applied in order after rtcoreConfig
     bool verify = false;                 // rtcore: trace every ray on Embree too
+    bool opaque = false;                 // trace alpha-masked materials as opaque (no any-hit alpha test)
     std::string effects = "auto";        // auto | comma-separated pass names
     std::string denoise = "auto";        // auto | none | comma-separated effect names
     std::string gi = "path";             // path | ddgi

@@ -45,6 +45,9 @@ struct PlanOptions {
     std::vector<Pass> requested;
     GiTechnique gi = GiTechnique::Path;
     float reflectionMaxRoughness = 0.3f;  // reflections trace only where roughness <= this
+    // Alpha masks are the geometry's shape: `requested` never leaves the alpha
+    // test out; only this does (--opaque: masked materials traced as opaque).
+    bool opaque = false;
 };
 
 struct PlannedPass {
