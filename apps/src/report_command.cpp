@@ -15,8 +15,10 @@ void addReportCommand(CLI::App& app, ReportOptions& o) {
 
 int runReport(const ReportOptions& o) {
     const study::ReportSummary s = study::writeReport(o.dir);
+    if (!s.pdfProblem.empty()) std::cerr << "rtlab: warning: report: PDF figures not written: " << s.pdfProblem << "\n";
     std::cerr << "rtlab: report: " << s.rows << " of " << s.points << " point(s), " << s.plots.size()
-              << " plot(s): " << s.html.string() << "\n";
+              << " plot(s) as SVG, " << s.pdfs.size() << " as PDF, summary in " << s.summaryJson.string() << ": "
+              << s.html.string() << "\n";
     return 0;
 }
 

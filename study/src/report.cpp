@@ -6,8 +6,15 @@
 #include <rtlab/study/metrics.hpp>
 #include <rtlab/study/result_store.hpp>
 #include <rtlab/study/study.hpp>
+#include <rtlab/study/summary.hpp>
 
 #include <nlohmann/json.hpp>
+
+#include <cerrno>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,6 +22,8 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+
+extern char** environ;
 
 namespace rtlab::study {
 
@@ -65,13 +74,6 @@ std::string htmlEscape(const std::string& text) {
 
 namespace {
 
-std::string readBinary(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
 // A cell: integers as they are, other numbers with 4 significant digits.
 std::string formatValue(const json& v) {
     if (v.is_null()) return "";
@@ -98,13 +100,61 @@ const json& valueOf(const json& row, const MetricInfo& m) {
 
 struct Plot {
     std::string parameter, metric, caption;
-    fs::path png;
+    fs::path png, svg, pdf, csv;  // pdf empty when it could not be written
+    std::string svgText;
+    std::size_t rowsDrawn = 0;
 };
+
+// DIR/plots/NAME.pdf from NAME.svg through rsvg-convert (librsvg: the SVG's
+// fonts embedded as TrueType subsets), written to a temporary name and
+// renamed. False, with `why`, when the tool is missing or fails.
+bool convertSvgToPdf(const fs::path& svg, const fs::path& pdf, std::string& why) {
+    const fs::path tmp = pdf.string() + ".tmp";
+    std::vector<std::string> args = {"rsvg-convert", "-f", "pdf", "-o", tmp.string(), svg.string()};
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+    pid_t pid = -1;
+    const int spawned = posix_spawnp(&pid, "rsvg-convert", &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (spawned != 0) {
+        why = "rsvg-convert not found (scripts/install-deps.sh installs librsvg2-bin)";
+        return false;
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+    std::error_code ec;
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || !fs::exists(tmp, ec)) {
+        fs::remove(tmp, ec);
+        why = WIFEXITED(status) && WEXITSTATUS(status) == 127
+                  ? "rsvg-convert not found (scripts/install-deps.sh installs librsvg2-bin)"
+                  : "rsvg-convert failed on " + svg.string();
+        return false;
+    }
+    fs::rename(tmp, pdf, ec);
+    if (ec) {
+        why = "cannot write " + pdf.string() + ": " + ec.message();
+        return false;
+    }
+    return true;
+}
+
+std::string csvCell(const std::string& s) {
+    if (s.find_first_of(",\"\n") == std::string::npos) return s;
+    std::string out = "\"";
+    for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return out + "\"";
+}
 
 // One plot: metric against `parameter`, one series per workload and setting
 // of the other swept parameters. Categorical values are placed at 1, 2, ...
 Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vector<std::string>& parameters,
-              const std::string& parameter, const MetricInfo& metric, const std::vector<json>& valueOrder) {
+              const std::string& parameter, const MetricInfo& metric, const std::vector<json>& valueOrder,
+              const std::string& baseText, std::string& pdfProblem) {
     bool numeric = true;
     for (const json& v : valueOrder) numeric = numeric && v.is_number() && v.get<double>() > 0.0;
     const auto xOf = [&](const json& v) -> double {
@@ -113,8 +163,16 @@ Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vec
             if (valueOrder[i] == v) return double(i + 1);
         return 0.0;
     };
-    std::map<std::string, std::vector<std::pair<double, double>>> series;  // name -> (x, y)
+    struct Drawn {
+        double x, y;
+        std::string title;
+    };
+    std::map<std::string, std::vector<Drawn>> series;  // name -> points
     std::vector<std::string> seriesOrder;
+    std::string csv = "id,workload";
+    for (const std::string& q : parameters) csv += "," + csvCell(q);
+    csv += "," + csvCell(metric.name) + "\n";
+    Plot plot;
     for (const json& row : rows) {
         const json overrides = row.value("overrides", json::object());
         if (!overrides.contains(parameter)) continue;
@@ -124,21 +182,31 @@ Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vec
         for (const std::string& q : parameters)
             if (q != parameter && overrides.contains(q)) name += ", " + q + "=" + formatValue(overrides[q]);
         if (!series.count(name)) seriesOrder.push_back(name);
-        series[name].emplace_back(xOf(overrides[parameter]), y.get<double>());
+        // The point's whole configuration, for its hover title.
+        const std::string title = row.value("id", "") + ": " + row.value("workload", "") + "; " +
+                                  configurationText(overrides, parameters) + baseText + "; " + metric.name + " = " +
+                                  formatValue(y);
+        series[name].push_back({xOf(overrides[parameter]), y.get<double>(), title});
+        csv += csvCell(row.value("id", "")) + "," + csvCell(row.value("workload", ""));
+        for (const std::string& q : parameters) csv += "," + csvCell(formatValue(overrides.value(q, json(nullptr))));
+        csv += "," + formatValue(y) + "\n";
+        ++plot.rowsDrawn;
     }
     std::vector<PlotSeries> plotted;
+    SvgPlotExtras extras;
     for (const std::string& name : seriesOrder) {
         auto points = series[name];
-        std::stable_sort(points.begin(), points.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+        std::stable_sort(points.begin(), points.end(), [](const Drawn& a, const Drawn& b) { return a.x < b.x; });
         PlotSeries s;
         s.name = name;
-        for (const auto& [x, y] : points) {
-            s.x.push_back(x);
-            s.y.push_back(y);
+        extras.pointTitles.emplace_back();
+        for (const Drawn& d : points) {
+            s.x.push_back(d.x);
+            s.y.push_back(d.y);
+            extras.pointTitles.back().push_back(d.title);
         }
         plotted.push_back(std::move(s));
     }
-    Plot plot;
     plot.parameter = parameter;
     plot.metric = metric.name;
     PlotOptions options;
@@ -147,9 +215,24 @@ Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vec
     options.title = metric.name + " vs " + parameter;
     options.xLabel = parameter + (numeric ? "" : " (category index)");
     options.yLabel = metric.name;
-    plot.png = dir / "plots" / (fileSafe(metric.name) + "-vs-" + fileSafe(parameter) + ".png");
+    const std::string stem = fileSafe(metric.name) + "-vs-" + fileSafe(parameter);
+    plot.png = dir / "plots" / (stem + ".png");
     fs::create_directories(plot.png.parent_path());
     const PlotReport report = writeLogLogPlot(plot.png, plotted, options);
+    // Step: the same plot for a paper: SVG (categories named on the axis),
+    // PDF with the font embedded, and the rows it was drawn from.
+    PlotOptions vector = options;
+    vector.title.clear();  // a paper's caption says it
+    vector.xLabel = parameter;
+    if (!numeric)
+        for (const json& v : valueOrder) extras.xCategories.push_back(formatValue(v));
+    plot.svgText = renderLogLogPlotSvg(plotted, vector, extras);
+    plot.svg = dir / "plots" / (stem + ".svg");
+    writeTextFileAtomically(plot.svg, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n" + plot.svgText);
+    plot.csv = dir / "plots" / (stem + ".csv");
+    writeTextFileAtomically(plot.csv, csv);
+    const fs::path pdf = dir / "plots" / (stem + ".pdf");
+    if (pdfProblem.empty() && convertSvgToPdf(plot.svg, pdf, pdfProblem)) plot.pdf = pdf;
     plot.caption = metric.name + " (" + metric.description + ") against " + parameter + ", log-log; " +
                    std::to_string(plotted.size()) + " line(s)";
     if (!numeric) {
@@ -169,7 +252,16 @@ const char* kStyle = R"(body{font-family:sans-serif;margin:2em;color:#222;max-wi
 h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}
 th{background:#eee}td.l,th.l{text-align:left}pre{background:#f6f6f6;padding:0.6em;overflow-x:auto;font-size:0.85em}
-figure{margin:1em 0}figcaption{font-size:0.85em;color:#555;max-width:900px}img{border:1px solid #ddd})";
+figure{margin:1em 0}figcaption{font-size:0.85em;color:#555;max-width:900px}img{border:1px solid #ddd}
+figure svg{width:504px;height:auto;border:1px solid #ddd}td.best{background:#e6f4e6}td.worst{background:#f8e6e6})";
+
+// The summary's value cells: 4 significant digits; a ratio as "x1.234".
+std::string ratioText(const std::optional<double>& r) {
+    if (!r) return "-";
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "x%.4g", *r);
+    return buf;
+}
 
 }  // namespace
 
@@ -196,6 +288,47 @@ ReportSummary writeReport(const fs::path& dir) {
       << " configuration(s). Study fingerprint <code>" << htmlEscape(record.value("fingerprint", ""))
       << "</code>.</p>\n";
 
+    // Step: the summary first (also DIR/summary.json).
+    const StudySummary digest = summarizeStudy(study, rows);
+    writeTextFileAtomically(dir / "summary.json", digest.toJson().dump(2) + "\n");
+    summary.summaryJson = dir / "summary.json";
+    h << "<h2 id=\"summary\">Summary</h2>\n";
+    for (const ObjectiveSummary& o : digest.objectives) {
+        h << "<p>By <b>" << htmlEscape(o.metric) << "</b> (" << (o.higherIsBetter ? "higher" : "lower")
+          << " is better; the study's <code>objective</code>):</p>\n";
+        h << "<table class=\"summary\"><tr><th class=\"l\">workload</th><th>points</th><th class=\"l\">best</th><th>"
+          << htmlEscape(o.metric) << "</th><th class=\"l\">worst</th><th>" << htmlEscape(o.metric)
+          << "</th><th>worst / best</th></tr>\n";
+        for (const WorkloadBest& w : o.workloads) {
+            std::optional<double> spread;
+            if (w.best.value != 0.0) spread = w.worst.value / w.best.value;
+            h << "<tr><td class=\"l\">" << htmlEscape(w.workload) << "</td><td>" << w.points
+              << "</td><td class=\"l best\">" << htmlEscape(w.best.id + ": " + w.best.configuration) << "</td><td>"
+              << htmlEscape(formatValue(json(w.best.value))) << "</td><td class=\"l worst\">"
+              << htmlEscape(w.worst.id + ": " + w.worst.configuration) << "</td><td>"
+              << htmlEscape(formatValue(json(w.worst.value))) << "</td><td>" << htmlEscape(ratioText(spread))
+              << "</td></tr>\n";
+        }
+        h << "</table>\n";
+        if (!o.parameters.empty()) {
+            h << "<p>Each swept parameter's effect on " << htmlEscape(o.metric)
+              << ": at each value, relative to the parameter's first value, over the pairs of points that differ in "
+                 "it alone (same workload, same other settings); geometric mean and range across them.</p>\n"
+              << "<table class=\"effects\"><tr><th class=\"l\">parameter</th><th class=\"l\">value</th><th>pairs</th>"
+                 "<th>relative (geometric mean)</th><th>min</th><th>max</th></tr>\n";
+            for (const ParameterEffect& p : o.parameters)
+                for (const ValueEffect& v : p.values)
+                    h << "<tr><td class=\"l\">" << htmlEscape(p.parameter) << "</td><td class=\"l\">"
+                      << htmlEscape(formatValue(v.value)) << (v.value == p.baseValue ? " (base)" : "") << "</td><td>"
+                      << v.pairs << "</td><td>" << htmlEscape(ratioText(v.geometricMean)) << "</td><td>"
+                      << htmlEscape(ratioText(v.min)) << "</td><td>" << htmlEscape(ratioText(v.max)) << "</td></tr>\n";
+            h << "</table>\n";
+        }
+    }
+    if (digest.objectives.empty() || std::all_of(digest.objectives.begin(), digest.objectives.end(),
+                                                 [](const ObjectiveSummary& o) { return o.workloads.empty(); }))
+        h << "<p>No point has the objective's metric yet.</p>\n";
+
     // Step: the parameter space.
     h << "<h2>Parameter space</h2>\n<table><tr><th class=\"l\">what</th><th class=\"l\">values</th></tr>\n";
     h << "<tr><td class=\"l\">workloads</td><td class=\"l\">";
@@ -221,8 +354,13 @@ ReportSummary writeReport(const fs::path& dir) {
     h << "</table>\n";
 
     // Step: one plot per swept parameter and plotted metric that has values.
-    h << "<h2>Plots</h2>\n";
+    h << "<h2>Plots</h2>\n<p>Hover over a point for its id and whole configuration. Each plot is also in "
+         "<code>plots/</code> as PDF (fonts embedded) and SVG (text as text) for a paper, as PNG, and as the CSV "
+         "of the rows it shows.</p>\n";
     bool anyPlot = false;
+    std::string baseText, pdfProblem;
+    for (const Override& o : study.base) baseText += (baseText.empty() ? " (every point: " : ", ") + o.assignment();
+    if (!baseText.empty()) baseText += ")";
     for (const std::string& parameter : parameters) {
         std::vector<json> order;  // the parameter's values in study order
         for (const auto& [key, values] : study.grid)
@@ -237,15 +375,22 @@ ReportSummary writeReport(const fs::path& dir) {
                 return valueOf(r, metric).is_number() && r.value("overrides", json::object()).contains(parameter);
             });
             if (!hasValues) continue;
-            const Plot plot = drawPlot(dir, rows, parameters, parameter, metric, order);
+            const Plot plot = drawPlot(dir, rows, parameters, parameter, metric, order, baseText, pdfProblem);
             summary.plots.push_back(plot.png);
+            summary.svgs.push_back(plot.svg);
+            if (!plot.pdf.empty()) summary.pdfs.push_back(plot.pdf);
             anyPlot = true;
-            h << "<figure><img alt=\"" << htmlEscape(plot.metric + " vs " + plot.parameter)
-              << "\" src=\"data:image/png;base64," << base64(readBinary(plot.png)) << "\"><figcaption>"
-              << htmlEscape(plot.caption) << "</figcaption></figure>\n";
+            const auto link = [&](const fs::path& file, const std::string& label) {
+                return "<a href=\"" + htmlEscape(fs::relative(file, dir).generic_string()) + "\">" + label + "</a>";
+            };
+            h << "<figure>" << plot.svgText << "<figcaption>" << htmlEscape(plot.caption) << ". "
+              << link(plot.csv, "Data: the " + std::to_string(plot.rowsDrawn) + " result row(s) drawn (CSV)") << "; "
+              << (plot.pdf.empty() ? std::string("PDF not written") : link(plot.pdf, "PDF")) << "; "
+              << link(plot.svg, "SVG") << "; " << link(plot.png, "PNG") << ".</figcaption></figure>\n";
         }
     }
     if (!anyPlot) h << "<p>No plot: the study sweeps no parameter, or no point has RT-core metrics yet.</p>\n";
+    summary.pdfProblem = pdfProblem;
 
     // Step: every point.
     h << "<h2>Points</h2>\n<table><tr><th class=\"l\">id</th><th class=\"l\">workload</th>";

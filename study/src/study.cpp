@@ -1,7 +1,9 @@
 #include <rtlab/study/study.hpp>
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/study/metrics.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -159,12 +161,15 @@ json Study::toJson() const {
         for (const Override& o : set) entry[o.key] = o.value;
         j["list"].push_back(entry);
     }
+    if (objectives != std::vector<std::string>{"cycles"}) j["objective"] = objectives;
     return j;
 }
 
 std::string Study::fingerprint() const {
     std::uint64_t h = 1469598103934665603ull;  // FNV-1a 64
-    for (const unsigned char c : toJson().dump()) {
+    json canonical = toJson();
+    canonical.erase("objective");
+    for (const unsigned char c : canonical.dump()) {
         h ^= c;
         h *= 1099511628211ull;
     }
@@ -173,8 +178,27 @@ std::string Study::fingerprint() const {
 
 Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
     if (!j.is_object()) throw InputError(where, "a study must be a JSON object");
-    rejectUnknownKeys(j, {"workloads", "render", "base", "grid", "list"}, where, "");
+    rejectUnknownKeys(j, {"workloads", "render", "base", "grid", "list", "objective"}, where, "");
     Study study;
+    // Step: the objective: metric names of metricList().
+    if (j.contains("objective")) {
+        const json& o = j.at("objective");
+        std::vector<std::string> names;
+        if (o.is_string()) names.push_back(o.get<std::string>());
+        else if (o.is_array() && !o.empty() &&
+                 std::all_of(o.begin(), o.end(), [](const json& v) { return v.is_string(); }))
+            for (const json& v : o) names.push_back(v.get<std::string>());
+        else
+            throw InputError(where,
+                             "objective: must be a metric name or a non-empty list of them (got " + o.dump() + ")");
+        std::string known;
+        for (const MetricInfo& m : metricList()) known += (known.empty() ? "" : ", ") + m.name;
+        for (const std::string& name : names)
+            if (std::none_of(metricList().begin(), metricList().end(),
+                             [&](const MetricInfo& m) { return m.name == name; }))
+                throw InputError(where, "objective: unknown metric '" + name + "' (known: " + known + ")");
+        study.objectives = names;
+    }
 
     // Step: workloads.
     if (!j.contains("workloads")) throw InputError(where, "workloads: missing (a list of scene sources)");

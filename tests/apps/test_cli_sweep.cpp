@@ -334,8 +334,13 @@ TEST(Report, WritesSelfContainedHtmlWithPlotsTableConfigAndCommands) {
     const CliRun r = runCli("report " + out.string());
     ASSERT_EQ(r.exitCode, 0) << r.out;
     const std::string html = readText(out / "report.html");
-    EXPECT_NE(html.find("<img alt=\"cycles vs cache.sizeBytes\" src=\"data:image/png;base64,iVBORw0KGgo"),
-              std::string::npos);
+    // The plots inline as SVG (each point a <title>), also as files beside the page.
+    EXPECT_NE(html.find("<figure><svg xmlns=\"http://www.w3.org/2000/svg\""), std::string::npos);
+    EXPECT_NE(html.find("<title>p0000: builtin:cornell; cache.sizeBytes="), std::string::npos);
+    EXPECT_EQ(html.find("<img "), std::string::npos);
+    for (const char* ext : {".svg", ".pdf", ".csv"})
+        EXPECT_TRUE(fs::exists(out / "plots" / (std::string("cycles-vs-cache.sizeBytes") + ext))) << ext;
+    EXPECT_NE(r.out.find(" as PDF, summary in "), std::string::npos) << r.out;
     EXPECT_EQ(html.find("<script"), std::string::npos);
     EXPECT_EQ(html.find("src=\"http"), std::string::npos);
     EXPECT_EQ(html.find("src=\"file"), std::string::npos);

@@ -380,3 +380,42 @@ TEST_F(PlotFiles, EmptyPlotsStillWriteAxes) {
         EXPECT_LT(png.rgb[i], 100) << c;
     }
 }
+
+// The SVG for papers: text as text in the one font, a circle with its <title>
+// per drawable point (escaped), a polyline per series, categorical x named on
+// the axis, undrawable points counted; the same inputs give the same text.
+TEST(PlotSvg, PointsCarryTheirTitlesAndTextStaysText) {
+    std::vector<PlotSeries> series(2);
+    series[0].name = "cornell & co";
+    series[0].x = {1.0, 2.0, 3.0};
+    series[0].y = {100.0, 0.0, 400.0};  // the middle point is not drawable on a log axis
+    series[1].name = "terrain";
+    series[1].x = {1.0, 2.0, 3.0};
+    series[1].y = {1e4, 2e4, 3e4};
+    PlotOptions options;
+    options.xLabel = "scheduler.policy";
+    options.yLabel = "cycles";
+    SvgPlotExtras extras;
+    extras.pointTitles = {{"p0000: <a>", "p0001", "p0002"}, {"p0003", "p0004", "p0005"}};
+    extras.xCategories = {"fifo", "oldestFirst", "treelet"};
+    PlotReport report;
+    const std::string svg = renderLogLogPlotSvg(series, options, extras, &report);
+    const auto count = [&](const std::string& what) {
+        std::size_t n = 0;
+        for (std::size_t at = svg.find(what); at != std::string::npos; at = svg.find(what, at + 1)) ++n;
+        return n;
+    };
+    EXPECT_EQ(svg.rfind("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"252.00pt\"", 0), 0u);
+    EXPECT_NE(svg.find("font-family:'DejaVu Sans'"), std::string::npos);
+    EXPECT_EQ(report.pointsDrawn, 5u);
+    EXPECT_EQ(report.pointsSkipped, 1u);
+    EXPECT_EQ(count("<circle "), 5u);
+    EXPECT_EQ(count("<title>"), 5u);
+    EXPECT_NE(svg.find("<title>p0000: &lt;a&gt;</title>"), std::string::npos);
+    EXPECT_EQ(svg.find("<title>p0001</title>"), std::string::npos) << "an undrawable point has no circle";
+    EXPECT_EQ(count("<polyline "), 1u) << "series 0 breaks at its gap into single points; series 1 is one line";
+    for (const char* text : {">oldestFirst</text>", ">scheduler.policy</text>", ">cycles</text>",
+                             ">cornell &amp; co</text>", ">terrain</text>", ">10000</text>"})
+        EXPECT_NE(svg.find(text), std::string::npos) << text;
+    EXPECT_EQ(svg, renderLogLogPlotSvg(series, options, extras));
+}

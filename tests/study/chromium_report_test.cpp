@@ -1,7 +1,9 @@
 // `rtlab report` opened in headless Chromium (Debian's chromium, installed by
 // scripts/install-deps.sh): the page loads without console errors, its DOM
-// holds the plots and the table, and its screenshot is not blank and shows
-// the plots' coloured lines. Its own executable, ctest label "chromium"
+// holds the summary, the plots as inline SVG with a <title> per point and the
+// table, and its screenshot is not blank and shows the plots' coloured
+// lines; the PDF figures open in poppler (pdftoppm) into non-blank pages
+// with the font embedded. Its own executable, ctest label "chromium"
 // (ctest -L chromium runs it alone; -LE chromium leaves it out).
 #define STB_IMAGE_IMPLEMENTATION
 #define STB_IMAGE_STATIC
@@ -97,13 +99,49 @@ TEST(ReportInChromium, LoadsWithoutConsoleErrorsAndShowsPlots) {
     EXPECT_GT(colours.size(), 16u) << "a page of one or two colours";
     EXPECT_GT(coloured, 200u) << "no plot visible (images not decoded?)";
 
-    // The parsed document: every plot and the points table.
+    // The parsed document: every plot inline as SVG, a point's <title> with
+    // its whole configuration, the summary first, the points table.
     const Result dom = run("timeout 60 " + browser + flags + " --dump-dom" + url);
     ASSERT_EQ(dom.exitCode, 0) << dom.out;
     EXPECT_EQ(dom.out.find("CONSOLE"), std::string::npos) << dom.out;
-    std::size_t plotFiles = 0;
-    for (const auto& e : fs::directory_iterator(out / "plots")) plotFiles += e.path().extension() == ".png";
-    EXPECT_EQ(count(dom.out, "<img alt="), plotFiles);
-    EXPECT_GE(count(dom.out, "<img alt="), 4u);
+    std::size_t svgFiles = 0, pdfFiles = 0, csvFiles = 0;
+    for (const auto& e : fs::directory_iterator(out / "plots")) {
+        svgFiles += e.path().extension() == ".svg";
+        pdfFiles += e.path().extension() == ".pdf";
+        csvFiles += e.path().extension() == ".csv";
+    }
+    EXPECT_EQ(count(dom.out, "<svg "), svgFiles);
+    EXPECT_GE(svgFiles, 4u);
+    EXPECT_EQ(pdfFiles, svgFiles);
+    EXPECT_EQ(csvFiles, svgFiles);
+    EXPECT_EQ(count(dom.out, "<img "), 0u) << "plots are inline SVG, not images";
+    EXPECT_NE(dom.out.find("<title>p0000: builtin:cornell; cache.sizeBytes=2048, scheduler.policy=fifo; cycles = "),
+              std::string::npos);
+    const std::size_t summary = dom.out.find("<h2 id=\"summary\">Summary</h2>");
+    ASSERT_NE(summary, std::string::npos);
+    EXPECT_LT(summary, dom.out.find("<h2>Plots</h2>")) << "the summary comes first";
+    EXPECT_EQ(count(dom.out, "<td class=\"l best\">"), 2u) << "a best configuration per workload";
+    EXPECT_NE(dom.out.find("<a href=\"plots/cycles-vs-cache.sizeBytes.csv\">"), std::string::npos);
+    EXPECT_TRUE(fs::exists(out / "summary.json"));
     EXPECT_EQ(count(dom.out, "<tr><td class=\"l\">p00"), 8u);
+
+    // The PDFs: each opens in poppler (pdftoppm) into a page that is not blank.
+    ASSERT_TRUE(fs::exists("/usr/bin/pdftoppm")) << "poppler-utils missing (scripts/install-deps.sh installs it)";
+    for (const auto& e : fs::directory_iterator(out / "plots")) {
+        if (e.path().extension() != ".pdf") continue;
+        const fs::path page = dir / ("page_" + e.path().stem().string());
+        const Result r = run("pdftoppm -r 60 -png -singlefile '" + e.path().string() + "' '" + page.string() + "'");
+        ASSERT_EQ(r.exitCode, 0) << e.path() << "\n" << r.out;
+        int pw = 0, ph = 0, pc = 0;
+        unsigned char* rendered = stbi_load((page.string() + ".png").c_str(), &pw, &ph, &pc, 3);
+        ASSERT_NE(rendered, nullptr) << e.path();
+        std::size_t ink = 0;
+        for (int i = 0; i < pw * ph; ++i)
+            ink += std::min({rendered[3 * i], rendered[3 * i + 1], rendered[3 * i + 2]}) < 200;
+        stbi_image_free(rendered);
+        EXPECT_GT(ink, std::size_t(pw) * ph / 200) << e.path() << ": a blank page";
+    }
+    const Result fonts = run("pdffonts '" + (out / "plots" / "cycles-vs-cache.sizeBytes.pdf").string() + "'");
+    EXPECT_NE(fonts.out.find("DejaVuSans"), std::string::npos) << fonts.out;
+    EXPECT_NE(fonts.out.find(" yes "), std::string::npos) << "the font is embedded\n" << fonts.out;
 }

@@ -6,6 +6,7 @@
 #include <rtlab/study/report.hpp>
 #include <rtlab/study/result_store.hpp>
 #include <rtlab/study/study.hpp>
+#include <rtlab/study/summary.hpp>
 
 #include <gtest/gtest.h>
 #include "temp_dir.hpp"
@@ -128,6 +129,8 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
          "s.json: workloads[0].camera: must be a non-empty string"},
         {R"({"workloads": ["builtin:cornell"], "render": {"camera": "0,0,1,0,0,0"}})",
          "s.json: render.camera: unknown key"},
+        {R"({"workloads": ["builtin:cornell"], "objective": "speed"})", "s.json: objective: unknown metric 'speed'"},
+        {R"({"workloads": ["builtin:cornell"], "objective": []})", "s.json: objective: must be a metric name"},
         {R"({"workloads": ["builtin:cornell"], "render": {"width": 0}})", "s.json: render.width: must be an integer"},
         {R"({"workloads": ["builtin:cornell"], "render": {"gi": "x"}})", "s.json: render.gi: must be one of"},
         // Unknown keys before any value; the effect lists checked as rtlab render checks them.
@@ -321,15 +324,67 @@ TEST(Report, FromRecordedRowsDrawsOnePlotPerParameterAndMetric) {
     std::stringstream ss;
     ss << in.rdbuf();
     const std::string html = ss.str();
-    std::size_t images = 0;
-    for (std::size_t at = html.find("data:image/png;base64,"); at != std::string::npos;
-         at = html.find("data:image/png;base64,", at + 1))
-        ++images;
-    EXPECT_EQ(images, 8u);
+    std::size_t inlineSvgs = 0;
+    for (std::size_t at = html.find("<svg "); at != std::string::npos; at = html.find("<svg ", at + 1)) ++inlineSvgs;
+    EXPECT_EQ(inlineSvgs, 8u);
+    EXPECT_EQ(r.svgs.size(), 8u);
+    for (const fs::path& svg : r.svgs) {
+        EXPECT_TRUE(fs::exists(svg)) << svg;
+        EXPECT_TRUE(fs::exists(fs::path(svg).replace_extension(".csv"))) << svg;
+    }
+    EXPECT_TRUE(fs::exists(dir / "summary.json"));
+    EXPECT_LT(html.find("id=\"summary\""), html.find("<h2>Plots</h2>"));
     EXPECT_NE(html.find("x is the category index: 1 = fifo, 2 = treelet"), std::string::npos);
     EXPECT_NE(html.find("builtin:cornell, scheduler.policy=treelet"), std::string::npos);  // a line per setting
     EXPECT_NE(html.find("rtlab sweep s.json --out " + dir.string()), std::string::npos);
     EXPECT_EQ(html.find("<script"), std::string::npos);
+}
+
+// The summary: per workload the best and worst point by each objective (its
+// direction from the metric), per parameter its effect relative to its first
+// value over pairs that differ in it alone.
+TEST(Summary, BestWorstAndEachParametersEffect) {
+    const Study s = parseStudy(json::parse(R"({"workloads": ["builtin:cornell"], "objective": ["cycles",
+        "raysPerCycle"], "grid": {"cache.sizeBytes": [4096, 32768], "scheduler.policy": ["fifo", "treelet"]}})"),
+                               "s.json");
+    ASSERT_EQ(s.objectives, (std::vector<std::string>{"cycles", "raysPerCycle"}));
+    std::vector<json> rows;
+    const double cycles[4] = {100, 101, 102, 103};  // points in order: (4096, fifo), (4096, treelet), (32768, ...)
+    for (const Point& p : expandPoints(s)) {
+        json overrides = json::object();
+        for (const Override& o : p.overrides) overrides[o.key] = o.value;
+        rows.push_back({{"id", p.id},
+                        {"workload", p.workload.label()},
+                        {"overrides", overrides},
+                        {"metrics", {{"cycles", cycles[p.index]}, {"raysPerCycle", 1000.0 / cycles[p.index]}}}});
+    }
+    const StudySummary summary = summarizeStudy(s, rows);
+    ASSERT_EQ(summary.objectives.size(), 2u);
+    const ObjectiveSummary& byCycles = summary.objectives[0];
+    EXPECT_FALSE(byCycles.higherIsBetter);
+    ASSERT_EQ(byCycles.workloads.size(), 1u);
+    EXPECT_EQ(byCycles.workloads[0].best.id, "p0000");
+    EXPECT_EQ(byCycles.workloads[0].best.configuration, "cache.sizeBytes=4096, scheduler.policy=fifo");
+    EXPECT_EQ(byCycles.workloads[0].worst.id, "p0003");
+    EXPECT_EQ(summary.objectives[1].workloads[0].best.id, "p0000") << "higher rays per cycle is better";
+    EXPECT_TRUE(summary.objectives[1].higherIsBetter);
+    ASSERT_EQ(byCycles.parameters.size(), 2u);
+    const ParameterEffect& cache = byCycles.parameters[0];
+    EXPECT_EQ(cache.parameter, "cache.sizeBytes");
+    EXPECT_EQ(cache.baseValue, 4096);
+    ASSERT_EQ(cache.values.size(), 2u);
+    EXPECT_EQ(cache.values[0].pairs, 2u);
+    EXPECT_DOUBLE_EQ(*cache.values[0].geometricMean, 1.0);
+    EXPECT_NEAR(*cache.values[1].geometricMean, std::sqrt(102.0 / 100.0 * 103.0 / 101.0), 1e-12);
+    EXPECT_DOUBLE_EQ(*cache.values[1].min, 103.0 / 101.0);
+    EXPECT_DOUBLE_EQ(*cache.values[1].max, 102.0 / 100.0);
+    const json j = summary.toJson();
+    EXPECT_EQ(j["objectives"][0]["parameters"][1]["values"][1]["value"], "treelet");
+    // How results are ranked does not change them: the fingerprint ignores the objective.
+    EXPECT_EQ(s.fingerprint(), parseStudy(json::parse(R"({"workloads": ["builtin:cornell"], "grid":
+        {"cache.sizeBytes": [4096, 32768], "scheduler.policy": ["fifo", "treelet"]}})"),
+                                          "s.json")
+                                   .fingerprint());
 }
 
 TEST(ResultStore, AcceptsWhatASweepKilledBeforeItsRecordLeaves) {

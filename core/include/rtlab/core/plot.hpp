@@ -33,6 +33,15 @@ struct PlotOptions {
     std::string yLabel;  // drawn horizontally above the top-left corner of the plot
 };
 
+// What only the SVG has.
+struct SvgPlotExtras {
+    // Per series, one hover text per point (its <title>); missing entries: none.
+    std::vector<std::vector<std::string>> pointTitles;
+    // Names of categorical x values 1, 2, ... (a linear axis with these labels
+    // instead of a log axis); empty for numeric x.
+    std::vector<std::string> xCategories;
+};
+
 // A pixel rectangle with inclusive bounds; empty when right < left or bottom < top.
 struct PixelRect {
     int left = 0;
@@ -85,5 +94,16 @@ Image renderLogLogPlot(const std::vector<PlotSeries>& series, const PlotOptions&
 // when it cannot be written.
 PlotReport writeLogLogPlot(const std::filesystem::path& png, const std::vector<PlotSeries>& series,
                            const PlotOptions& options);
+
+// The same plot as vector graphics for a paper (plot_svg.cpp): an SVG of one
+// column's width (3.5 in = 252 pt), text kept as text in kPlotFontFamily (the
+// one place the font is set; `rtlab report` embeds it when converting to
+// PDF), labelled axes, the legend below the plot, and each drawable point a
+// circle carrying its extras.pointTitles entry as <title> (shown on hover). The
+// size is fixed (width and height are the PNG's); the height grows with the
+// legend's rows. Deterministic text.
+inline constexpr const char* kPlotFontFamily = "DejaVu Sans";
+std::string renderLogLogPlotSvg(const std::vector<PlotSeries>& series, const PlotOptions& options,
+                                const SvgPlotExtras& extras = {}, PlotReport* report = nullptr);
 
 }  // namespace rtlab

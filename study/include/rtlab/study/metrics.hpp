@@ -19,6 +19,8 @@ struct MetricInfo {
     std::string description;  // one line, for docs and the report
     bool timing = false;      // varies run to run (excluded when rows are compared)
     bool plotted = false;     // the report draws it against each swept parameter
+    // For a study's objective: rates and hit rates; counts and times are lower-better.
+    bool higherIsBetter = false;
 };
 
 // Every metric, in column order.

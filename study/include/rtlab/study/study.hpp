@@ -70,11 +70,16 @@ struct Study {
     OverrideSet base;
     std::vector<std::pair<std::string, std::vector<nlohmann::json>>> grid;  // sorted by key
     std::vector<OverrideSet> list;
+    // The metrics the report's summary ranks configurations by ("objective":
+    // a metric name or a list of them; default cycles).
+    std::vector<std::string> objectives = {"cycles"};
 
     // The canonical form: what the study means, independent of formatting
     // and key order. Two files with the same canonical form are the same study.
+    // "objective" appears only when it is not the default.
     nlohmann::json toJson() const;
-    // A 16-hex-digit hash of toJson().dump().
+    // A 16-hex-digit hash of toJson().dump() without "objective" (how results
+    // are ranked does not change them: a study resumes after it changes).
     std::string fingerprint() const;
 };
 
