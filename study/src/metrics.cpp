@@ -42,7 +42,7 @@ struct Metric {
 
 const std::vector<Metric>& metrics() {
     static const std::vector<Metric> table = {
-        {{"raysTraced", "rays traced by the pipeline, every ray type, summed over frames", false, false, false},
+        {{"raysTraced", "rays traced by the pipeline, every ray type, summed over frames", false, false, false, "rays"},
          [](const json& s) -> Value {
              if (!s.contains("frames") || !s["frames"].is_array() || s["frames"].empty()) return std::nullopt;
              double sum = 0.0;
@@ -54,13 +54,15 @@ const std::vector<Metric>& metrics() {
              }
              return sum;
          }},
-        {{"cycles", "RT-core model cycles (rtcore.frame.cycles), summed over frames", false, true, false},
+        {{"cycles", "RT-core model cycles (rtcore.frame.cycles), summed over frames", false, true, false, "cycles"},
          [](const json& s) { return sumOverFrames(s, "/rtcore/frame/cycles"); }},
-        {{"raysPerCycle", "rays completed by the model per cycle (sum of rays / sum of cycles)", false, true, true},
+        {{"raysPerCycle", "rays completed by the model per cycle (sum of rays / sum of cycles)", false, true, true,
+          "rays per cycle"},
          [](const json& s) {
              return ratio(sumOverFrames(s, "/rtcore/frame/rays"), sumOverFrames(s, "/rtcore/frame/cycles"));
          }},
-        {{"meanLatency", "mean ray latency in cycles, submission to result (rtcore.rays.latency)", false, true, false},
+        {{"meanLatency", "mean ray latency in cycles, submission to result (rtcore.rays.latency)", false, true, false,
+          "cycles"},
          [](const json& s) -> Value {
              if (!s.contains("frames") || !s["frames"].is_array() || s["frames"].empty()) return std::nullopt;
              double weighted = 0.0, count = 0.0;
@@ -73,27 +75,28 @@ const std::vector<Metric>& metrics() {
              }
              return ratio(weighted, count);
          }},
-        {{"cacheHitRate", "node cache (L1) hits / accesses (rtcore.cache)", false, true, true},
+        {{"cacheHitRate", "node cache (L1) hits / accesses (rtcore.cache)", false, true, true, "fraction of accesses"},
          [](const json& s) {
              return ratio(sumOverFrames(s, "/rtcore/cache/hits"), sumOverFrames(s, "/rtcore/cache/accesses"));
          }},
-        {{"l2HitRate", "shared L2 hits / accesses (rtcore.l2), when the model has an L2", false, true, true},
+        {{"l2HitRate", "shared L2 hits / accesses (rtcore.l2), when the model has an L2", false, true, true,
+          "fraction of accesses"},
          [](const json& s) {
              return ratio(sumOverFrames(s, "/rtcore/l2/hits"), sumOverFrames(s, "/rtcore/l2/accesses"));
          }},
-        {{"memoryBytes", "bytes read and written behind the node cache (rtcore.memory)", false, false, false},
+        {{"memoryBytes", "bytes read and written behind the node cache (rtcore.memory)", false, false, false, "bytes"},
          [](const json& s) {
              return add(sumOverFrames(s, "/rtcore/memory/readBytes"), sumOverFrames(s, "/rtcore/memory/writeBytes"));
          }},
         {{"dramBytes", "DRAM bytes read and written (rtcore.dram), when the model has a DRAM section", false, true,
-          false},
+          false, "bytes"},
          [](const json& s) {
              return add(sumOverFrames(s, "/rtcore/dram/readBytes"), sumOverFrames(s, "/rtcore/dram/writeBytes"));
          }},
         {{"renderMs", "wall milliseconds of the frames' shading and tracing (timing.renderMs), summed", true, false,
-          false},
+          false, "ms"},
          [](const json& s) { return sumOverFrames(s, "/timing/renderMs"); }},
-        {{"wallSeconds", "wall seconds of the point's whole `rtlab render` process", true, false, false}, {}},
+        {{"wallSeconds", "wall seconds of the point's whole `rtlab render` process", true, false, false, "s"}, {}},
     };
     return table;
 }

@@ -214,7 +214,7 @@ Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vec
     options.height = 560;
     options.title = metric.name + " vs " + parameter;
     options.xLabel = parameter + (numeric ? "" : " (category index)");
-    options.yLabel = metric.name;
+    options.yLabel = metric.name + " (" + metric.unit + ")";
     const std::string stem = fileSafe(metric.name) + "-vs-" + fileSafe(parameter);
     plot.png = dir / "plots" / (stem + ".png");
     fs::create_directories(plot.png.parent_path());

@@ -21,6 +21,7 @@ struct MetricInfo {
     bool plotted = false;     // the report draws it against each swept parameter
     // For a study's objective: rates and hit rates; counts and times are lower-better.
     bool higherIsBetter = false;
+    std::string unit;  // the plots' axis label: "cycles", "bytes", "fraction", ...
 };
 
 // Every metric, in column order.
