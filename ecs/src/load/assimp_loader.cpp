@@ -13,6 +13,14 @@
 #include <assimp/scene.h>
 
 #include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <iostream>
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <cctype>
 #include <fstream>
 #include <sstream>
@@ -50,12 +58,14 @@ std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* materia
 // reserves memory for them (a 1 KB file declaring 2e8 vertices made it touch
 // 2.4 GB): each element needs at least its scalar properties' bytes (binary)
 // or two characters per property (ascii: a digit and a separator), a list at
-// least its count, within a small slack. InputError naming the element otherwise; a header that is
-// not PLY's is left to assimp's own message.
+// least its count, within a small slack. InputError naming the element
+// otherwise, and for a header that does not start with "ply" or does not end
+// (a file cut inside its header made assimp 5.2 loop forever); an empty file
+// is left to assimp's own message.
 void checkPlyCounts(const std::filesystem::path& path, const std::string& where) {
     std::ifstream in(path, std::ios::binary);
     std::string line;
-    std::size_t headerBytes = 0;
+    std::size_t headerBytes = 0, lines = 0;
     bool binary = false, ended = false;
     struct Element {
         std::string name;
@@ -71,6 +81,7 @@ void checkPlyCounts(const std::filesystem::path& path, const std::string& where)
     while (headerBytes < (1u << 16) && std::getline(in, line)) {
         headerBytes += line.size() + 1;
         if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (lines++ == 0 && line != "ply") throw InputError(where, "not a PLY file (its first line is not 'ply')");
         std::istringstream words(line);
         std::string keyword;
         words >> keyword;
@@ -96,7 +107,8 @@ void checkPlyCounts(const std::filesystem::path& path, const std::string& where)
             break;
         }
     }
-    if (!ended) return;  // assimp says what is wrong
+    if (headerBytes == 0) return;  // empty: assimp says so
+    if (!ended) throw InputError(where, "PLY header has no end_header line in its first 64 KiB (truncated or not PLY)");
     std::error_code ec;
     const std::uint64_t fileBytes = std::filesystem::file_size(path, ec);
     if (ec) return;
@@ -115,6 +127,120 @@ void checkPlyCounts(const std::filesystem::path& path, const std::string& where)
     }
 }
 
+// Reads `path` with assimp: without post-processing first, every face's
+// indices checked, then triangulated and its vertices joined. assimp's own
+// steps trust the indices: a binary PLY cut inside its faces crashed
+// Triangulate / JoinIdenticalVertices (assimp 5.2). (No
+// aiProcess_ValidateDataStructure: it rejects point clouds, meshes without
+// faces; points and lines are skipped by the loader, face by face.)
+const aiScene* importChecked(Assimp::Importer& importer, const std::filesystem::path& path, const std::string& where) {
+    const auto failed = [&] {
+        std::string error = importer.GetErrorString();
+        if (error.empty()) error = "not a readable scene";
+        return InputError(where, error.substr(0, error.find('\n')));
+    };
+    const aiScene* raw = importer.ReadFile(path.string(), 0);
+    if (!raw || (raw->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !raw->mRootNode) throw failed();
+    for (unsigned i = 0; i < raw->mNumMeshes; ++i) {
+        const aiMesh* am = raw->mMeshes[i];
+        if (!am || (am->mNumVertices > 0 && !am->mVertices) || (am->mNumFaces > 0 && !am->mFaces))
+            throw InputError(where, "mesh " + std::to_string(i) + ": missing vertex or face data");
+        for (unsigned f = 0; f < am->mNumFaces; ++f) {
+            const aiFace& face = am->mFaces[f];
+            if (face.mNumIndices == 0 || !face.mIndices)
+                throw InputError(where, "mesh " + std::to_string(i) + ": face " + std::to_string(f) + " has no corner");
+            for (unsigned k = 0; k < face.mNumIndices; ++k)
+                if (face.mIndices[k] >= am->mNumVertices)
+                    throw InputError(where, "mesh " + std::to_string(i) + ": face " + std::to_string(f) +
+                                                " refers to vertex " + std::to_string(face.mIndices[k]) + " of " +
+                                                std::to_string(am->mNumVertices) + " (truncated or corrupt)");
+        }
+    }
+    const aiScene* scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices);
+    if (!scene || !scene->mRootNode) throw failed();
+    return scene;
+}
+
+// assimp itself crashes or hangs on some corrupt files (a double free in its
+// FBX parser on a damaged ascii FBX; an endless loop on a PLY cut inside its
+// header; `assimp info` does the same), so the import is first tried in a
+// forked child: a crash or a hang there is an InputError here, and the
+// parent imports only a file the child read. Costs one more parse (measured
+// in docs/scene-format.md). The child's time limit: 30 s + 2 s per MB.
+void tryImportInChild(const std::filesystem::path& path, const std::string& where) {
+    int fds[2];
+    if (pipe(fds) != 0) return;  // no isolation possible: import directly
+    std::cout.flush(), std::cerr.flush();
+    const pid_t pid = fork();
+    if (pid < 0) {
+        close(fds[0]), close(fds[1]);
+        return;
+    }
+    if (pid == 0) {
+        // The child says nothing: assimp's log and glibc's abort message
+        // ("double free detected") go to /dev/null, not the terminal.
+        close(fds[0]);
+        setenv("LIBC_FATAL_STDERR_", "1", 1);
+        if (const int null = open("/dev/null", O_WRONLY); null >= 0)
+            dup2(null, STDOUT_FILENO), dup2(null, STDERR_FILENO);
+        int code = 0;
+        std::string message;
+        try {
+            Assimp::Importer importer;
+            importChecked(importer, path, where);
+        } catch (const InputError& e) {
+            message = e.what(), code = 2;
+        } catch (const std::exception& e) {
+            message = where + ": " + e.what(), code = 2;
+        }
+        if (!message.empty() && write(fds[1], message.data(), message.size()) < 0) code = 3;
+        _exit(code);  // no static destructors, no atexit handlers of the parent's
+    }
+    close(fds[1]);
+    std::error_code ec;
+    const double megabytes = double(std::filesystem::file_size(path, ec)) / 1048576.0;
+    const double limit = 30.0 + 2.0 * (ec ? 0.0 : megabytes);
+    std::string message;
+    const auto started = std::chrono::steady_clock::now();
+    int status = 0;
+    bool exited = false;
+    for (;;) {
+        pollfd p{fds[0], POLLIN, 0};
+        if (poll(&p, 1, 20) > 0) {
+            char buffer[4096];
+            const ssize_t n = read(fds[0], buffer, sizeof buffer);
+            if (n > 0) message.append(buffer, std::size_t(n));
+        }
+        const pid_t done = waitpid(pid, &status, WNOHANG);
+        if (done == pid) {
+            exited = true;
+            break;
+        }
+        if (std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() > limit) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+            break;
+        }
+    }
+    for (char buffer[4096];;) {  // what is left in the pipe
+        const ssize_t n = read(fds[0], buffer, sizeof buffer);
+        if (n <= 0) break;
+        message.append(buffer, std::size_t(n));
+    }
+    close(fds[0]);
+    if (!exited) {
+        char text[64];
+        std::snprintf(text, sizeof text, "%.0f", limit);
+        throw InputError(where, std::string("assimp did not finish reading it within ") + text +
+                                    " s (it hangs on some corrupt files)");
+    }
+    if (WIFSIGNALED(status))
+        throw InputError(where, "assimp crashed reading it (" + std::string(strsignal(WTERMSIG(status))) +
+                                    "): the file is corrupt (rtlab reads such files in a child process first)");
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 2)
+        throw InputError(message.empty() ? where + ": unreadable" : message);
+}
+
 }  // namespace
 
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent) {
@@ -123,17 +249,9 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     std::transform(extension.begin(), extension.end(), extension.begin(),
                    [](unsigned char c) { return std::tolower(c); });
     if (extension == ".ply") checkPlyCounts(path, where);
+    tryImportInChild(path, where);
     Assimp::Importer importer;
-    // Points and lines are skipped below (and counted), face by face.
-    // (No aiProcess_ValidateDataStructure: it rejects point clouds, meshes without faces; the indices
-    // and coordinates rtlab uses are checked below.)
-    const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices;
-    const aiScene* scene = importer.ReadFile(path.string(), flags);
-    if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode) {
-        std::string error = importer.GetErrorString();
-        if (error.empty()) error = "not a readable scene";
-        throw InputError(where, error.substr(0, error.find('\n')));
-    }
+    const aiScene* scene = importChecked(importer, path, where);
     std::vector<std::string> warnings;
 
     // Step: materials and their textures.
