@@ -144,7 +144,7 @@ bool convertSvgToPdf(const fs::path& svg, const fs::path& pdf, std::string& why)
 }
 
 std::string csvCell(const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
+    if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
     std::string out = "\"";
     for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
     return out + "\"";
@@ -188,8 +188,12 @@ Plot drawPlot(const fs::path& dir, const std::vector<json>& rows, const std::vec
                                   formatValue(y);
         series[name].push_back({xOf(overrides[parameter]), y.get<double>(), title});
         csv += csvCell(row.value("id", "")) + "," + csvCell(row.value("workload", ""));
-        for (const std::string& q : parameters) csv += "," + csvCell(formatValue(overrides.value(q, json(nullptr))));
-        csv += "," + formatValue(y) + "\n";
+        // Full precision in the data (the page rounds to 4 digits, the CSV does not).
+        const auto exact = [](const json& v) {
+            return v.is_null() ? std::string() : v.is_string() ? v.get<std::string>() : v.dump();
+        };
+        for (const std::string& q : parameters) csv += "," + csvCell(exact(overrides.value(q, json(nullptr))));
+        csv += "," + exact(y) + "\n";
         ++plot.rowsDrawn;
     }
     std::vector<PlotSeries> plotted;

@@ -131,6 +131,11 @@ TEST(AssimpLoader, FbxCamerasAreReadAndTheDefaultSunLightsTheScene) {
         });
         EXPECT_EQ(lights, 1) << file;
     }
+    // spider.fbx's camera: 49.13 degrees wide (Blender's 35 mm lens on a 32 mm
+    // sensor), 16:9, so 2 atan(tan(24.56 deg) / (16 / 9)) = 28.85 degrees high.
+    World spider;
+    load::loadScene(spider, (models / "spider.fbx").string());
+    EXPECT_NEAR(spider.get<Camera>(spider.activeCamera())->yfov, 0.50360f, 1e-3f);
 }
 
 // Damaged copies of real OBJ, PLY and FBX files (assimp-testmodels): each cut

@@ -11,14 +11,17 @@
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/version.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstring>
 #include <iostream>
 #include <fcntl.h>
 #include <poll.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <cctype>
@@ -63,8 +66,12 @@ std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* materia
 // (a file cut inside its header made assimp 5.2 loop forever); an empty file
 // is left to assimp's own message.
 void checkPlyCounts(const std::filesystem::path& path, const std::string& where) {
+    // Step: the header from the first 1 MiB, lines ended by \n, \r\n or \r.
+    constexpr std::size_t kHeaderLimit = 1u << 20;
     std::ifstream in(path, std::ios::binary);
-    std::string line;
+    std::string head(kHeaderLimit, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in.gcount()));
     std::size_t headerBytes = 0, lines = 0;
     bool binary = false, ended = false;
     struct Element {
@@ -78,13 +85,20 @@ void checkPlyCounts(const std::filesystem::path& path, const std::string& where)
         if (type == "double" || type == "float64") return 8;
         return 4;  // int, uint, float and their sized names
     };
-    while (headerBytes < (1u << 16) && std::getline(in, line)) {
-        headerBytes += line.size() + 1;
-        if (!line.empty() && line.back() == '\r') line.pop_back();
-        if (lines++ == 0 && line != "ply") throw InputError(where, "not a PLY file (its first line is not 'ply')");
+    while (headerBytes < head.size()) {
+        std::size_t end = head.find_first_of("\r\n", headerBytes);
+        if (end == std::string::npos) break;
+        const std::string line = head.substr(headerBytes, end - headerBytes);
+        headerBytes = end + (head.compare(end, 2, "\r\n") == 0 ? 2 : 1);
         std::istringstream words(line);
         std::string keyword;
         words >> keyword;
+        if (lines++ == 0) {  // "ply", as assimp reads it: any case, surrounding blanks
+            std::string magic = keyword;
+            std::transform(magic.begin(), magic.end(), magic.begin(), [](unsigned char c) { return std::tolower(c); });
+            if (magic != "ply") throw InputError(where, "not a PLY file (its first line is not 'ply')");
+            continue;
+        }
         if (keyword == "format") {
             std::string format;
             words >> format;
@@ -107,7 +121,7 @@ void checkPlyCounts(const std::filesystem::path& path, const std::string& where)
             break;
         }
     }
-    if (headerBytes == 0) return;  // empty: assimp says so
+    if (head.empty()) return;  // empty: assimp says so
     if (!ended) throw InputError(where, "PLY header has no end_header line in its first 64 KiB (truncated or not PLY)");
     std::error_code ec;
     const std::uint64_t fileBytes = std::filesystem::file_size(path, ec);
@@ -169,7 +183,8 @@ const aiScene* importChecked(Assimp::Importer& importer, const std::filesystem::
 // in docs/scene-format.md). The child's time limit: 30 s + 2 s per MB.
 void tryImportInChild(const std::filesystem::path& path, const std::string& where) {
     int fds[2];
-    if (pipe(fds) != 0) return;  // no isolation possible: import directly
+    if (pipe2(fds, O_CLOEXEC) != 0) return;  // no isolation possible: import directly
+    const pid_t parent = getpid();
     std::cout.flush(), std::cerr.flush();
     const pid_t pid = fork();
     if (pid < 0) {
@@ -180,6 +195,8 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
         // The child says nothing: assimp's log and glibc's abort message
         // ("double free detected") go to /dev/null, not the terminal.
         close(fds[0]);
+        prctl(PR_SET_PDEATHSIG, SIGKILL);  // a hung child dies with its parent
+        if (getppid() != parent) _exit(3);
         setenv("LIBC_FATAL_STDERR_", "1", 1);
         if (const int null = open("/dev/null", O_WRONLY); null >= 0)
             dup2(null, STDOUT_FILENO), dup2(null, STDERR_FILENO);
@@ -216,9 +233,13 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
             exited = true;
             break;
         }
+        if (done < 0 && errno != EINTR) {  // not ours to wait for (SIGCHLD ignored): import directly
+            close(fds[0]);
+            return;
+        }
         if (std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() > limit) {
             kill(pid, SIGKILL);
-            waitpid(pid, &status, 0);
+            while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
             break;
         }
     }
@@ -392,7 +413,11 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     std::vector<Entity> cameras;
     const auto addCamera = [&](Entity node, const aiCamera& c) {
         const float aspect = c.mAspect > 0.f && std::isfinite(c.mAspect) ? c.mAspect : 16.f / 9.f;
-        const float yfov = 2.f * std::atan(std::tan(c.mHorizontalFOV) / aspect);  // assimp's is half the horizontal
+        // assimp before 5.3 stores the whole horizontal angle (5.3 halved it:
+        // assimp PR #5175); spider.fbx's Blender camera: 49.1 degrees, whole.
+        const bool wholeAngle = aiGetVersionMajor() * 100 + aiGetVersionMinor() < 503;
+        const float halfAngle = wholeAngle ? 0.5f * c.mHorizontalFOV : c.mHorizontalFOV;
+        const float yfov = 2.f * std::atan(std::tan(halfAngle) / aspect);
         if (!finite3(c.mPosition) || !finite3(c.mLookAt) || !finite3(c.mUp) ||
             !(glm::length(toVec3(c.mLookAt)) > 0.f) || !(yfov > 1e-3f && yfov < 3.1f)) {
             world.loadReport().warnings.push_back(where + ": camera " + c.mName.C_Str() +

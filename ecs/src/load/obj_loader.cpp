@@ -189,7 +189,8 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
             if (!t)
                 warnings.push_back(where + ": texture " + mt.diffuse_texname + " not found or not readable, left out");
         }
-        if (!mt.alpha_texname.empty()) {
+        if (!mt.alpha_texname.empty() &&
+            mt.alpha_texname != mt.diffuse_texname) {  // the same file: its alpha already counts
             const std::optional<Texture> dissolve = readTextureNamed(path.parent_path(), mt.alpha_texname);
             if (!dissolve)
                 warnings.push_back(where + ": texture " + mt.alpha_texname +
