@@ -12,20 +12,6 @@ namespace rtlab {
 
 namespace {
 
-std::string xmlEscape(const std::string& text) {
-    std::string out;
-    for (char c : text) {
-        switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
-        }
-    }
-    return out;
-}
-
 // Two decimals: enough for points on a 252 pt figure, deterministic text.
 std::string num(double v) {
     char buf[32];
@@ -49,6 +35,20 @@ std::string hexColour(const vec3& linear) {
 double textWidth(const std::string& text, double size) { return 0.62 * size * static_cast<double>(text.size()); }
 
 }  // namespace
+
+std::string xmlEscape(const std::string& text) {
+    std::string out;
+    for (char c : text) {
+        switch (c) {
+            case '&': out += "&amp;"; break;
+            case '<': out += "&lt;"; break;
+            case '>': out += "&gt;"; break;
+            case '"': out += "&quot;"; break;
+            default: out += c;
+        }
+    }
+    return out;
+}
 
 std::string renderLogLogPlotSvg(const std::vector<PlotSeries>& series, const PlotOptions& options,
                                 const SvgPlotExtras& extras, PlotReport* report) {

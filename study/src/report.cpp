@@ -58,19 +58,7 @@ std::string base64(const std::string& bytes) {
     return out;
 }
 
-std::string htmlEscape(const std::string& text) {
-    std::string out;
-    for (char c : text) {
-        switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
-        }
-    }
-    return out;
-}
+std::string htmlEscape(const std::string& text) { return xmlEscape(text); }
 
 namespace {
 
@@ -366,13 +354,7 @@ ReportSummary writeReport(const fs::path& dir) {
     for (const Override& o : study.base) baseText += (baseText.empty() ? " (every point: " : ", ") + o.assignment();
     if (!baseText.empty()) baseText += ")";
     for (const std::string& parameter : parameters) {
-        std::vector<json> order;  // the parameter's values in study order
-        for (const auto& [key, values] : study.grid)
-            if (key == parameter) order = values;
-        for (const OverrideSet& set : study.list)
-            for (const Override& o : set)
-                if (o.key == parameter && std::find(order.begin(), order.end(), o.value) == order.end())
-                    order.push_back(o.value);
+        const std::vector<json> order = parameterValuesInOrder(study, parameter);
         for (const MetricInfo& metric : metricList()) {
             if (!metric.plotted) continue;
             const bool hasValues = std::any_of(rows.begin(), rows.end(), [&](const json& r) {

@@ -23,8 +23,9 @@ std::optional<double> metricOf(const json& row, const MetricInfo& m) {
     return std::isfinite(d) ? std::optional<double>(d) : std::nullopt;
 }
 
-// The values of a parameter in study order: the grid's, then the list's first appearances.
-std::vector<json> valuesInOrder(const Study& study, const std::string& parameter) {
+}  // namespace
+
+std::vector<json> parameterValuesInOrder(const Study& study, const std::string& parameter) {
     std::vector<json> order;
     for (const auto& [key, values] : study.grid)
         if (key == parameter) order = values;
@@ -34,8 +35,6 @@ std::vector<json> valuesInOrder(const Study& study, const std::string& parameter
                 order.push_back(o.value);
     return order;
 }
-
-}  // namespace
 
 std::string configurationText(const json& overrides, const std::vector<std::string>& parameters) {
     std::string text;
@@ -78,7 +77,7 @@ StudySummary summarizeStudy(const Study& study, const std::vector<json>& rows) {
         for (const std::string& parameter : parameters) {
             ParameterEffect e;
             e.parameter = parameter;
-            const std::vector<json> order = valuesInOrder(study, parameter);
+            const std::vector<json> order = parameterValuesInOrder(study, parameter);
             if (order.empty()) continue;
             e.baseValue = order.front();
             std::map<std::string, double> baseOf;  // workload + other overrides -> metric at the first value

@@ -103,6 +103,8 @@ PlotReport writeLogLogPlot(const std::filesystem::path& png, const std::vector<P
 // size is fixed (width and height are the PNG's); the height grows with the
 // legend's rows. Deterministic text.
 inline constexpr const char* kPlotFontFamily = "DejaVu Sans";
+// Text with &, <, >, " escaped for XML and HTML (the SVG's text, the report's page).
+std::string xmlEscape(const std::string& text);
 std::string renderLogLogPlotSvg(const std::vector<PlotSeries>& series, const PlotOptions& options,
                                 const SvgPlotExtras& extras = {}, PlotReport* report = nullptr);
 

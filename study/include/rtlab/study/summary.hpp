@@ -57,6 +57,9 @@ struct StudySummary {
 // metric are left out of its objective.
 StudySummary summarizeStudy(const Study& study, const std::vector<nlohmann::json>& rows);
 
+// A swept parameter's values in study order: the grid's, then the list's first appearances.
+std::vector<nlohmann::json> parameterValuesInOrder(const Study& study, const std::string& parameter);
+
 // A row's overrides as "k=v, k=v" in the study's parameter order ("base" when none).
 std::string configurationText(const nlohmann::json& overrides, const std::vector<std::string>& parameters);
 
