@@ -2,6 +2,8 @@
 // usage (one line on stderr naming the file and the problem), 1 internal error.
 #include "commands.hpp"
 
+#include <rtlab/ecs/load/scene_loader.hpp>
+
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/memory.hpp>
 
@@ -9,6 +11,10 @@
 
 int main(int argc, char** argv) {
     using namespace rtlab;
+    // The separate process that reads a file with assimp first (a crash or a
+    // hang of assimp's stays there): `rtlab __check-assimp PARENT_PID FILE`.
+    if (argc == 4 && std::string(argv[1]) == "__check-assimp") return ecs::load::runAssimpCheck(argv[2], argv[3]);
+    ecs::load::setAssimpCheckCommand({"/proc/self/exe", "__check-assimp"});
     retainFreedMemory();
     CLI::App app{"rtlab: a deterministic ray-tracing laboratory"};
     app.require_subcommand(1);

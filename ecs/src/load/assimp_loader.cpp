@@ -21,6 +21,7 @@
 #include <iostream>
 #include <fcntl.h>
 #include <poll.h>
+#include <spawn.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -31,6 +32,8 @@
 #include <functional>
 #include <map>
 #include <optional>
+
+extern char** environ;
 
 namespace rtlab::ecs::load {
 namespace {
@@ -122,7 +125,7 @@ void checkPlyCounts(const std::filesystem::path& path, const std::string& where)
         }
     }
     if (head.empty()) return;  // empty: assimp says so
-    if (!ended) throw InputError(where, "PLY header has no end_header line in its first 64 KiB (truncated or not PLY)");
+    if (!ended) throw InputError(where, "PLY header has no end_header line in its first MiB (truncated or not PLY)");
     std::error_code ec;
     const std::uint64_t fileBytes = std::filesystem::file_size(path, ec);
     if (ec) return;
@@ -175,45 +178,42 @@ const aiScene* importChecked(Assimp::Importer& importer, const std::filesystem::
     return scene;
 }
 
+std::vector<std::string>& checkCommand() {
+    static std::vector<std::string> command;
+    return command;
+}
+
 // assimp itself crashes or hangs on some corrupt files (a double free in its
 // FBX parser on a damaged ascii FBX; an endless loop on a PLY cut inside its
 // header; `assimp info` does the same), so the import is first tried in a
-// forked child: a crash or a hang there is an InputError here, and the
-// parent imports only a file the child read. Costs one more parse (measured
-// in docs/scene-format.md). The child's time limit: 30 s + 2 s per MB.
+// separate process (setAssimpCheckCommand; rtlab's own `rtlab
+// __check-assimp`): a crash or a hang there is an InputError here, and this
+// process imports only a file the check read. A fresh process, not a fork:
+// forking this multi-threaded process deadlocked the child under ASan. Costs
+// one more parse and a process start (measured in docs/scene-format.md). The
+// check's time limit: 30 s + 2 s per MB.
 void tryImportInChild(const std::filesystem::path& path, const std::string& where) {
+    if (checkCommand().empty()) return;  // no check command: import directly
     int fds[2];
-    if (pipe2(fds, O_CLOEXEC) != 0) return;  // no isolation possible: import directly
-    const pid_t parent = getpid();
-    std::cout.flush(), std::cerr.flush();
-    const pid_t pid = fork();
-    if (pid < 0) {
-        close(fds[0]), close(fds[1]);
-        return;
-    }
-    if (pid == 0) {
-        // The child says nothing: assimp's log and glibc's abort message
-        // ("double free detected") go to /dev/null, not the terminal.
-        close(fds[0]);
-        prctl(PR_SET_PDEATHSIG, SIGKILL);  // a hung child dies with its parent
-        if (getppid() != parent) _exit(3);
-        setenv("LIBC_FATAL_STDERR_", "1", 1);
-        if (const int null = open("/dev/null", O_WRONLY); null >= 0)
-            dup2(null, STDOUT_FILENO), dup2(null, STDERR_FILENO);
-        int code = 0;
-        std::string message;
-        try {
-            Assimp::Importer importer;
-            importChecked(importer, path, where);
-        } catch (const InputError& e) {
-            message = e.what(), code = 2;
-        } catch (const std::exception& e) {
-            message = where + ": " + e.what(), code = 2;
-        }
-        if (!message.empty() && write(fds[1], message.data(), message.size()) < 0) code = 3;
-        _exit(code);  // no static destructors, no atexit handlers of the parent's
-    }
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
+    std::vector<std::string> args = checkCommand();
+    args.push_back(std::to_string(getpid()));
+    args.push_back(path.string());
+    std::vector<char*> argv;
+    for (std::string& arg : args) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_adddup2(&actions, fds[1], STDERR_FILENO);
+    pid_t pid = -1;
+    const int spawned = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
     close(fds[1]);
+    if (spawned != 0) {
+        close(fds[0]);
+        return;  // the check cannot start: import directly
+    }
     std::error_code ec;
     const double megabytes = double(std::filesystem::file_size(path, ec)) / 1048576.0;
     const double limit = 30.0 + 2.0 * (ec ? 0.0 : megabytes);
@@ -226,7 +226,7 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
         if (poll(&p, 1, 20) > 0) {
             char buffer[4096];
             const ssize_t n = read(fds[0], buffer, sizeof buffer);
-            if (n > 0) message.append(buffer, std::size_t(n));
+            if (n > 0 && message.size() < 65536) message.append(buffer, std::size_t(n));
         }
         const pid_t done = waitpid(pid, &status, WNOHANG);
         if (done == pid) {
@@ -245,7 +245,7 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
     }
     for (char buffer[4096];;) {  // what is left in the pipe
         const ssize_t n = read(fds[0], buffer, sizeof buffer);
-        if (n <= 0) break;
+        if (n <= 0 || message.size() >= 65536) break;
         message.append(buffer, std::size_t(n));
     }
     close(fds[0]);
@@ -255,14 +255,39 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
         throw InputError(where, std::string("assimp did not finish reading it within ") + text +
                                     " s (it hangs on some corrupt files)");
     }
-    if (WIFSIGNALED(status))
-        throw InputError(where, "assimp crashed reading it (" + std::string(strsignal(WTERMSIG(status))) +
-                                    "): the file is corrupt (rtlab reads such files in a child process first)");
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 2)
-        throw InputError(message.empty() ? where + ": unreadable" : message);
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return;
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 2) {
+        // The check's one line, "rtlab: FILE: problem": the problem after the file.
+        std::string line = message.substr(0, message.find('\n'));
+        const std::size_t at = line.find(where + ": ");
+        if (at != std::string::npos) throw InputError(where, line.substr(at + where.size() + 2));
+        throw InputError(where, line.empty() ? "unreadable" : line);
+    }
+    const std::string how =
+        WIFSIGNALED(status) ? std::string(strsignal(WTERMSIG(status))) : "exit " + std::to_string(WEXITSTATUS(status));
+    throw InputError(where, "assimp crashed reading it (" + how +
+                                "): the file is corrupt (rtlab reads such files in a separate process first)");
 }
 
 }  // namespace
+
+void setAssimpCheckCommand(std::vector<std::string> command) { checkCommand() = std::move(command); }
+
+int runAssimpCheck(const std::string& parentPid, const std::filesystem::path& path) {
+    // Dies with the process that asked (a hang must not outlive it); glibc's
+    // abort message goes to stderr (the asker's pipe), not the terminal.
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (std::to_string(getppid()) != parentPid) return 3;
+    setenv("LIBC_FATAL_STDERR_", "1", 1);
+    try {
+        Assimp::Importer importer;
+        importChecked(importer, path, path.string());
+    } catch (const InputError& e) {
+        std::fprintf(stderr, "rtlab: %s\n", e.what());
+        return 2;
+    }
+    return 0;
+}
 
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent) {
     const std::string where = path.string();

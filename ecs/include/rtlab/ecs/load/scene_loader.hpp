@@ -36,6 +36,15 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
 // warning), normals computed where missing, UV0, materials and their diffuse
 // textures. Returns the root entities (parented to `parent` when it is valid).
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
+// The command that checks a file with assimp in a separate process before
+// loadWithAssimp reads it (a crash or hang of assimp there is an InputError
+// here): COMMAND... PARENT_PID FILE, which must exit 0 when assimp reads the
+// file, 2 with one line "rtlab: FILE: problem" on stderr when it is bad
+// (runAssimpCheck does exactly this). rtlab sets {"/proc/self/exe",
+// "__check-assimp"}; empty (the default for other programs): no check.
+void setAssimpCheckCommand(std::vector<std::string> command);
+// The check itself, in the checking process: returns its exit code.
+int runAssimpCheck(const std::string& parentPid, const std::filesystem::path& path);
 
 // Scene description JSON (docs/scene-format.md).
 void loadSceneJson(World& world, const std::filesystem::path& path);
