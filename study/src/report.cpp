@@ -3,6 +3,7 @@
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
 #include <rtlab/core/plot.hpp>
+#include <rtlab/core/process.hpp>
 #include <rtlab/study/metrics.hpp>
 #include <rtlab/study/result_store.hpp>
 #include <rtlab/study/study.hpp>
@@ -12,7 +13,6 @@
 
 #include <cerrno>
 #include <fcntl.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -23,40 +23,10 @@
 #include <map>
 #include <sstream>
 
-extern char** environ;
-
 namespace rtlab::study {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-std::string base64(const std::string& bytes) {
-    static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    std::string out;
-    out.reserve((bytes.size() + 2) / 3 * 4);
-    std::size_t i = 0;
-    for (; i + 2 < bytes.size(); i += 3) {
-        const unsigned v =
-            (unsigned char)bytes[i] << 16 | (unsigned char)bytes[i + 1] << 8 | (unsigned char)bytes[i + 2];
-        out += table[v >> 18 & 63];
-        out += table[v >> 12 & 63];
-        out += table[v >> 6 & 63];
-        out += table[v & 63];
-    }
-    if (i + 1 == bytes.size()) {
-        const unsigned v = (unsigned char)bytes[i] << 16;
-        out += table[v >> 18 & 63];
-        out += table[v >> 12 & 63];
-        out += "==";
-    } else if (i + 2 == bytes.size()) {
-        const unsigned v = (unsigned char)bytes[i] << 16 | (unsigned char)bytes[i + 1] << 8;
-        out += table[v >> 18 & 63];
-        out += table[v >> 12 & 63];
-        out += table[v >> 6 & 63];
-        out += '=';
-    }
-    return out;
-}
 
 std::string htmlEscape(const std::string& text) { return xmlEscape(text); }
 
@@ -98,23 +68,12 @@ struct Plot {
 // renamed. False, with `why`, when the tool is missing or fails.
 bool convertSvgToPdf(const fs::path& svg, const fs::path& pdf, std::string& why) {
     const fs::path tmp = pdf.string() + ".tmp";
-    std::vector<std::string> args = {"rsvg-convert", "-f", "pdf", "-o", tmp.string(), svg.string()};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-    pid_t pid = -1;
-    const int spawned = posix_spawnp(&pid, "rsvg-convert", &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (spawned != 0) {
+    const pid_t pid = spawnProcess({"rsvg-convert", "-f", "pdf", "-o", tmp.string(), svg.string()});
+    if (pid < 0) {
         why = "rsvg-convert not found (scripts/install-deps.sh installs librsvg2-bin)";
         return false;
     }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+    const int status = waitForProcess(pid);
     std::error_code ec;
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || !fs::exists(tmp, ec)) {
         fs::remove(tmp, ec);

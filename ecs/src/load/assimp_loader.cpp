@@ -5,6 +5,7 @@
 // colour and texture, opacity, shininess, emission, refraction index).
 // Anything the importer rejects is an InputError naming the file.
 #include <rtlab/core/error.hpp>
+#include <rtlab/core/process.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 
 #include <assimp/Importer.hpp>
@@ -21,7 +22,6 @@
 #include <iostream>
 #include <fcntl.h>
 #include <poll.h>
-#include <spawn.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -32,8 +32,6 @@
 #include <functional>
 #include <map>
 #include <optional>
-
-extern char** environ;
 
 namespace rtlab::ecs::load {
 namespace {
@@ -199,18 +197,9 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
     std::vector<std::string> args = checkCommand();
     args.push_back(std::to_string(getpid()));
     args.push_back(path.string());
-    std::vector<char*> argv;
-    for (std::string& arg : args) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_adddup2(&actions, fds[1], STDERR_FILENO);
-    pid_t pid = -1;
-    const int spawned = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
+    const pid_t pid = spawnProcess(args, fds[1]);
     close(fds[1]);
-    if (spawned != 0) {
+    if (pid < 0) {
         close(fds[0]);
         return;  // the check cannot start: import directly
     }
@@ -239,7 +228,7 @@ void tryImportInChild(const std::filesystem::path& path, const std::string& wher
         }
         if (std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() > limit) {
             kill(pid, SIGKILL);
-            while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+            status = waitForProcess(pid);
             break;
         }
     }

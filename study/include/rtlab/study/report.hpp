@@ -29,8 +29,6 @@ struct ReportSummary {
 // they are missing or malformed) and writes DIR/report.html atomically.
 ReportSummary writeReport(const std::filesystem::path& dir);
 
-// Standard base64 (RFC 4648, with padding).
-std::string base64(const std::string& bytes);
 // Text with &, <, >, " escaped for HTML.
 std::string htmlEscape(const std::string& text);
 
