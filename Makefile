@@ -1,6 +1,6 @@
 # rtlab: two commands — `make demo` and `make test`. Both install missing Debian
 # packages first (scripts/install-deps.sh), then configure + build Release.
-.PHONY: deps configure build demo test bench converge workloads study gpu-study gpucheck-exports gpucheck doc-figures test-asan clean
+.PHONY: deps configure build demo test bench converge workloads study gpu-study gpucheck-exports gpucheck doc-figures test-asan fuzz clean
 
 deps:
 	@bash scripts/install-deps.sh
@@ -76,6 +76,18 @@ test-asan: deps
 	@cmake --preset asan >/dev/null
 	@cmake --build --preset asan
 	ctest --preset asan
+
+# Coverage-guided fuzzing (docs/reliability.md): every libFuzzer target of
+# fuzz/ (clang, ASan + UBSan; its own preset, build/fuzz) for FUZZ_SECONDS
+# each, in parallel on the machine's cores; FUZZ_TARGETS=a,b for some only.
+# Corpora grow in out/fuzz/corpus, findings land in out/fuzz/findings.
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS ?= all
+fuzz: build
+	@cmake --preset fuzz >/dev/null
+	@cmake --build --preset fuzz
+	@python3 scripts/fuzz.py --fuzz-build build/fuzz --rtlab build/release/apps/rtlab --seconds $(FUZZ_SECONDS) \
+	  --jobs $$(nproc) --targets $(FUZZ_TARGETS)
 
 clean:
 	rm -rf build out

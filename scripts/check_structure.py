@@ -62,7 +62,7 @@ INTERFACES = {
 # Folders outside the layering: their files may include anything (DESIGN.md:
 # perf/ and tests/ "everything", examples/ the installed package); a module may
 # include none of them.
-FREE_FOLDERS = ["perf", "tests", "examples"]
+FREE_FOLDERS = ["perf", "tests", "examples", "fuzz"]
 
 # Extra include roots per folder (besides MODULE/include for a module), as the
 # CMake targets set them: tests/ compile with tests/ on the include path.

@@ -14,6 +14,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   python3 python3-matplotlib chromium librsvg2-bin poppler-utils fonts-dejavu-core
   assimp-testmodels assimp-utils
+  clang llvm
 )
 
 missing=()

@@ -11,10 +11,11 @@
 
 int main(int argc, char** argv) {
     using namespace rtlab;
-    // The separate process that reads a file with assimp first (a crash or a
-    // hang of assimp's stays there): `rtlab __check-assimp PARENT_PID FILE`.
-    if (argc == 4 && std::string(argv[1]) == "__check-assimp") return ecs::load::runAssimpCheck(argv[2], argv[3]);
-    ecs::load::setAssimpCheckCommand({"/proc/self/exe", "__check-assimp"});
+    // The separate process that reads a file with assimp or OpenVDB first (a
+    // crash or a hang of theirs stays there): `rtlab __check-file KIND PARENT_PID FILE [ARGUMENT]`.
+    if ((argc == 5 || argc == 6) && std::string(argv[1]) == "__check-file")
+        return ecs::load::runReaderCheck(argv[2], argv[3], argv[4], argc == 6 ? argv[5] : "");
+    ecs::load::setReaderCheckCommand({"/proc/self/exe", "__check-file"});
     retainFreedMemory();
     CLI::App app{"rtlab: a deterministic ray-tracing laboratory"};
     app.require_subcommand(1);

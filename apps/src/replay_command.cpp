@@ -90,7 +90,12 @@ int runReplay(const ReplayOptions& options) {
         study::checkReplayable(file, study::sceneFingerprint(scene), rtcore);
         progress("replaying frame " + std::to_string(f) + " (" + std::to_string(file.header().rayCount) + " rays)");
         if (rtcore) rtcore->beginFrame();
-        const study::ReplayResult r = study::replayRays(file, s.accel(), rtcore, typeMask);
+        study::ReplayResult r;
+        try {
+            r = study::replayRays(file, s.accel(), rtcore, typeMask);
+        } catch (const InputError& e) {  // e.g. recorded verdicts that do not fit: the file's fault
+            throw InputError(file.path().string(), e.what());
+        }
         differing += r.differingHits;
         replayed += r.rays;
 

@@ -24,6 +24,7 @@
 #include <array>
 #include <cstdint>
 #include <exception>
+#include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <set>
@@ -43,6 +44,10 @@ constexpr std::array<unsigned char, 4> kExrMagic = {0x76, 0x2f, 0x31, 0x01};
 // Largest image readExr accepts: 2^30 floats (4 GiB), so that a corrupt
 // header cannot make us allocate without bound.
 constexpr std::int64_t kMaxReadValues = std::int64_t{1} << 30;
+// The most a file's pixel data can expand (deflate's limit) and the slack for
+// tiny files: readExr refuses windows larger than that against the file size.
+constexpr std::int64_t kMaxCompressionRatio = 1032;
+constexpr std::int64_t kDecodedBytesSlack = std::int64_t{16} << 20;
 
 // The channel order stored by writeExr when it names exactly the file's
 // channels; otherwise the file's own (alphabetical) order.
@@ -160,6 +165,17 @@ Image readExr(const std::filesystem::path& path) {
             throw InputError(path.string(), "OpenEXR image is too large (" + std::to_string(width) + "x" +
                                                 std::to_string(height) + ", " + std::to_string(names.size()) +
                                                 " channels)");
+        // A file's pixels cannot decode to more than deflate's largest ratio
+        // (1032:1, ZIP and PIZ) times its size, plus a little: a small file
+        // declaring a huge window is corrupt, refused before allocating.
+        std::error_code ec;
+        const std::int64_t fileBytes = static_cast<std::int64_t>(std::filesystem::file_size(path, ec));
+        const std::int64_t decodedBytes = width * height * static_cast<std::int64_t>(names.size()) * 2;  // half
+        if (!ec && decodedBytes > kMaxCompressionRatio * fileBytes + kDecodedBytesSlack)
+            throw InputError(path.string(), "OpenEXR header declares " + std::to_string(width) + "x" +
+                                                std::to_string(height) + " pixels of " + std::to_string(names.size()) +
+                                                " channels, more than its " + std::to_string(fileBytes) +
+                                                " bytes can hold (corrupt)");
         if (!file.isComplete()) throw InputError(path.string(), "OpenEXR file is truncated or incomplete");
 
         // One float slice per channel, addressed by data-window coordinates.

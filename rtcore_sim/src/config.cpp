@@ -1,10 +1,14 @@
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/scheduler.hpp>
 
+#include <rtlab/core/error.hpp>
+#include <rtlab/core/json_nesting.hpp>
+
 #include <algorithm>
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 namespace rtlab::rtcore_sim {
@@ -405,6 +409,14 @@ void RtCoreConfig::validate(const std::string& where) const {
         fail(where, "l2.sizeBytes",
              "must be a power-of-two multiple of l2.lineBytes x l2.ways x l2.banks (" + std::to_string(l2SetBytes) +
                  " bytes) (got " + std::to_string(l2.sizeBytes) + ")");
+    // The model's cache state, in lines (each core's node cache and the L2):
+    // bounded, so that a configuration file cannot ask for gigabytes.
+    const std::uint64_t lines =
+        std::uint64_t(gpu.cores) * (cache.sizeBytes / cache.lineBytes) + l2.sizeBytes / l2.lineBytes;
+    if (lines > kMaxModelCacheLines)
+        fail(where, "cache.sizeBytes",
+             "gpu.cores x cache.sizeBytes / cache.lineBytes + l2.sizeBytes / l2.lineBytes must be at most " +
+                 std::to_string(kMaxModelCacheLines) + " cache lines in all (got " + std::to_string(lines) + ")");
     if (l2.mode == L2Mode::Cache && l2.hitLatency < l2.bankCycles)
         fail(where, "l2.hitLatency",
              "must be at least l2.bankCycles (" + std::to_string(l2.bankCycles) + ") in l2 mode cache (got " +
@@ -427,12 +439,15 @@ RtCoreConfig RtCoreConfig::fromJson(const nlohmann::json& json, const std::strin
 
 RtCoreConfig RtCoreConfig::loadFile(const std::filesystem::path& path) {
     const std::string where = path.string();
-    std::ifstream in(path);
+    std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(where, "cannot open RT-core configuration");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (jsonNestingDepth(text) > kMaxJsonNesting)
+        throw InputError(where, "JSON nested deeper than " + std::to_string(kMaxJsonNesting) + " levels");
     nlohmann::json json;
     try {
-        json = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::parse_error& e) {
+        json = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {  // parse_error, and out_of_range for numbers like 1e999
         throw InputError(where, std::string("invalid JSON: ") + e.what());
     }
     return fromJson(json, where);
@@ -440,7 +455,9 @@ RtCoreConfig RtCoreConfig::loadFile(const std::filesystem::path& path) {
 
 void RtCoreConfig::applyJson(const nlohmann::json& json, const std::string& where) {
     if (!json.is_object()) throw InputError(where, "RT-core configuration must be a JSON object of sections");
-    for (const auto& [section, fields] : json.items()) {
+    for (const auto& item : json.items()) {
+        const std::string section = item.key();  // a named variable: lambdas below capture it
+        const nlohmann::json& fields = item.value();
         // A file's documentation: its description and each number's source.
         if (section == "description") {
             if (!fields.is_string()) fail(where, section, "must be a string");

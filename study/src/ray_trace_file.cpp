@@ -88,6 +88,9 @@ void RayTraceWriter::write(const void* data, std::size_t bytes) {
 void RayTraceWriter::append(const tracer::TraceArgs& args, std::uint32_t depth, const tracer::RayDesc* rays,
                             const bool* active, const tracer::CommittedHit* hits, std::size_t count,
                             const BatchLaunch& launch) {
+    if (count > kMaxBatchLanes)
+        throw std::invalid_argument("RayTraceWriter::append: a call of " + std::to_string(count) +
+                                    " lanes, more than the format's " + std::to_string(kMaxBatchLanes));
     scratch_.clear();
     for (std::size_t i = 0; i < count; ++i) {
         if (!active[i]) continue;
@@ -244,6 +247,9 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
         if (record->tag != kBatchTag) throw InputError(where, "corrupt: " + batchName + " has no batch tag");
         if (record->rays > record->lanes)
             throw InputError(where, "corrupt: " + batchName + " has more rays than lanes");
+        if (record->lanes > kMaxBatchLanes)
+            throw InputError(where, "corrupt: " + batchName + " has " + std::to_string(record->lanes) +
+                                        " lanes, more than the format's " + std::to_string(kMaxBatchLanes));
         offset += sizeof(BatchRecord);
         if (offset + std::uint64_t(record->rays) * sizeof(RayRecord) > h.bodyBytes)
             throw InputError(where, "corrupt: " + batchName + " runs past the end");

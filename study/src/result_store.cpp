@@ -26,7 +26,7 @@ json readJsonFile(const fs::path& path) {
     if (!in) throw InputError(path.string(), "cannot open");
     try {
         return json::parse(in);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for numbers like 1e999
         throw InputError(path.string(), std::string("not valid JSON: ") + e.what());
     }
 }

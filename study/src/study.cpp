@@ -1,12 +1,14 @@
 #include <rtlab/study/study.hpp>
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/core/json_nesting.hpp>
 #include <rtlab/study/metrics.hpp>
 
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 
 namespace rtlab::study {
@@ -261,6 +263,19 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
             study.list.push_back(parseOverrideObject(l[i], where, path));
         }
     }
+    // Step: the number of points, capped before anything is expanded.
+    std::uint64_t sets = study.grid.empty() ? 0 : 1;
+    for (const auto& [key, values] : study.grid)
+        sets = std::min<std::uint64_t>(sets * values.size(), kMaxStudyPoints + 1);
+    sets += study.list.size();
+    const std::uint64_t points = std::max<std::uint64_t>(sets, 1) * study.workloads.size();
+    if (points > kMaxStudyPoints)
+        throw InputError(where,
+                         "the study has " +
+                             (sets > kMaxStudyPoints ? std::string("more than ") + std::to_string(kMaxStudyPoints)
+                                                     : std::to_string(points)) +
+                             " points (workloads x override sets); at most " + std::to_string(kMaxStudyPoints) +
+                             " (split it into several studies)");
     const bool overrides =
         !study.base.empty() || !study.grid.empty() || !study.list.empty() || !study.render.rtcoreConfig.empty();
     if (overrides && study.render.backend != "rtcore")
@@ -277,12 +292,15 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
 
 Study loadStudy(const std::filesystem::path& path) {
     const std::string where = path.string();
-    std::ifstream in(path);
+    std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(where, "cannot open study file");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (jsonNestingDepth(text) > kMaxJsonNesting)
+        throw InputError(where, "JSON nested deeper than " + std::to_string(kMaxJsonNesting) + " levels");
     json j;
     try {
-        j = json::parse(in);
-    } catch (const json::parse_error& e) {
+        j = json::parse(text);
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for numbers like 1e999
         throw InputError(where, std::string("not valid JSON: ") + e.what());
     }
     return parseStudy(j, where);

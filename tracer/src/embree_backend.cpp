@@ -233,7 +233,8 @@ bool setEmbreePacket(TraversalContext& ctx, const RayDesc* rays, const bool* act
     using VF = simd::vfloat<4>;
     using VI = simd::vint<4>;
     const VF zero = simd::splat<4>(0.f), inf = simd::splat<4>(kInfinity);
-    auto finite = [&](const VF& v) { return (v - v) == zero; };  // false for inf and NaN
+    const VF large = simd::splat<4>(kLargestRayCoordinate);
+    auto finite = [&](const VF& v) { return (v <= large) & (v >= -large); };  // isValidRay: false for inf and NaN
     std::uint32_t any = 0;
     for (int first = 0; first < kMaxLanes; first += 4) {
         auto at = [&](float* a) { return simd::loadu<4>(a + first); };

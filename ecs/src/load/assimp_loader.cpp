@@ -5,8 +5,9 @@
 // colour and texture, opacity, shininess, emission, refraction index).
 // Anything the importer rejects is an InputError naming the file.
 #include <rtlab/core/error.hpp>
-#include <rtlab/core/process.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
+
+#include "reader_check.hpp"
 
 #include <assimp/Importer.hpp>
 #include <assimp/material.h>
@@ -16,15 +17,8 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <chrono>
-#include <csignal>
 #include <cstring>
 #include <iostream>
-#include <fcntl.h>
-#include <poll.h>
-#include <sys/prctl.h>
-#include <sys/wait.h>
-#include <unistd.h>
 #include <cctype>
 #include <fstream>
 #include <sstream>
@@ -176,106 +170,11 @@ const aiScene* importChecked(Assimp::Importer& importer, const std::filesystem::
     return scene;
 }
 
-std::vector<std::string>& checkCommand() {
-    static std::vector<std::string> command;
-    return command;
-}
-
-// assimp itself crashes or hangs on some corrupt files (a double free in its
-// FBX parser on a damaged ascii FBX; an endless loop on a PLY cut inside its
-// header; `assimp info` does the same), so the import is first tried in a
-// separate process (setAssimpCheckCommand; rtlab's own `rtlab
-// __check-assimp`): a crash or a hang there is an InputError here, and this
-// process imports only a file the check read. A fresh process, not a fork:
-// forking this multi-threaded process deadlocked the child under ASan. Costs
-// one more parse and a process start (measured in docs/scene-format.md). The
-// check's time limit: 30 s + 2 s per MB.
-void tryImportInChild(const std::filesystem::path& path, const std::string& where) {
-    if (checkCommand().empty()) return;  // no check command: import directly
-    int fds[2];
-    if (pipe2(fds, O_CLOEXEC) != 0) return;
-    std::vector<std::string> args = checkCommand();
-    args.push_back(std::to_string(getpid()));
-    args.push_back(path.string());
-    const pid_t pid = spawnProcess(args, fds[1]);
-    close(fds[1]);
-    if (pid < 0) {
-        close(fds[0]);
-        return;  // the check cannot start: import directly
-    }
-    std::error_code ec;
-    const double megabytes = double(std::filesystem::file_size(path, ec)) / 1048576.0;
-    const double limit = 30.0 + 2.0 * (ec ? 0.0 : megabytes);
-    std::string message;
-    const auto started = std::chrono::steady_clock::now();
-    int status = 0;
-    bool exited = false;
-    for (;;) {
-        pollfd p{fds[0], POLLIN, 0};
-        if (poll(&p, 1, 20) > 0) {
-            char buffer[4096];
-            const ssize_t n = read(fds[0], buffer, sizeof buffer);
-            if (n > 0 && message.size() < 65536) message.append(buffer, std::size_t(n));
-        }
-        const pid_t done = waitpid(pid, &status, WNOHANG);
-        if (done == pid) {
-            exited = true;
-            break;
-        }
-        if (done < 0 && errno != EINTR) {  // not ours to wait for (SIGCHLD ignored): import directly
-            close(fds[0]);
-            return;
-        }
-        if (std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count() > limit) {
-            kill(pid, SIGKILL);
-            status = waitForProcess(pid);
-            break;
-        }
-    }
-    for (char buffer[4096];;) {  // what is left in the pipe
-        const ssize_t n = read(fds[0], buffer, sizeof buffer);
-        if (n <= 0 || message.size() >= 65536) break;
-        message.append(buffer, std::size_t(n));
-    }
-    close(fds[0]);
-    if (!exited) {
-        char text[64];
-        std::snprintf(text, sizeof text, "%.0f", limit);
-        throw InputError(where, std::string("assimp did not finish reading it within ") + text +
-                                    " s (it hangs on some corrupt files)");
-    }
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return;
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 2) {
-        // The check's one line, "rtlab: FILE: problem": the problem after the file.
-        std::string line = message.substr(0, message.find('\n'));
-        const std::size_t at = line.find(where + ": ");
-        if (at != std::string::npos) throw InputError(where, line.substr(at + where.size() + 2));
-        throw InputError(where, line.empty() ? "unreadable" : line);
-    }
-    const std::string how =
-        WIFSIGNALED(status) ? std::string(strsignal(WTERMSIG(status))) : "exit " + std::to_string(WEXITSTATUS(status));
-    throw InputError(where, "assimp crashed reading it (" + how +
-                                "): the file is corrupt (rtlab reads such files in a separate process first)");
-}
-
 }  // namespace
 
-void setAssimpCheckCommand(std::vector<std::string> command) { checkCommand() = std::move(command); }
-
-int runAssimpCheck(const std::string& parentPid, const std::filesystem::path& path) {
-    // Dies with the process that asked (a hang must not outlive it); glibc's
-    // abort message goes to stderr (the asker's pipe), not the terminal.
-    prctl(PR_SET_PDEATHSIG, SIGKILL);
-    if (std::to_string(getppid()) != parentPid) return 3;
-    setenv("LIBC_FATAL_STDERR_", "1", 1);
-    try {
-        Assimp::Importer importer;
-        importChecked(importer, path, path.string());
-    } catch (const InputError& e) {
-        std::fprintf(stderr, "rtlab: %s\n", e.what());
-        return 2;
-    }
-    return 0;
+void readWithAssimpForCheck(const std::filesystem::path& path) {
+    Assimp::Importer importer;
+    importChecked(importer, path, path.string());
 }
 
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent) {
@@ -284,7 +183,7 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     std::transform(extension.begin(), extension.end(), extension.begin(),
                    [](unsigned char c) { return std::tolower(c); });
     if (extension == ".ply") checkPlyCounts(path, where);
-    tryImportInChild(path, where);
+    checkInSeparateProcess("assimp", "assimp", path, "", where);
     Assimp::Importer importer;
     const aiScene* scene = importChecked(importer, path, where);
     std::vector<std::string> warnings;

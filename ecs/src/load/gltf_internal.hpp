@@ -26,7 +26,6 @@ namespace rtlab::ecs::load::gltf {
 namespace tg = tinygltf;
 
 // Limits that keep malformed input from exhausting the stack or memory.
-constexpr std::size_t kMaxJsonDepth = 128;                      // glTF itself nests < 10 deep
 constexpr std::uint64_t kMaxJsonInteger = 0x7fffffffu;          // tinygltf stores indices in int
 constexpr std::size_t kMaxUnbackedAccessorElements = 1u << 24;  // accessors without bufferView are zeros
 constexpr float kInfiniteFar = 1e30f;                           // zfar for glTF's infinite projection

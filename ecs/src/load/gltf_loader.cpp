@@ -73,6 +73,7 @@
 #include <cstdint>
 #include <exception>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <system_error>
 #include <utility>
@@ -126,6 +127,57 @@ void decodeMeshoptViews(tg::Model& model, const Prechecked& pre, const Fail& fai
     }
 }
 
+// Images decoded for tinygltf (its image loader): as RGBA8 through
+// decodeTexture, so each is capped at kMaxTexturePixels before decoding, and
+// all of a file's images together at kMaxGltfTexturePixels (a file may name
+// one big external image many times).
+constexpr std::uint64_t kMaxGltfTexturePixels = std::uint64_t(1) << 28;
+struct ImageBudget {
+    std::uint64_t pixels = 0;
+};
+
+bool decodeImage(tg::Image* image, const int index, std::string* err, std::string*, int, int,
+                 const unsigned char* bytes, int size, void* user) {
+    auto& budget = *static_cast<ImageBudget*>(user);
+    std::optional<Texture> t;
+    try {
+        t = decodeTexture(bytes, size < 0 ? 0 : std::size_t(size), cat("images[", index, "]"));
+    } catch (const InputError& e) {
+        if (err) *err += std::string(e.what()) + "\n";
+        return false;
+    }
+    if (!t) {
+        if (err) *err += cat("images[", index, "]: not an image stb_image decodes\n");
+        return false;
+    }
+    budget.pixels += std::uint64_t(t->width) * std::uint64_t(t->height);
+    if (budget.pixels > kMaxGltfTexturePixels) {
+        if (err)
+            *err += cat("images[", index, "]: the file's images have more than ", kMaxGltfTexturePixels,
+                        " pixels in all\n");
+        return false;
+    }
+    image->width = t->width;
+    image->height = t->height;
+    image->component = 4;
+    image->bits = 8;
+    image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+    image->image = std::move(t->rgba8);
+    return true;
+}
+
+// External files (buffers, images): regular files of at most
+// kMaxSideFileBytes only (a uri naming /dev/zero or a pipe would read forever).
+bool readSideFile(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+    std::optional<std::vector<unsigned char>> bytes = readRegularFile(path);
+    if (!bytes) {
+        if (err) *err += "cannot read '" + path + "' (missing, not a regular file, or over 2 GiB)\n";
+        return false;
+    }
+    *out = std::move(*bytes);
+    return true;
+}
+
 }  // namespace
 }  // namespace gltf
 
@@ -146,6 +198,10 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
     tg::Model model;
     {
         tg::TinyGLTF loader;
+        ImageBudget budget;
+        loader.SetImageLoader(decodeImage, &budget);
+        loader.SetFsCallbacks(
+            tg::FsCallbacks{&tg::FileExists, &tg::ExpandFilePath, &readSideFile, &tg::WriteWholeFile, nullptr});
         std::string err, warn;
         bool ok = false;
         const std::string& text = pre.rewrittenJson;

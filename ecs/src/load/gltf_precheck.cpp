@@ -3,6 +3,8 @@
 // tinygltf parse EXT_meshopt_compression fallback buffers and Draco-only indices.
 #include "gltf_internal.hpp"
 
+#include <rtlab/core/json_nesting.hpp>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -321,25 +323,6 @@ bool isSupportedExtension(const std::string& name) {
 
 // Deepest nesting of objects/arrays, by a linear scan that skips strings.
 // (nlohmann's callback parser would do this too, but quadratically on big arrays.)
-std::size_t jsonNestingDepth(std::string_view text) {
-    std::size_t depth = 0, deepest = 0;
-    bool inString = false, escaped = false;
-    for (const char c : text) {
-        if (inString) {
-            if (escaped) escaped = false;
-            else if (c == '\\') escaped = true;
-            else if (c == '"') inString = false;
-        } else if (c == '"') {
-            inString = true;
-        } else if (c == '{' || c == '[') {
-            deepest = std::max(deepest, ++depth);
-        } else if ((c == '}' || c == ']') && depth > 0) {
-            --depth;
-        }
-    }
-    return deepest;
-}
-
 void precheckDraco(Json& doc, Prechecked& out) {
     if (!doc.contains("meshes")) return;
     const Json empty = Json::array();
@@ -470,7 +453,7 @@ std::string withJson(const std::filesystem::path& path, bool binary, const std::
 Prechecked precheckJson(const std::filesystem::path& path, bool binary, const Fail& fail) {
     const std::string text = readJsonText(path, binary, fail);
     // Before parsing: tinygltf converts extras/extensions recursively.
-    if (jsonNestingDepth(text) > kMaxJsonDepth) fail(cat("JSON nested deeper than ", kMaxJsonDepth, " levels"));
+    if (jsonNestingDepth(text) > kMaxJsonNesting) fail(cat("JSON nested deeper than ", kMaxJsonNesting, " levels"));
     Json doc;
     try {
         doc = Json::parse(text);

@@ -19,6 +19,8 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <filesystem>
+#include <functional>
 #include <unordered_map>
 
 namespace rtlab::ecs::load {
@@ -116,6 +118,25 @@ void triangulate(const std::vector<vec3>& p, std::vector<std::uint32_t>& out) {
     for (std::uint32_t i = 1; i + 1 < n; ++i) out.insert(out.end(), {0u, i, i + 1});
 }
 
+// The most corners a face rtlab triangulates itself may have: tinyobjloader
+// keeps a face's corner count in a byte (a 300-corner face would silently
+// become 44 corners and shift every face after it), and ear clipping costs up
+// to 2 n^3 steps. A file with a bigger face is triangulated by tinyobjloader.
+constexpr int kMaxFaceCorners = 255;
+
+// A face corner's (v, vn + 1, vt + 1), every index whole (a packing into one
+// 64-bit word once merged corners of files with millions of vertices).
+struct CornerKey {
+    std::uint64_t vertexAndNormal;
+    std::uint32_t texcoord;
+    bool operator==(const CornerKey&) const = default;
+};
+struct CornerKeyHash {
+    std::size_t operator()(const CornerKey& k) const {
+        return std::hash<std::uint64_t>{}(k.vertexAndNormal * 0x9e3779b97f4a7c15ull ^ k.texcoord);
+    }
+};
+
 }  // namespace
 
 std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Entity parent) {
@@ -123,6 +144,7 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
     // Step: parse (tinyobjloader), the .mtl beside the file; polygons kept whole.
     tinyobj::ObjReaderConfig config;
     config.triangulate = false;
+    std::string bigFace;  // the first face of more than kMaxFaceCorners, if any
     config.vertex_color = false;
     config.mtl_search_path = path.parent_path().string();
     {
@@ -138,6 +160,18 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
         std::string line;
         for (std::size_t number = 1; std::getline(f, line); ++number) {
             std::size_t at = line.find_first_not_of(" \t");
+            if (at != std::string::npos && line.compare(at, 7, "mtllib ") == 0) {
+                // tinyobjloader reads what it names to the end: never a device or a pipe.
+                std::istringstream names(line.substr(at + 7));
+                std::error_code ec;
+                for (std::string name; names >> name;) {
+                    const std::filesystem::path mtl = path.parent_path() / name;
+                    if (std::filesystem::exists(mtl, ec) && !std::filesystem::is_regular_file(mtl, ec))
+                        throw InputError(
+                            where, "line " + std::to_string(number) + ": mtllib '" + name + "' is not a regular file");
+                }
+                continue;
+            }
             if (at == std::string::npos || line[at] != 'f' ||
                 (at + 1 < line.size() && !std::isspace(static_cast<unsigned char>(line[at + 1]))))
                 continue;
@@ -148,11 +182,18 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
             if (count < 3)
                 throw InputError(where, "line " + std::to_string(number) + ": a face of " + std::to_string(count) +
                                             " corner(s) (at least 3)");
+            if (count > kMaxFaceCorners && !config.triangulate) {
+                config.triangulate = true;  // every face, by tinyobjloader
+                bigFace = "line " + std::to_string(number) + ": a face of " + std::to_string(count) + " corners";
+            }
         }
     }
     tinyobj::ObjReader reader;
     if (!reader.ParseFromFile(path.string(), config)) throw InputError(where, firstLine(reader.Error()));
     std::vector<std::string> warnings;
+    if (config.triangulate)
+        warnings.push_back(where + ": " + bigFace + ": more than " + std::to_string(kMaxFaceCorners) +
+                           ", so every face is triangulated by tinyobjloader, not by rtlab's ear clipping");
     {
         std::istringstream lines(reader.Warning());
         std::string line;
@@ -219,7 +260,7 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
         MeshAsset asset;
         asset.name = shape.name.empty() ? "object " + std::to_string(meshes.size()) : shape.name;
         struct Build {
-            std::unordered_map<std::uint64_t, std::uint32_t> vertexOf;  // (v, vn, vt) -> vertex
+            std::unordered_map<CornerKey, std::uint32_t, CornerKeyHash> vertexOf;  // (v, vn, vt) -> vertex
             bool allNormals = true, allUvs = true;
         };
         std::vector<Build> builds;
@@ -252,9 +293,9 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
                     throw InputError(where, "a face refers to a normal that does not exist");
                 if (ix.texcoord_index >= 0 && std::size_t(ix.texcoord_index) >= uvCount)
                     throw InputError(where, "a face refers to a texture coordinate that does not exist");
-                const std::uint64_t key = (std::uint64_t(std::uint32_t(ix.vertex_index)) << 42) ^
-                                          (std::uint64_t(std::uint32_t(ix.normal_index + 1)) << 21) ^
-                                          std::uint64_t(std::uint32_t(ix.texcoord_index + 1));
+                const CornerKey key{
+                    (std::uint64_t(std::uint32_t(ix.vertex_index)) << 32) | std::uint32_t(ix.normal_index + 1),
+                    std::uint32_t(ix.texcoord_index + 1)};
                 auto [v, fresh] = b.vertexOf.try_emplace(key, static_cast<std::uint32_t>(g.positions.size()));
                 if (fresh) {
                     const float* p = &attrib.vertices[3 * std::size_t(ix.vertex_index)];
@@ -286,6 +327,9 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
             triangulate(polygon, triangles);
             for (const std::uint32_t t : triangles) g.indices.push_back(polygonVertices[t]);
         }
+        if (corner != mesh.indices.size())  // the face counts and the corners disagree
+            throw InputError(where, asset.name + ": its faces have " + std::to_string(corner) +
+                                        " corners, the parser read " + std::to_string(mesh.indices.size()));
         for (std::size_t i = 0; i < asset.geometries.size(); ++i) {
             Geometry& g = asset.geometries[i];
             bool usable = builds[i].allNormals;

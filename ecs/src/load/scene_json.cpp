@@ -8,6 +8,7 @@
 // file and the key path ("lights[1].intensity: must be >= 0"); errors of the
 // referenced files come from their loaders and name those files.
 #include <rtlab/core/error.hpp>
+#include <rtlab/core/json_nesting.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 
 #include <nlohmann/json.hpp>
@@ -248,6 +249,7 @@ std::string readFile(const fs::path& path) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw InputError(path.string(), "no such file");
     if (fs::is_directory(path, ec)) throw InputError(path.string(), "is a directory, not a scene file");
+    if (!fs::is_regular_file(path, ec)) throw InputError(path.string(), "not a regular file");
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path.string(), "cannot open for reading");
     std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -263,6 +265,11 @@ std::string stripNlohmannPrefix(const std::string& what) {
     }
     return what;
 }
+
+// Bounds on what a short file can ask for: models loaded and volumes built
+// (a procedural fog of 2^25 voxels takes seconds, from a line of text).
+constexpr std::size_t kMaxGltfEntries = 1024;
+constexpr std::size_t kMaxVolumeEntries = 16;
 
 // Parses the text; duplicate keys (which nlohmann would silently collapse)
 // are errors, reported with their key path.
@@ -517,10 +524,16 @@ SceneDesc parseScene(const Parser& p, const json& doc) {
         s.settings.backgroundRadiance = p.nonNegative(p.vec3Of(doc["background"], "background"), "background");
     if (doc.contains("gltf")) {
         const json& a = p.expectArray(doc["gltf"], "gltf");
+        if (a.size() > kMaxGltfEntries)
+            p.fail("gltf", "more than " + std::to_string(kMaxGltfEntries) +
+                               " models (each is loaded: a short entry can cost seconds)");
         for (std::size_t i = 0; i < a.size(); ++i) s.gltfs.push_back(parseGltf(p, a[i], joinIndex("gltf", i)));
     }
     if (doc.contains("volumes")) {
         const json& a = p.expectArray(doc["volumes"], "volumes");
+        if (a.size() > kMaxVolumeEntries)
+            p.fail("volumes", "more than " + std::to_string(kMaxVolumeEntries) +
+                                  " volumes (each is built or read: a short entry can cost seconds)");
         for (std::size_t i = 0; i < a.size(); ++i)
             s.volumes.push_back(parseVolume(p, a[i], joinIndex("volumes", i), i));
     }
@@ -612,6 +625,8 @@ void build(World& world, const Parser& p, const SceneDesc& s) {
 void loadSceneJson(World& world, const std::filesystem::path& path) {
     const Parser parser(path);
     const std::string text = readFile(path);
+    if (jsonNestingDepth(text) > kMaxJsonNesting)
+        throw InputError(path.string(), "JSON nested deeper than " + std::to_string(kMaxJsonNesting) + " levels");
     const json doc = parseDocument(text, parser);
     SceneDesc scene;
     try {

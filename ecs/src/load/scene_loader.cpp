@@ -32,6 +32,8 @@ void loadScene(World& world, const std::string& source) {
         std::error_code ec;
         if (!std::filesystem::exists(path, ec)) throw InputError(source, "no such file");
         if (std::filesystem::is_directory(path, ec)) throw InputError(source, "is a directory, not a scene file");
+        if (!std::filesystem::is_regular_file(path, ec))  // a device or a pipe would be read forever
+            throw InputError(source, "not a regular file");
         const std::string ext = lowercaseExtension(path);
         if (ext == ".gltf" || ext == ".glb") loadGltf(world, path);
         else if (ext == ".obj") loadObj(world, path);
@@ -83,9 +85,13 @@ std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& tex
 
 std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name) {
     int w = 0, h = 0, channels = 0;
-    stbi_uc* pixels = size == 0 || size > std::size_t(std::numeric_limits<int>::max())
-                          ? nullptr
-                          : stbi_load_from_memory(bytes, static_cast<int>(size), &w, &h, &channels, 4);
+    if (size == 0 || size > std::size_t(std::numeric_limits<int>::max())) return std::nullopt;
+    if (!stbi_info_from_memory(bytes, static_cast<int>(size), &w, &h, &channels)) return std::nullopt;
+    if (w <= 0 || h <= 0) return std::nullopt;
+    if (std::uint64_t(w) * std::uint64_t(h) > kMaxTexturePixels)
+        throw InputError(name, "image of " + std::to_string(w) + " x " + std::to_string(h) + " pixels, more than the " +
+                                   std::to_string(kMaxTexturePixels) + " a texture may have");
+    stbi_uc* pixels = stbi_load_from_memory(bytes, static_cast<int>(size), &w, &h, &channels, 4);
     if (!pixels) return std::nullopt;
     Texture t;
     t.name = name;
@@ -101,11 +107,24 @@ std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::s
     const std::filesystem::path asWritten = dir / written;
     const std::filesystem::path beside = dir / std::filesystem::path(written).filename();
     for (const std::filesystem::path& path : {asWritten, beside}) {
-        std::ifstream f(path, std::ios::binary);
-        const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-        if (std::optional<Texture> t = decodeTexture(bytes.data(), bytes.size(), path.filename().string())) return t;
+        const std::optional<std::vector<unsigned char>> bytes = readRegularFile(path);
+        if (!bytes) continue;
+        if (std::optional<Texture> t = decodeTexture(bytes->data(), bytes->size(), path.filename().string())) return t;
     }
     return std::nullopt;
+}
+
+std::optional<std::vector<unsigned char>> readRegularFile(const std::filesystem::path& path, std::uint64_t maxBytes) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec)) return std::nullopt;  // follows links: /dev/zero is not regular
+    const std::uint64_t size = std::filesystem::file_size(path, ec);
+    if (ec || size > maxBytes) return std::nullopt;
+    std::ifstream f(path, std::ios::binary);
+    if (!f) return std::nullopt;
+    std::vector<unsigned char> bytes(size);
+    f.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size));
+    if (static_cast<std::uint64_t>(f.gcount()) != size) return std::nullopt;
+    return bytes;
 }
 
 bool hasTransparentTexel(const Texture& t) {

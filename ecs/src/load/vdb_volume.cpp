@@ -18,6 +18,8 @@
 #include <rtlab/core/rng.hpp>
 #include <rtlab/ecs/volume_grid.hpp>
 
+#include "reader_check.hpp"
+
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
@@ -333,7 +335,19 @@ std::shared_ptr<VolumeGrid> VolumeGrid::loadVdb(const std::filesystem::path& pat
     const std::string where = path.string();
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) throw InputError(where, "cannot open: no such file");
-    if (std::filesystem::is_directory(path, ec)) throw InputError(where, "cannot open: is a directory");
+    if (!std::filesystem::is_regular_file(path, ec)) throw InputError(where, "cannot open: not a regular file");
+    // OpenVDB crashes on some corrupt blocks and leaks the trees of failed
+    // reads: the file is read in a separate process first (reader_check.hpp).
+    load::checkInSeparateProcess("vdb", "OpenVDB", path, gridName, where);
+    return loadVdbInThisProcess(path, gridName);
+}
+
+std::shared_ptr<VolumeGrid> VolumeGrid::loadVdbInThisProcess(const std::filesystem::path& path,
+                                                             const std::string& gridName) {
+    const std::string where = path.string();
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw InputError(where, "cannot open: no such file");
+    if (!std::filesystem::is_regular_file(path, ec)) throw InputError(where, "cannot open: not a regular file");
 
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(where, "cannot open: " + std::string(std::strerror(errno)));
@@ -438,6 +452,12 @@ std::shared_ptr<VolumeGrid> VolumeGrid::loadVdb(const std::filesystem::path& pat
     impl->grid = std::move(grid);
     return std::shared_ptr<VolumeGrid>(new VolumeGrid(std::move(impl)));
 }
+
+namespace load {
+void readVdbForCheck(const std::filesystem::path& path, const std::string& gridName) {
+    VolumeGrid::loadVdbInThisProcess(path, gridName);
+}
+}  // namespace load
 
 const std::string& VolumeGrid::name() const { return impl_->name; }
 Aabb VolumeGrid::worldBounds() const { return impl_->bounds; }

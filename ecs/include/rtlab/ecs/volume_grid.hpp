@@ -22,7 +22,13 @@ public:
                                                          std::uint32_t seed);
     // Loads the float grid `gridName` ("" = the first float grid) of a .vdb
     // file. Throws InputError naming the file on any problem.
+    // OpenVDB crashes on some corrupt files: where a check command is set
+    // (load::setReaderCheckCommand; rtlab sets one) the file is read in a
+    // separate process first, and a crash there is an InputError here.
     static std::shared_ptr<VolumeGrid> loadVdb(const std::filesystem::path& path, const std::string& gridName = "");
+    // The same without the separate process (what that process runs).
+    static std::shared_ptr<VolumeGrid> loadVdbInThisProcess(const std::filesystem::path& path,
+                                                            const std::string& gridName = "");
 
     const std::string& name() const;
     Aabb worldBounds() const;  // bounds of the active voxels, world space

@@ -353,6 +353,9 @@ private:
 // installed to share/rtlab/rtcore-presets): each number's source is in the
 // file's "sources".
 inline constexpr const char* kDefaultRtCorePreset = "rtx2060-like";
+// The most cache lines a configuration may model in all (validate): 2^24,
+// about 0.5 GB of cache state; h100-like models about 0.7 million.
+inline constexpr std::uint64_t kMaxModelCacheLines = std::uint64_t(1) << 24;
 std::vector<std::string> rtcorePresetNames();
 // The preset's JSON text; nullptr when there is no preset of that name.
 const char* rtcorePresetText(const std::string& name);

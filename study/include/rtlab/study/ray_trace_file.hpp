@@ -36,6 +36,10 @@ inline constexpr char kRayTraceMagic[8] = {'R', 'T', 'L', 'A', 'B', 'R', 'A', 'Y
 inline constexpr std::uint32_t kRayTraceVersion = 2;
 inline constexpr std::uint32_t kRayTraceOldestVersion = 1;
 inline constexpr std::uint32_t kBatchTag = 0x48435442u;  // "BTCH"
+// The most lanes one trace call may have (the pipeline's calls have at most
+// 256, a tile): replay allocates per lane, so a reader cap keeps a 32-byte
+// batch from asking for gigabytes.
+inline constexpr std::uint32_t kMaxBatchLanes = 65536;
 
 enum class RecordedBackend : std::uint32_t { Embree = 0, RtCore = 1 };
 

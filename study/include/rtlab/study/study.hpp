@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <utility>
@@ -63,6 +64,11 @@ struct Override {
     std::string assignment() const { return key + "=" + valueText(); }
 };
 using OverrideSet = std::vector<Override>;
+
+// The most points a study may have (workloads x override sets): a bound on
+// what a small file can ask for (each point is a render), checked before the
+// points are expanded.
+inline constexpr std::uint64_t kMaxStudyPoints = 100000;
 
 struct Study {
     std::vector<Workload> workloads;

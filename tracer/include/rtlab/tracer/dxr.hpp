@@ -4,6 +4,7 @@
 #include <rtlab/core/math.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <stdexcept>
 
@@ -45,10 +46,21 @@ struct RayDesc {
     float tMax = kInfinity;
 };
 
+// The largest origin or direction coordinate a ray may have: Embree's
+// FLT_LARGE (it asserts, or traverses garbage, beyond it). No float ray
+// tracer can place a hit that far out anyway.
+inline constexpr float kLargestRayCoordinate = 1.844e18f;
+
 // DXR leaves rays with a non-finite origin or direction, a negative or NaN
-// TMin, or TMax < TMin undefined; every rtlab back end counts them as misses.
+// TMin, or TMax < TMin undefined; every rtlab back end counts them as
+// misses, and so rays with a coordinate beyond kLargestRayCoordinate (a
+// replayed file or a scene at absurd coordinates can hold such rays).
 inline bool isValidRay(const RayDesc& r) {
-    return isFinite(r.origin) && isFinite(r.direction) && r.tMin >= 0.f && r.tMax >= r.tMin;
+    const auto inRange = [](const vec3& v) {
+        return std::fabs(v.x) <= kLargestRayCoordinate && std::fabs(v.y) <= kLargestRayCoordinate &&
+               std::fabs(v.z) <= kLargestRayCoordinate;  // false for NaN and infinity
+    };
+    return inRange(r.origin) && inRange(r.direction) && r.tMin >= 0.f && r.tMax >= r.tMin;
 }
 
 // Hit attributes: barycentrics for triangles (u = weight of vertex 1,

@@ -36,15 +36,18 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
 // warning), normals computed where missing, UV0, materials and their diffuse
 // textures. Returns the root entities (parented to `parent` when it is valid).
 std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
-// The command that checks a file with assimp in a separate process before
-// loadWithAssimp reads it (a crash or hang of assimp there is an InputError
-// here): COMMAND... PARENT_PID FILE, which must exit 0 when assimp reads the
-// file, 2 with one line "rtlab: FILE: problem" on stderr when it is bad
-// (runAssimpCheck does exactly this). rtlab sets {"/proc/self/exe",
-// "__check-assimp"}; empty (the default for other programs): no check.
-void setAssimpCheckCommand(std::vector<std::string> command);
-// The check itself, in the checking process: returns its exit code.
-int runAssimpCheck(const std::string& parentPid, const std::filesystem::path& path);
+// Files read by libraries that crash or hang on some corrupt input (assimp:
+// PLY, FBX; OpenVDB: .vdb) are first read by a separate process, a crash or a
+// hang there being an InputError here (docs/reliability.md): COMMAND... KIND
+// PARENT_PID FILE [ARGUMENT] must read FILE as the loader would and exit 0,
+// or 2 with one line "rtlab: FILE: problem" on stderr when it is bad
+// (runReaderCheck does exactly this). rtlab sets {"/proc/self/exe",
+// "__check-file"}; empty (the default for other programs): no check.
+void setReaderCheckCommand(std::vector<std::string> command);
+// The check itself, in the checking process: KIND "assimp" or "vdb"
+// (ARGUMENT: the grid name); returns its exit code (3: not asked by PARENT_PID).
+int runReaderCheck(const std::string& kind, const std::string& parentPid, const std::filesystem::path& path,
+                   const std::string& argument);
 
 // Scene description JSON (docs/scene-format.md).
 void loadSceneJson(World& world, const std::filesystem::path& path);
@@ -74,9 +77,21 @@ std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& tex
                                         std::vector<Material>&& materials, std::uint32_t skippedLines,
                                         std::uint32_t skippedPoints, const std::vector<std::string>& warnings);
 
+// The most pixels one texture may have (2^26, e.g. 8192 x 8192: 256 MB as
+// RGBA8): a small compressed image can declare gigapixels.
+inline constexpr std::uint64_t kMaxTexturePixels = std::uint64_t(1) << 26;
+// The largest file a loader reads whole beside the scene file (textures,
+// external glTF buffers): 2 GiB.
+inline constexpr std::uint64_t kMaxSideFileBytes = std::uint64_t(2) << 30;
+
 // Compressed image bytes (anything stb_image reads) as an 8-bit RGBA texture;
-// nothing when they do not decode.
+// nothing when they do not decode. InputError naming `name` when the image
+// declares more than kMaxTexturePixels, checked before decoding.
 std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name);
+// A file read whole, when it is a regular file of at most maxBytes; nothing
+// otherwise (missing, a directory, a device such as /dev/zero, a pipe, too big).
+std::optional<std::vector<unsigned char>> readRegularFile(const std::filesystem::path& path,
+                                                          std::uint64_t maxBytes = kMaxSideFileBytes);
 // The texture a scene file names: `written` as in the file, relative to `dir`
 // (Windows separators accepted); when that is not there, its file name in
 // `dir` (an absolute path of the author's machine). Nothing when not found or

@@ -1,0 +1,173 @@
+// Resource limits on hostile input (docs/reliability.md, "Limits"): small
+// files that ask for endless reads, gigabytes or hours are refused through
+// the command line with exit 2 and one line, before anything big is
+// allocated; each case is a literal file written here.
+#include "cli_test_util.hpp"
+
+#include <rtlab/study/ray_trace_file.hpp>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace rtlab::test {
+namespace {
+
+void writeText(const fs::path& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
+
+// Exit 2, one line, containing `expected`.
+void expectRefused(const CliRun& r, const std::string& expected) {
+    EXPECT_EQ(r.exitCode, 2) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_NE(r.out.find(expected), std::string::npos) << r.out;
+}
+
+// A PNG's signature and IHDR chunk only: stb_image's info reads no further.
+std::string pngHeader(std::uint32_t width, std::uint32_t height) {
+    std::string s = "\x89PNG\r\n\x1a\n";
+    const auto be32 = [&](std::uint32_t v) {
+        for (int shift = 24; shift >= 0; shift -= 8) s += char((v >> shift) & 0xff);
+    };
+    be32(13);
+    s += "IHDR";
+    be32(width);
+    be32(height);
+    s += std::string("\x08\x06\x00\x00\x00", 5);  // 8-bit RGBA
+    be32(0);                                      // CRC (stb_image does not check it)
+    return s;
+}
+
+const std::string kQuadObj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n";
+
+TEST(CliInputLimits, DevicesAndPipesAreNeverRead) {
+    const fs::path dir = freshDir("limits_devices");
+    fs::create_directories(dir);
+    fs::create_symlink("/dev/zero", dir / "zero.json");
+    expectRefused(runCli("info --scene " + (dir / "zero.json").string()), "not a regular file");
+    fs::create_symlink("/dev/zero", dir / "zero.mtl");
+    writeText(dir / "mtllib.obj", "mtllib zero.mtl\n" + kQuadObj + "f 1 2 3\n");
+    expectRefused(runCli("info --scene " + (dir / "mtllib.obj").string()), "mtllib 'zero.mtl' is not a regular file");
+    // A texture that is a device is a missing texture: a warning, the scene loads.
+    fs::create_symlink("/dev/zero", dir / "zero.png");
+    writeText(dir / "textured.mtl", "newmtl m\nmap_Kd zero.png\n");
+    writeText(dir / "textured.obj", "mtllib textured.mtl\n" + kQuadObj + "usemtl m\nf 1/1 2/2 3/3\n");
+    const CliRun textured = runCli("info --scene " + (dir / "textured.obj").string());
+    EXPECT_EQ(textured.exitCode, 0) << textured.out;
+    EXPECT_NE(textured.out.find("textures: 0"), std::string::npos) << textured.out;
+    // A glTF buffer naming a device.
+    writeText(dir / "zero_buffer.gltf",
+              R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "zero.png", "byteLength": 64}]})");
+    expectRefused(runCli("info --scene " + (dir / "zero_buffer.gltf").string()), "zero_buffer.gltf");
+}
+
+TEST(CliInputLimits, ImagesDeclaringTooManyPixelsAreRefusedBeforeDecoding) {
+    const fs::path dir = freshDir("limits_png");
+    fs::create_directories(dir);
+    writeText(dir / "huge.png", pngHeader(10000, 10000));  // 1e8 pixels: 400 MB as RGBA8, from 33 bytes
+    writeText(dir / "huge.mtl", "newmtl m\nmap_Kd huge.png\n");
+    writeText(dir / "huge.obj", "mtllib huge.mtl\n" + kQuadObj + "usemtl m\nf 1/1 2/2 3/3\n");
+    expectRefused(runCli("info --scene " + (dir / "huge.obj").string()),
+                  "huge.png: image of 10000 x 10000 pixels, more than the 67108864 a texture may have");
+}
+
+TEST(CliInputLimits, DeepJsonAndHugeStudiesAndConfigurationsAreRefused) {
+    const fs::path dir = freshDir("limits_json");
+    fs::create_directories(dir);
+    writeText(dir / "deep.json", "{\"name\": " + std::string(5000, '[') + std::string(5000, ']') + "}");
+    expectRefused(runCli("info --scene " + (dir / "deep.json").string()), "JSON nested deeper than 128 levels");
+    // 10 keys of 10 values: 1e10 points, from a few hundred bytes.
+    std::string grid;
+    const char* keys[] = {"cache.hitLatency",
+                          "dram.latency",
+                          "memory.latency",
+                          "shader.anyHitLatency",
+                          "shader.intersectionLatency",
+                          "shader.nextTraceLatency",
+                          "transform.latency",
+                          "traversal.latency",
+                          "triangle.latency",
+                          "l2.hitLatency"};
+    for (int k = 0; k < 10; ++k) {
+        grid += std::string(k ? ", " : "") + "\"" + keys[k] + "\": [";
+        for (int v = 0; v < 10; ++v) grid += std::string(v ? ", " : "") + std::to_string(v + 1);
+        grid += "]";
+    }
+    writeText(dir / "huge_study.json",
+              R"({"workloads": ["builtin:cornell"], "render": {"backend": "rtcore"}, "grid": {)" + grid + "}}");
+    expectRefused(runCli("sweep " + (dir / "huge_study.json").string() + " --out " + (dir / "sweep").string()),
+                  "points (workloads x override sets); at most 100000");
+    writeText(dir / "huge_model.json",
+              R"({"gpu": {"cores": 256}, "cache": {"sizeBytes": 1073741824, "lineBytes": 64}})");
+    expectRefused(runCli("render --scene builtin:cornell --backend rtcore --width 4 --height 4 --rtcore-config " +
+                         (dir / "huge_model.json").string() + " --out " + (dir / "out").string()),
+                  "cache lines in all");
+}
+
+TEST(CliInputLimits, ExrWindowsBeyondTheFileSizeAreRefusedBeforeAllocating) {
+    const fs::path dir = freshDir("limits_exr");
+    ASSERT_EQ(
+        runCli("render --scene builtin:cornell --width 8 --height 8 --denoise none --out " + dir.string()).exitCode, 0);
+    std::ifstream in(dir / "frame_0000.exr", std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string attribute = std::string("dataWindow\0box2i\0", 17);
+    const std::size_t at = bytes.find(attribute);
+    ASSERT_NE(at, std::string::npos);
+    const std::int32_t window[4] = {0, 0, 99999, 7};  // 8e5 pixels of 36 channels (the same chunks), from 5 KB
+    std::memcpy(&bytes[at + attribute.size() + 4], window, sizeof window);
+    writeText(dir / "huge.exr", bytes);
+    expectRefused(runCli("compare " + (dir / "huge.exr").string() + " " + (dir / "frame_0000.exr").string()),
+                  "more than its");
+}
+
+TEST(CliInputLimits, RayTraceBatchesOfTooManyLanesAreRefused) {
+    const fs::path dir = freshDir("limits_rays");
+    ASSERT_EQ(runCli("render --scene builtin:cornell --width 8 --height 8 --effects gbuffer --denoise none "
+                     "--record-rays " +
+                     (dir / "rays").string() + " --out " + (dir / "out").string())
+                  .exitCode,
+              0);
+    std::ifstream in(dir / "rays" / "frame_0000.rays", std::ios::binary);
+    std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto* header = reinterpret_cast<study::RayTraceHeader*>(bytes.data());
+    auto* first = reinterpret_cast<study::BatchRecord*>(bytes.data() + sizeof(study::RayTraceHeader));
+    header->laneCount += 100000 - first->lanes;
+    first->lanes = 100000;
+    study::Fnv64 sum;
+    sum.add(bytes.data() + sizeof(study::RayTraceHeader), header->bodyBytes);
+    header->bodyChecksum = sum.value();
+    std::ofstream(dir / "lanes.rays", std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+    expectRefused(runCli("replay --scene builtin:cornell --rays " + (dir / "lanes.rays").string() + " --out " +
+                         (dir / "replay").string()),
+                  "has 100000 lanes, more than the format's 65536");
+}
+
+TEST(CliInputLimits, AnObjFaceOfMoreThan255CornersIsTriangulatedByTinyobjloader) {
+    // tinyobjloader counts a kept face's corners in a byte: 300 corners would become 44, every later face shifted.
+    const fs::path dir = freshDir("limits_polygon");
+    fs::create_directories(dir);
+    for (const int corners : {255, 300}) {
+        std::string obj, face = "f";
+        for (int i = 0; i < corners; ++i) {
+            const double a = 6.283185307179586 * i / corners;
+            obj += "v " + std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
+            face += " " + std::to_string(i + 1);
+        }
+        const fs::path file = dir / ("circle" + std::to_string(corners) + ".obj");
+        writeText(file, obj + face + "\nf 1 2 3\n");
+        const CliRun r = runCli("info --scene " + file.string());
+        ASSERT_EQ(r.exitCode, 0) << r.out;
+        // corners - 2 triangles, and the last face's one.
+        EXPECT_NE(r.out.find("triangles: " + std::to_string(corners - 1) + " unique"), std::string::npos) << r.out;
+        EXPECT_EQ(r.out.find("triangulated by tinyobjloader") != std::string::npos, corners > 255) << r.out;
+    }
+}
+
+}  // namespace
+}  // namespace rtlab::test
