@@ -2,8 +2,31 @@
 #include <rtlab/ecs/world.hpp>
 
 #include <algorithm>
+#include <cmath>
 
 namespace rtlab::ecs {
+
+namespace {
+
+// Largest absolute row sum of the linear part (how much it can stretch a vector).
+double gain(const glm::dmat3& m) {
+    double g = 0.0;
+    for (int row = 0; row < 3; ++row)
+        g = std::max(g, std::abs(double(m[0][row])) + std::abs(double(m[1][row])) + std::abs(double(m[2][row])));
+    return g;
+}
+
+// Finite, invertible, and scaling by at most kMaxInstanceScale either way.
+bool traceable(const mat4& worldFromObject) {
+    if (!isFinite(worldFromObject)) return false;
+    const glm::dmat3 linear(mat3{worldFromObject});  // in double: a float determinant of tiny scales underflows
+    if (!(std::abs(glm::determinant(linear)) > 0.0)) return false;
+    const glm::dmat3 inverse = glm::inverse(linear);
+    const double forward = gain(linear), backward = gain(inverse);
+    return std::isfinite(backward) && forward <= kMaxInstanceScale && backward <= kMaxInstanceScale;
+}
+
+}  // namespace
 
 SceneSnapshot makeSnapshot(const World& world, FrameUpdate update) {
     SceneSnapshot s;
@@ -12,8 +35,13 @@ SceneSnapshot makeSnapshot(const World& world, FrameUpdate update) {
     s.textures = &world.textures();
     world.each<MeshInstance>([&](Entity e, const MeshInstance& inst) {
         const std::uint32_t id = inst.instanceId == MeshInstance::kAutomatic ? e.index : inst.instanceId;
-        s.instances.push_back({e, inst.mesh, world.instanceWorldFromObject(e), inst.mask, inst.flags, id & 0xffffffu,
-                               inst.hitGroupOffset});
+        const mat4 worldFromObject = world.instanceWorldFromObject(e);
+        if (!traceable(worldFromObject)) {
+            ++s.untraceableInstances;
+            return;
+        }
+        s.instances.push_back(
+            {e, inst.mesh, worldFromObject, inst.mask, inst.flags, id & 0xffffffu, inst.hitGroupOffset});
     });
     // Stable order independent of component-store history.
     std::sort(s.instances.begin(), s.instances.end(),

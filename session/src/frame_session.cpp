@@ -146,6 +146,12 @@ const FrameState& FrameSession::advance() {
     next.plan = shaders::planFrame(next.scene, planOptions_);
     if (next.index == 0 && stages_ == Stages::Render)
         for (const std::string& note : next.plan.notes) std::cerr << "rtlab: note: " << note << "\n";
+    if (next.scene.untraceableInstances && !warnedUntraceable_) {
+        warnedUntraceable_ = true;
+        std::cerr << "rtlab: warning: frame " << next.index << ": " << next.scene.untraceableInstances
+                  << " mesh instance(s) not traced: a singular or non-finite transform (a zero scale), or one scaling "
+                     "by more than 1e12\n";
+    }
     if (rtcore_) {
         const Stopwatch clock;
         next.model = rtcore_->update(next.scene);

@@ -149,8 +149,10 @@ void checkReplayable(const RayTraceFile& file, std::uint64_t fingerprint, const 
                          "rtcore replays them; or record with --effects that leave out alpha");
 }
 
-ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel, tracer::TraversalBackend* backend,
-                        std::uint32_t rayTypeMask) {
+namespace {
+
+ReplayResult replayAll(const RayTraceFile& file, const tracer::AccelManager& accel, tracer::TraversalBackend* backend,
+                       std::uint32_t rayTypeMask) {
     const RayTraceInfo info = file.info();
     const NoShaderTable shaders(info.hitGroupCount);
     const tracer::TraceEngine engine(accel, shaders, info.rayTypeCount);
@@ -194,6 +196,18 @@ ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& ac
             if (r.examples.size() < kExamples) r.examples.push_back(d);
     }
     return r;
+}
+
+}  // namespace
+
+ReplayResult replayRays(const RayTraceFile& file, const tracer::AccelManager& accel, tracer::TraversalBackend* backend,
+                        std::uint32_t rayTypeMask) {
+    try {
+        return replayAll(file, accel, backend, rayTypeMask);
+    } catch (const tracer::PipelineError& e) {
+        // E.g. a hit whose hit-group record lies beyond the recorded table: the file's fault.
+        throw InputError("recorded rays", std::string(e.what()) + " (the recording does not match this scene)");
+    }
 }
 
 }  // namespace rtlab::study

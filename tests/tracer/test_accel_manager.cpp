@@ -89,6 +89,27 @@ TEST(AccelManager, MovedInstanceUpdatesTlasOnlyAndRaysSeeTheMove) {
     EXPECT_EQ(hitDistance(accel, vec3(0.f, 0.2f, 5.f), vec3(0.f, 0.f, -1.f)), -1.f);  // the old place is empty
 }
 
+TEST(AccelManager, InstanceScaledToZeroLeavesTheSnapshotAndComesBack) {
+    // A zero scale (glTF hides nodes so) has no inverse: Embree's object-space rays would be invalid.
+    Scene s;
+    tracer::AccelManager accel;
+    s.step(accel, 0.f);
+    const vec3 origin(0.f, 0.2f, 5.f), dir(0.f, 0.f, -1.f);
+    EXPECT_NEAR(hitDistance(accel, origin, dir), 9.5f, 1e-4f);
+    for (const vec3 scale : {vec3(1.f, 0.f, 1.f), vec3(1e-13f), vec3(std::nanf(""))}) {
+        s.world.patch<LocalTransform>(s.boxEntity, [&](LocalTransform& t) { t.scale = scale; });
+        const SceneSnapshot snapshot = makeSnapshot(s.world, s.world.update(0.1f));
+        EXPECT_EQ(snapshot.untraceableInstances, 1u) << scale.x;
+        EXPECT_EQ(snapshot.instances.size(), 1u) << scale.x;  // the grid
+        // The TLAS is rebuilt when the box leaves it (the first time), not again while it stays out.
+        EXPECT_EQ(accel.update(snapshot).tlasBuilds, scale.x == 1.f ? 1u : 0u) << scale.x;
+        EXPECT_EQ(hitDistance(accel, origin, dir), -1.f);
+    }
+    s.world.patch<LocalTransform>(s.boxEntity, [](LocalTransform& t) { t.scale = vec3(1.f); });
+    EXPECT_EQ(s.step(accel).tlasBuilds, 1u);
+    EXPECT_NEAR(hitDistance(accel, origin, dir), 9.5f, 1e-4f);
+}
+
 TEST(AccelManager, DeformedMeshIsRefitAndRaysSeeNewVertices) {
     Scene s;
     tracer::AccelOptions options;

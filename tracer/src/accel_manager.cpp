@@ -529,7 +529,14 @@ AccelUpdateStats AccelManager::update(const ecs::SceneSnapshot& scene) {
     }
 
     // Step: TLAS. A rebuilt BLAS is a new RTCScene, so instances of it need re-pointing: rebuild.
-    if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty() || rebuiltForQuality) {
+    // The snapshot's instances may differ from the TLAS's without an
+    // instance-set change: an instance whose transform turned untraceable
+    // (scaled to 0) leaves the snapshot, and comes back.
+    const bool sameInstances =
+        scene.instances.size() == instances_.size() &&
+        std::equal(scene.instances.begin(), scene.instances.end(), instances_.begin(),
+                   [](const ecs::InstanceSnapshot& a, const ecs::InstanceSnapshot& b) { return a.entity == b.entity; });
+    if (!tlas_ || u.instanceSetChanged || !u.rebuiltMeshes.empty() || rebuiltForQuality || !sameInstances) {
         rebuildTlas(scene);
         ++stats.tlasBuilds;
     } else if (!u.movedInstances.empty() || !u.refitMeshes.empty() || repadded) {

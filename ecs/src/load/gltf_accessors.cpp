@@ -186,9 +186,11 @@ std::optional<std::vector<std::uint32_t>> GltfConverter::decodeDraco(const tg::P
         requests.push_back({static_cast<std::uint32_t>(id), acc.componentType, componentCount(acc.type)});
         accessors.push_back(accessor);
     }
-    std::size_t length = 0;
+    std::size_t length = 0, maxPoints = 0;
     const unsigned char* bytes = bufferViewBytes(bufferView, length, label);
-    compression::DracoMesh mesh = compression::decodeDracoMesh(bytes, length, requests);
+    for (const int accessor : accessors)
+        maxPoints = std::max<std::size_t>(maxPoints, m_.accessors[static_cast<std::size_t>(accessor)].count);
+    compression::DracoMesh mesh = compression::decodeDracoMesh(bytes, length, requests, maxPoints);
     if (!mesh.error.empty()) fail_(cat(label, ": ", mesh.error));
     for (std::size_t i = 0; i < accessors.size(); ++i) {
         const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessors[i])];

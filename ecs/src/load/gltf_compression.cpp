@@ -3,7 +3,11 @@
 #include "gltf_compression.hpp"
 
 #include <draco/compression/decode.h>
+#include <draco/compression/point_cloud/point_cloud_decoder.h>
 #include <draco/core/decoder_buffer.h>
+#include <draco/core/varint_decoding.h>
+#include <draco/metadata/geometry_metadata.h>
+#include <draco/metadata/metadata_decoder.h>
 #include <draco/mesh/mesh.h>
 #include <meshoptimizer.h>
 
@@ -40,11 +44,41 @@ bool convertAttribute(const draco::PointAttribute& attr, std::size_t points, int
     }
 }
 
+// Draco's sequential mesh decoder allocates (and zero-fills) the point count
+// its header declares, up to 2^32, without checking it against the data: 30
+// bytes asked for gigabytes. Reads the header (and metadata) and that count
+// first; "" when it is at most `maxPoints` or the stream is not a sequential
+// mesh (then Draco decodes, and reports what is wrong).
+std::string checkDracoPointCount(const unsigned char* data, std::size_t size, std::size_t maxPoints) {
+    draco::DecoderBuffer buffer;
+    buffer.Init(reinterpret_cast<const char*>(data), size);
+    draco::DracoHeader header;
+    if (!draco::PointCloudDecoder::DecodeHeader(&buffer, &header).ok()) return "";
+    if (header.encoder_type != draco::TRIANGULAR_MESH || header.encoder_method != draco::MESH_SEQUENTIAL_ENCODING)
+        return "";
+    const std::uint16_t version = DRACO_BITSTREAM_VERSION(header.version_major, header.version_minor);
+    buffer.set_bitstream_version(version);
+    if (header.flags & METADATA_FLAG_MASK) {
+        draco::MetadataDecoder metadata;
+        draco::GeometryMetadata geometry;
+        if (!metadata.DecodeGeometryMetadata(&buffer, &geometry)) return "";
+    }
+    std::uint32_t faces = 0, points = 0;
+    const bool read = version < DRACO_BITSTREAM_VERSION(2, 2)
+                          ? buffer.Decode(&faces) && buffer.Decode(&points)
+                          : draco::DecodeVarint(&faces, &buffer) && draco::DecodeVarint(&points, &buffer);
+    if (!read || points <= maxPoints) return "";
+    return "the Draco data declares " + std::to_string(points) + " points, more than its accessors' " +
+           std::to_string(maxPoints);
+}
+
 }  // namespace
 
 DracoMesh decodeDracoMesh(const unsigned char* data, std::size_t size,
-                          const std::vector<DracoAttributeRequest>& requests) {
+                          const std::vector<DracoAttributeRequest>& requests, std::size_t maxPoints) {
     DracoMesh out;
+    out.error = checkDracoPointCount(data, size, maxPoints);
+    if (!out.error.empty()) return out;
     draco::DecoderBuffer buffer;
     buffer.Init(reinterpret_cast<const char*>(data), size);
     draco::Decoder decoder;

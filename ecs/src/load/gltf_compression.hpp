@@ -34,8 +34,10 @@ struct DracoMesh {
     std::vector<std::vector<unsigned char>> attributes;
 };
 
+// `maxPoints`: the most points the data may declare (its accessors' counts),
+// checked before Draco allocates them.
 DracoMesh decodeDracoMesh(const unsigned char* data, std::size_t size,
-                          const std::vector<DracoAttributeRequest>& requests);
+                          const std::vector<DracoAttributeRequest>& requests, std::size_t maxPoints);
 
 // ---- EXT_meshopt_compression ---------------------------------------------
 

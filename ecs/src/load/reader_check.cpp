@@ -36,7 +36,7 @@ std::vector<std::string>& checkCommand() {
     return command;
 }
 
-// The check process's address space: 4 GiB + 256 bytes per byte of the file
+// The check process's address space: 1 GiB + 256 bytes per byte of the file
 // (a compressed VDB or FBX array may expand that much; a corrupt header
 // declaring more fails its allocation, an InputError, instead of exhausting
 // the machine). Not under AddressSanitizer, which reserves terabytes.
@@ -44,7 +44,7 @@ void limitCheckMemory([[maybe_unused]] const std::filesystem::path& path) {
 #if !defined(RTLAB_UNDER_ASAN)
     std::error_code ec;
     const std::uint64_t bytes = std::filesystem::file_size(path, ec);
-    const rlim_t cap = rlim_t(4) * 1024 * 1024 * 1024 + 256 * rlim_t(ec ? 0 : bytes);
+    const rlim_t cap = rlim_t(1) * 1024 * 1024 * 1024 + 256 * rlim_t(ec ? 0 : bytes);
     const rlimit limit{cap, cap};
     setrlimit(RLIMIT_AS, &limit);
 #endif

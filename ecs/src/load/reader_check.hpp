@@ -8,7 +8,7 @@
 // there is an InputError here, so this process reads only files the check
 // read. A fresh process, not a fork: forking the multi-threaded rtlab
 // deadlocked the child under ASan. Its limits: checkSecondsLimit, and an
-// address space of 4 GiB + 256 bytes per byte of the file (none under ASan).
+// address space of 1 GiB + 256 bytes per byte of the file (none under ASan).
 #include <cstdint>
 #include <filesystem>
 #include <string>

@@ -49,7 +49,14 @@ struct SceneSnapshot {
     std::vector<VolumeSnapshot> volumes;
     CameraSnapshot camera;
     FrameUpdate update;
+    // Mesh instances left out of `instances` because no back end can trace
+    // them: a non-finite or singular transform (a zero scale on some axis),
+    // or one scaling by more than kMaxInstanceScale either way (Embree's
+    // object-space rays would leave its valid range; it asserts).
+    std::uint32_t untraceableInstances = 0;
 };
+
+inline constexpr double kMaxInstanceScale = 1e12;
 
 // Snapshot of `world` after an update() that returned `update`.
 SceneSnapshot makeSnapshot(const World& world, FrameUpdate update);

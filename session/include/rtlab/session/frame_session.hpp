@@ -96,6 +96,7 @@ private:
     std::unique_ptr<ecs::World> world_;
     std::unique_ptr<tracer::AccelManager> accel_;
     std::optional<FrameState> frame_;
+    bool warnedUntraceable_ = false;  // the untraceable-instances warning, once per session
     shaders::FrameHistory history_;
     bool loaded_ = false;
 };

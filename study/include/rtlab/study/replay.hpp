@@ -42,7 +42,9 @@ struct ReplayResult {
 // them, and only the model replays them).
 void checkReplayable(const RayTraceFile& file, std::uint64_t sceneFingerprint, const tracer::TraversalBackend* backend);
 
-// Traces every batch of `file` on `backend` in recorded order (nullptr =
+// Throws InputError("recorded rays", ...) when a batch cannot be traced on
+// this scene (a hit-group record beyond the recorded table) or its recorded
+// verdicts do not fit. Traces every batch of `file` on `backend` in recorded order (nullptr =
 // Embree through TraceEngine::trace8, batches spread over threads; the
 // results do not depend on the thread count). Only batches whose ray type
 // (RayContributionToHitGroupIndex & 0xf) has its bit in `rayTypeMask`.
