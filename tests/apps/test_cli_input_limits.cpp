@@ -82,6 +82,13 @@ TEST(CliInputLimits, DeepJsonAndHugeStudiesAndConfigurationsAreRefused) {
     fs::create_directories(dir);
     writeText(dir / "deep.json", "{\"name\": " + std::string(5000, '[') + std::string(5000, ']') + "}");
     expectRefused(runCli("info --scene " + (dir / "deep.json").string()), "JSON nested deeper than 128 levels");
+    // Three fogs of 2^24 voxels (each allowed, seconds to fill): refused before any is built.
+    std::string fogs;
+    for (int k = 0; k < 3; ++k)
+        fogs += std::string(k ? ", " : "") +
+                R"({"procedural": "fog", "bounds": [[0, 0, 0], [255, 255, 255]], "voxelSize": 1, "density": 1})";
+    writeText(dir / "fogs.json", R"({"gltf": [], "volumes": [)" + fogs + "]}");
+    expectRefused(runCli("info --scene " + (dir / "fogs.json").string()), "voxels in all");
     // 10 keys of 10 values: 1e10 points, from a few hundred bytes.
     std::string grid;
     const char* keys[] = {"cache.hitLatency",
@@ -108,6 +115,40 @@ TEST(CliInputLimits, DeepJsonAndHugeStudiesAndConfigurationsAreRefused) {
     expectRefused(runCli("render --scene builtin:cornell --backend rtcore --width 4 --height 4 --rtcore-config " +
                          (dir / "huge_model.json").string() + " --out " + (dir / "out").string()),
                   "cache lines in all");
+}
+
+TEST(CliInputLimits, DracoPointCountsBeyondTheAccessorsAreRefusedBeforeDecoding) {
+    // A sequential Draco mesh (bitstream 2.2) declaring 2^31 - 1 points: Draco allocates its declared count.
+    std::string draco = std::string("DRACO\x02\x02\x01\x00\x00\x00", 11);
+    draco += std::string("\x01\xff\xff\xff\xff\x07\x01\x00\x01\x02", 10);  // varints: 1 face, 2^31 - 1 points
+    draco += std::string(16, '\0');
+    draco += std::string((4 - draco.size() % 4) % 4, '\0');
+    static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string b64;
+    for (std::size_t i = 0; i < draco.size(); i += 3) {
+        const unsigned v = (unsigned char)draco[i] << 16 |
+                           (i + 1 < draco.size() ? (unsigned char)draco[i + 1] << 8 : 0) |
+                           (i + 2 < draco.size() ? (unsigned char)draco[i + 2] : 0);
+        b64 += kAlphabet[v >> 18 & 63];
+        b64 += kAlphabet[v >> 12 & 63];
+        b64 += i + 1 < draco.size() ? kAlphabet[v >> 6 & 63] : '=';
+        b64 += i + 2 < draco.size() ? kAlphabet[v & 63] : '=';
+    }
+    const std::string n = std::to_string(draco.size());
+    const fs::path dir = freshDir("limits_draco");
+    fs::create_directories(dir);
+    writeText(dir / "points.gltf",
+              R"({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_draco_mesh_compression"],)"
+              R"( "extensionsRequired": ["KHR_draco_mesh_compression"],)"
+              R"( "buffers": [{"uri": "data:application/octet-stream;base64,)" +
+                  b64 + R"(", "byteLength": )" + n + R"(}], "bufferViews": [{"buffer": 0, "byteLength": )" + n +
+                  R"(}], "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0],)"
+                  R"( "max": [1, 1, 1]}, {"componentType": 5125, "count": 3, "type": "SCALAR"}],)"
+                  R"( "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "extensions":)"
+                  R"( {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],)"
+                  R"( "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})");
+    expectRefused(runCli("info --scene " + (dir / "points.gltf").string()),
+                  "the Draco data declares 2147483647 points, more than its accessors' 3");
 }
 
 TEST(CliInputLimits, ExrWindowsBeyondTheFileSizeAreRefusedBeforeAllocating) {

@@ -14,7 +14,9 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <set>
 #include <string>
+#include <tuple>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -362,6 +364,9 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
     }
     // Per placeholder buffer: the bytes its views cover, and what they may decode to.
     std::vector<std::uint64_t> covered(buffers.size(), 0), decodable(buffers.size(), 0);
+    // The distinct compressed ranges: views sharing one decode it again, and
+    // must not multiply what the file's placeholders may allocate.
+    std::set<std::tuple<std::uint64_t, std::uint64_t, std::uint64_t>> sources;
     for (std::size_t i = 0; i < views.size(); ++i) {
         const auto ext = views[i].find("extensions");
         const bool compressed = ext != views[i].end() && ext->contains("EXT_meshopt_compression");
@@ -399,6 +404,7 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
                      " bytes"));
         covered[target] = std::max(covered[target], viewOffset + viewBytes);
         decodable[target] += maxMeshoptDecodedBytes(v.sourceLength);
+        sources.emplace(v.sourceBuffer, v.sourceOffset, v.sourceLength);
         const std::string mode = m["mode"].get<std::string>(), filter = m.value("filter", std::string("NONE"));
         if (mode == "ATTRIBUTES") v.mode = compression::MeshoptMode::Attributes;
         else if (mode == "TRIANGLES") v.mode = compression::MeshoptMode::Triangles;
@@ -411,6 +417,12 @@ void precheckMeshopt(Json& doc, Prechecked& out, const Fail& fail) {
         else fail(cat(where, ": unknown filter '", filter, "'"));
         out.meshopt.push_back(v);
     }
+    std::uint64_t allDecodable = 0, allCovered = 0;
+    for (const auto& [buffer, offset, length] : sources) allDecodable += maxMeshoptDecodedBytes(length);
+    for (std::size_t i = 0; i < buffers.size(); ++i) allCovered += placeholder[i] ? covered[i] : 0;
+    if (allCovered > allDecodable)
+        fail(cat("the EXT_meshopt_compression fallback buffers cover ", allCovered, " bytes, more than the file's ",
+                 sources.size(), " distinct compressed ranges can decode to (", allDecodable, ")"));
     for (std::size_t i = 0; i < buffers.size(); ++i) {
         if (!placeholder[i]) continue;
         if (covered[i] > decodable[i])

@@ -559,6 +559,14 @@ void build(World& world, const Parser& p, const SceneDesc& s) {
         loadGltf(world, g.file, parent);  // InputError naming the glTF file propagates
     }
 
+    std::uint64_t fogVoxels = 0;  // all procedural fogs together, checked before any is built
+    for (const VolumeDesc& v : s.volumes) {
+        const std::uint64_t voxels = v.procedural ? VolumeGrid::proceduralFogVoxels(v.bounds, v.voxelSize) : 0;
+        if (voxels > VolumeGrid::kMaxProceduralVoxels) continue;  // too many alone: makeProceduralFog says so
+        if ((fogVoxels += voxels) > VolumeGrid::kMaxProceduralVoxels)
+            p.fail(v.keyPath, "the procedural fogs need more than " + std::to_string(VolumeGrid::kMaxProceduralVoxels) +
+                                  " voxels in all");
+    }
     for (const VolumeDesc& v : s.volumes) {
         std::shared_ptr<VolumeGrid> grid;
         if (v.procedural) {

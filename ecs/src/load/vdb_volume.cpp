@@ -55,7 +55,6 @@ void initializeOpenVdbOnce() {
 }
 
 // Largest procedural grid (voxel lattice points), ~128 MiB of float values.
-constexpr std::uint64_t kMaxProceduralVoxels = std::uint64_t{1} << 25;
 
 // ---- procedural fog ---------------------------------------------------------
 
@@ -267,6 +266,21 @@ std::string checkVdbLayout(std::istream& in, std::uint64_t fileSize) {
 VolumeGrid::VolumeGrid(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 VolumeGrid::~VolumeGrid() = default;
 
+std::uint64_t VolumeGrid::proceduralFogVoxels(const Aabb& bounds, float voxelSize) {
+    if (!isFinite(bounds.lo) || !isFinite(bounds.hi) || !(bounds.lo.x < bounds.hi.x) || !(bounds.lo.y < bounds.hi.y) ||
+        !(bounds.lo.z < bounds.hi.z) || !std::isfinite(voxelSize) || !(voxelSize > 0.f))
+        return 0;  // makeProceduralFog says what is wrong
+    const vec3 extent = bounds.extent();
+    std::uint64_t total = 1;
+    for (int a = 0; a < 3; ++a) {
+        const double cells = std::floor(static_cast<double>(extent[a]) / static_cast<double>(voxelSize));
+        if (!(cells < static_cast<double>(kMaxProceduralVoxels))) return kMaxProceduralVoxels + 1;  // NaN too
+        total *= static_cast<std::uint64_t>(cells) + 1;
+        if (total > kMaxProceduralVoxels) return kMaxProceduralVoxels + 1;
+    }
+    return total;
+}
+
 std::shared_ptr<VolumeGrid> VolumeGrid::makeProceduralFog(const Aabb& bounds, float voxelSize, float peakDensity,
                                                           std::uint32_t seed) {
     if (!isFinite(bounds.lo) || !isFinite(bounds.hi) || !(bounds.lo.x < bounds.hi.x) || !(bounds.lo.y < bounds.hi.y) ||
@@ -280,17 +294,12 @@ std::shared_ptr<VolumeGrid> VolumeGrid::makeProceduralFog(const Aabb& bounds, fl
     // Lattice points i * voxelSize + bounds.lo, i = 0 .. n-1, all inside the box.
     const vec3 extent = bounds.extent();
     std::array<std::int32_t, 3> n{};
-    std::uint64_t total = 1;
-    for (int a = 0; a < 3; ++a) {
-        const double cells = std::floor(static_cast<double>(extent[a]) / static_cast<double>(voxelSize));
-        if (!(cells < static_cast<double>(kMaxProceduralVoxels))) {
-            total = kMaxProceduralVoxels + 1;
-            break;
-        }
-        n[static_cast<std::size_t>(a)] = static_cast<std::int32_t>(cells) + 1;
-        total *= static_cast<std::uint64_t>(n[static_cast<std::size_t>(a)]);
-        if (total > kMaxProceduralVoxels) break;
-    }
+    const std::uint64_t total = proceduralFogVoxels(bounds, voxelSize);
+    if (total <= kMaxProceduralVoxels)
+        for (int a = 0; a < 3; ++a)
+            n[static_cast<std::size_t>(a)] =
+                static_cast<std::int32_t>(std::floor(static_cast<double>(extent[a]) / static_cast<double>(voxelSize))) +
+                1;
     if (total > kMaxProceduralVoxels)
         throw std::invalid_argument("procedural fog: bounds / voxel size need more than " +
                                     std::to_string(kMaxProceduralVoxels) + " voxels");

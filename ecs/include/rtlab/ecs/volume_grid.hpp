@@ -4,6 +4,7 @@
 // (ecs/src/load/vdb_volume.cpp), because its headers are slow to compile.
 #include <rtlab/core/math.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -20,6 +21,13 @@ public:
     // (peak density `peakDensity`), `voxelSize` world units per voxel.
     static std::shared_ptr<VolumeGrid> makeProceduralFog(const Aabb& bounds, float voxelSize, float peakDensity,
                                                          std::uint32_t seed);
+    // The most voxels a procedural fog may have, one or all of a scene's
+    // together (filling 2^25 takes seconds; a line of a scene file asks for it).
+    static constexpr std::uint64_t kMaxProceduralVoxels = std::uint64_t{1} << 25;
+    // The voxels makeProceduralFog fills for these bounds, or
+    // kMaxProceduralVoxels + 1 when there would be more; 0 for bounds or a
+    // voxel size it refuses.
+    static std::uint64_t proceduralFogVoxels(const Aabb& bounds, float voxelSize);
     // Loads the float grid `gridName` ("" = the first float grid) of a .vdb
     // file. Throws InputError naming the file on any problem.
     // OpenVDB crashes on some corrupt files: where a check command is set
