@@ -4,10 +4,7 @@
 
 #include <rtlab/core/image.hpp>
 
-extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
-    rtlab::fuzz::initialize(argc, argv);
-    return 0;
-}
+RTLAB_FUZZ_INITIALIZE
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     const std::filesystem::path path = rtlab::fuzz::writeInput(data, size, "case.exr");

@@ -39,3 +39,20 @@ void expectingInputErrors(F&& f) {
 }
 
 }  // namespace rtlab::fuzz
+
+// libFuzzer's initializer, calling rtlab::fuzz::initialize (every target has it).
+#define RTLAB_FUZZ_INITIALIZE                                      \
+    extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) { \
+        rtlab::fuzz::initialize(argc, argv);                       \
+        return 0;                                                  \
+    }
+
+// A whole target whose input is a scene file case.EXT, loaded and rendered
+// (loadAndRenderScene): one line per scene format.
+#define RTLAB_SCENE_FILE_FUZZER(EXT)                                                                \
+    RTLAB_FUZZ_INITIALIZE                                                                           \
+    extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {             \
+        const std::filesystem::path path = rtlab::fuzz::writeInput(data, size, "case." EXT);        \
+        rtlab::fuzz::expectingInputErrors([&] { rtlab::fuzz::loadAndRenderScene(path.string()); }); \
+        return 0;                                                                                   \
+    }

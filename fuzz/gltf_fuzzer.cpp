@@ -3,13 +3,4 @@
 // `rtlab render --scene case.gltf` would (fuzz_input.hpp).
 #include "fuzz_input.hpp"
 
-extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
-    rtlab::fuzz::initialize(argc, argv);
-    return 0;
-}
-
-extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-    const std::filesystem::path path = rtlab::fuzz::writeInput(data, size, "case.gltf");
-    rtlab::fuzz::expectingInputErrors([&] { rtlab::fuzz::loadAndRenderScene(path.string()); });
-    return 0;
-}
+RTLAB_SCENE_FILE_FUZZER("gltf")

@@ -5,10 +5,7 @@
 
 #include <rtlab/session/frame_session.hpp>
 
-extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
-    rtlab::fuzz::initialize(argc, argv);
-    return 0;
-}
+RTLAB_FUZZ_INITIALIZE
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     const std::filesystem::path path = rtlab::fuzz::writeInput(data, size, "case.json");

@@ -187,7 +187,25 @@ def main():
     ap.add_argument("--targets", default="all", help="all, or a comma-separated list (FUZZ_TARGETS)")
     ap.add_argument("--out", default="out/fuzz")
     ap.add_argument("--seeds-only", action="store_true", help="put the seed corpora together (OUT/seeds) and stop")
+    ap.add_argument("--ledger", action="store_true", help="print the totals of OUT/runs.jsonl per target and stop")
     a = ap.parse_args()
+    if a.ledger:
+        totals = {}
+        for line in open(os.path.join(a.out, "runs.jsonl")):
+            for r in json.loads(line)["results"]:
+                t = totals.setdefault(r["target"], {"seconds": 0.0, "execs": 0, "edges": 0, "findings": 0, "runs": 0})
+                t["seconds"] += r["seconds"]
+                t["execs"] += r["execs"]
+                t["edges"] = max(t["edges"], r["edges"])
+                t["findings"] += len(r["findings"])
+                t["runs"] += 1
+        print("| target | runs | fuzzing time (min) | executions | edges (most in one run) | findings |")
+        print("|---|---|---|---|---|---|")
+        for fmt in FORMATS:
+            if fmt in totals:
+                t = totals[fmt]
+                print(f"| `{fmt}` | {t['runs']} | {t['seconds'] / 60:.1f} | {t['execs']} | {t['edges']} | {t['findings']} |")
+        return
     if a.seeds_only:
         counts = make_seeds(os.path.join(a.out, "seeds"), a.rtlab)
         print("fuzz: seeds in " + os.path.join(a.out, "seeds") + ": " + ", ".join(f"{t} {n}" for t, n in counts.items()))
