@@ -135,7 +135,8 @@ int runReplay(const ReplayOptions& options) {
         stats["frames"].push_back(std::move(fj));
     }
     progress("");
-    writeTextFileAtomically(std::filesystem::path(o.out) / "stats.json", stats.dump(2) + "\n");
+    writeTextFileAtomically(std::filesystem::path(o.out) / "stats.json",
+                            stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
     std::cerr << "rtlab: replayed " << replayed << " rays of " << byFrame.size() << " frame(s) on " << o.backend << ", "
               << differing << " hit(s) differ from the recording; wrote " << o.out << "/stats.json\n";
     return differing > 0 ? 1 : 0;
