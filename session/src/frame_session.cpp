@@ -83,7 +83,10 @@ public:
         }
         watcher_ = std::thread([this, threshold] {
             std::unique_lock lock(mutex_);
-            if (done_.wait_for(lock, std::chrono::duration<double>(threshold), [&] { return finished_; })) return;
+            // Threshold 0 announces every load: no race with a load that ends first.
+            if (threshold > 0.0 &&
+                done_.wait_for(lock, std::chrono::duration<double>(threshold), [&] { return finished_; }))
+                return;
             std::string size;
             std::error_code ec;
             const auto bytes = std::filesystem::file_size(source_, ec);
