@@ -8,21 +8,13 @@ namespace rtlab::ecs {
 
 namespace {
 
-// Largest absolute row sum of the linear part (how much it can stretch a vector).
-double gain(const glm::dmat3& m) {
-    double g = 0.0;
-    for (int row = 0; row < 3; ++row)
-        g = std::max(g, std::abs(double(m[0][row])) + std::abs(double(m[1][row])) + std::abs(double(m[2][row])));
-    return g;
-}
-
 // Finite, invertible, and scaling by at most kMaxInstanceScale either way.
 bool traceable(const mat4& worldFromObject) {
     if (!isFinite(worldFromObject)) return false;
     const glm::dmat3 linear(mat3{worldFromObject});  // in double: a float determinant of tiny scales underflows
     if (!(std::abs(glm::determinant(linear)) > 0.0)) return false;
     const glm::dmat3 inverse = glm::inverse(linear);
-    const double forward = gain(linear), backward = gain(inverse);
+    const double forward = maxNormGain(linear), backward = maxNormGain(inverse);
     return std::isfinite(backward) && forward <= kMaxInstanceScale && backward <= kMaxInstanceScale;
 }
 

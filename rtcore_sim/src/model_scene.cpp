@@ -77,8 +77,8 @@ void ModelScene::rebuildTlas(const ecs::SceneSnapshot& scene, ModelUpdateStats& 
         const Bvh& bvh = blases_[s.mesh]->bvh;
         if (!bvh.empty()) inst.worldBounds = bvh.rootBounds.transformed(s.worldFromObject);
         // Step: what this instance brings to the TLAS's conservative padding.
-        const double objectToWorld = tracer::maxNormGain(s.worldFromObject);
-        const double kappa = objectToWorld * tracer::maxNormGain(inst.objectFromWorld);
+        const double objectToWorld = maxNormGain(s.worldFromObject);
+        const double kappa = objectToWorld * maxNormGain(inst.objectFromWorld);
         if (!bvh.empty() && std::isfinite(kappa)) {
             const double reach = std::max({double(tracer::maxAbsCoordinate(inst.worldBounds)),
                                            objectToWorld * blases_[s.mesh]->magnitude,

@@ -79,6 +79,39 @@ TEST(CliInputLimits, ImagesDeclaringTooManyPixelsAreRefusedBeforeDecoding) {
     writeText(dir / "huge.obj", "mtllib huge.mtl\n" + kQuadObj + "usemtl m\nf 1/1 2/2 3/3\n");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "huge.obj").string()),
                         "huge.png: image of 10000 x 10000 pixels, more than the 67108864 a texture may have"));
+    // Five materials naming one 8192 x 8192 image: each within the limit, 2^28 pixels at most for the file.
+    writeText(dir / "big.png", pngHeader(8192, 8192));
+    std::string mtl;
+    for (int k = 0; k < 5; ++k) mtl += "newmtl m" + std::to_string(k) + "\nmap_Kd big.png\n";
+    writeText(dir / "many.mtl", mtl);
+    writeText(dir / "many.obj", "mtllib many.mtl\n" + kQuadObj + "usemtl m0\nf 1/1 2/2 3/3\n");
+    EXPECT_TRUE(refused(runCli("info --scene " + (dir / "many.obj").string()),
+                        "big.png: the scene file's images have more than 268435456 pixels in all"));
+    // Four of them are within it: the scene loads (the header-only image is left out with a warning).
+    writeText(dir / "four.mtl", mtl.substr(0, mtl.size() * 4 / 5));
+    writeText(dir / "four.obj", "mtllib four.mtl\n" + kQuadObj + "usemtl m0\nf 1/1 2/2 3/3\n");
+    const CliRun four = runCli("info --scene " + (dir / "four.obj").string());
+    EXPECT_EQ(four.exitCode, 0) << four.out;
+}
+
+TEST(CliInputLimits, GltfGeometryDeclaredBeyondItsBuffersIsRefusedBeforeDecoding) {
+    const fs::path dir = freshDir("limits_gltf_geometry");
+    fs::create_directories(dir);
+    // One accessor of 2^24 positions without a bufferView (zeros, allowed: 201 MB decoded), read by 100 primitives.
+    const std::string accessor = R"("accessors": [{"count": 16777216, "type": "VEC3", "componentType": 5126}])";
+    std::string primitives;
+    for (int k = 0; k < 100; ++k) primitives += std::string(k ? ", " : "") + R"({"attributes": {"POSITION": 0}})";
+    writeText(dir / "reused.gltf", R"({"asset": {"version": "2.0"}, )" + accessor + R"(, "meshes": [{"primitives": [)" +
+                                       primitives + R"(]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]})");
+    EXPECT_TRUE(refused(runCli("info --scene " + (dir / "reused.gltf").string()),
+                        "bytes of geometry, more than the 1073741824 it may decode"));
+    // One morphed mesh (402 MB) instanced by two nodes, each of which owns a copy with its rest pose.
+    writeText(dir / "morphed.gltf",
+              R"({"asset": {"version": "2.0"}, )" + accessor +
+                  R"(, "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "targets": [{"POSITION": 0}]}]}],)"
+                  R"( "nodes": [{"mesh": 0}, {"mesh": 0}], "scenes": [{"nodes": [0, 1]}]})");
+    EXPECT_TRUE(refused(runCli("info --scene " + (dir / "morphed.gltf").string()),
+                        "bytes of geometry, more than the 1073741824 it may decode"));
 }
 
 TEST(CliInputLimits, DeepJsonAndHugeStudiesAndConfigurationsAreRefused) {
@@ -201,8 +234,9 @@ TEST(CliInputLimits, AnObjFaceOfMoreThan255CornersIsTriangulatedByTinyobjloader)
         std::string obj, face = "f";
         for (int i = 0; i < corners; ++i) {
             const double a = 6.283185307179586 * i / corners;
-            obj += "v " + std::to_string(std::cos(a)) + " " + std::to_string(std::sin(a)) + " 0\n";
-            face += " " + std::to_string(i + 1);
+            obj.append("v ").append(std::to_string(std::cos(a))).append(" ").append(std::to_string(std::sin(a)));
+            obj.append(" 0\n");
+            face.append(" ").append(std::to_string(i + 1));
         }
         const fs::path file = dir / ("circle" + std::to_string(corners) + ".obj");
         writeText(file, obj + face + "\nf 1 2 3\n");

@@ -37,16 +37,17 @@ mat4 toMat4(const aiMatrix4x4& m) {
 
 // A material's diffuse texture: embedded in the file (compressed) or a file beside it.
 std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* material, const std::filesystem::path& dir,
-                                 std::vector<std::string>& warnings, const std::string& where) {
+                                 std::vector<std::string>& warnings, const std::string& where,
+                                 TexturePixelBudget& budget) {
     aiString name;
     if (material->GetTexture(aiTextureType_DIFFUSE, 0, &name) != AI_SUCCESS) return std::nullopt;
     std::optional<Texture> t;
     if (const aiTexture* embedded = scene->GetEmbeddedTexture(name.C_Str())) {
         if (embedded->mHeight == 0)  // compressed (png, jpg, ...): mWidth bytes
             t = decodeTexture(reinterpret_cast<const unsigned char*>(embedded->pcData), embedded->mWidth,
-                              std::string("embedded ") + name.C_Str());
+                              std::string("embedded ") + name.C_Str(), budget);
     } else {
-        t = readTextureNamed(dir, name.C_Str());
+        t = readTextureNamed(dir, name.C_Str(), budget);
     }
     if (!t) warnings.push_back(where + ": texture " + name.C_Str() + " not found or not readable, left out");
     return t;
@@ -191,6 +192,7 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     // Step: materials and their textures.
     std::vector<Texture> textures;
     std::vector<Material> materials;
+    TexturePixelBudget textureBudget;
     for (unsigned i = 0; i < scene->mNumMaterials; ++i) {
         const aiMaterial* am = scene->mMaterials[i];
         Material m;
@@ -207,7 +209,7 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         if (am->Get(AI_MATKEY_SHININESS, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f)
             m.roughness = roughnessFromPhongExponent(v);
         if (am->Get(AI_MATKEY_REFRACTI, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f) m.ior = v;
-        if (std::optional<Texture> t = textureOf(scene, am, path.parent_path(), warnings, where)) {
+        if (std::optional<Texture> t = textureOf(scene, am, path.parent_path(), warnings, where, textureBudget)) {
             m.baseColorTexture = static_cast<TextureId>(textures.size());
             textures.push_back(std::move(*t));
         }

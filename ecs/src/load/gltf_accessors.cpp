@@ -209,6 +209,20 @@ std::optional<std::vector<std::uint32_t>> GltfConverter::decodeDraco(const tg::P
     return std::move(mesh.indices);
 }
 
+GltfConverter::GltfConverter(const tg::Model& model, const Fail& fail) : m_(model), fail_(fail) {
+    std::uint64_t bufferBytes = 0;
+    for (const tg::Buffer& b : m_.buffers) bufferBytes += b.data.size();
+    decodedBytesLimit_ = kDecodedGeometryBaseBytes + kDecodedGeometryBytesPerBufferByte * bufferBytes;
+}
+
+void GltfConverter::chargeDecoded(std::uint64_t bytes, const std::string& what) const {
+    decodedBytes_ += bytes;
+    if (decodedBytes_ > decodedBytesLimit_)
+        fail_(cat(what, ": the file decodes to more than ", decodedBytesLimit_,
+                  " bytes of geometry (1 GiB + 64 x its buffers' bytes; accessors read by many primitives or many "
+                  "deformable instances of one mesh)"));
+}
+
 void GltfConverter::requireCount(const AccessorView& v, const std::string& what, std::size_t expected) const {
     if (expected != 0 && v.count != expected)
         fail_(cat("accessor ", v.index, " (", what, ") has ", v.count, " elements, POSITION has ", expected));
@@ -250,6 +264,7 @@ AccessorView GltfConverter::view(int index, const std::string& what, std::initia
     v.count = acc.count;
     if (v.count == 0) fail_(cat(label, ": count must be at least 1"));
     const std::size_t elementBytes = static_cast<std::size_t>(v.components * v.componentBytes);
+    chargeDecoded(std::uint64_t(v.count) * std::uint64_t(v.components) * 4u, label);
 
     if (const auto decoded = decoded_.find(index); decoded != decoded_.end()) {
         v.data = decoded->second.data();  // Draco: count elements, tightly packed

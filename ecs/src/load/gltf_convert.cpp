@@ -24,6 +24,7 @@ Staged GltfConverter::convert() {
                  m_.extensionsUsed.end();
 
     validateHierarchy();
+    checkDeclaredGeometry();
     const std::vector<int> roots = sceneRoots();
     traverse(roots);
     convertAnimations();

@@ -28,7 +28,13 @@ namespace tg = tinygltf;
 // Limits that keep malformed input from exhausting the stack or memory.
 constexpr std::uint64_t kMaxJsonInteger = 0x7fffffffu;          // tinygltf stores indices in int
 constexpr std::size_t kMaxUnbackedAccessorElements = 1u << 24;  // accessors without bufferView are zeros
-constexpr float kInfiniteFar = 1e30f;                           // zfar for glTF's infinite projection
+// The geometry a file may decode to (every accessor read, as float/uint32,
+// and every deformable instance's copy): 1 GiB plus 64 x its buffers' bytes.
+// Reuse multiplies without it: a primitive list naming one accessor many
+// times, or many skinned nodes of one mesh, asked tens of GB of a 1 MB file.
+constexpr std::uint64_t kDecodedGeometryBaseBytes = std::uint64_t(1) << 30;
+constexpr std::uint64_t kDecodedGeometryBytesPerBufferByte = 64;
+constexpr float kInfiniteFar = 1e30f;  // zfar for glTF's infinite projection
 
 constexpr int kByte = TINYGLTF_COMPONENT_TYPE_BYTE;
 constexpr int kUByte = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
@@ -170,7 +176,7 @@ struct BaseMesh {
 // gltf_materials.cpp and gltf_animations.cpp.
 class GltfConverter {
 public:
-    GltfConverter(const tg::Model& model, const Fail& fail) : m_(model), fail_(fail) {}
+    GltfConverter(const tg::Model& model, const Fail& fail);
 
     Staged convert();
 
@@ -206,6 +212,7 @@ private:
     Light convertLight(int index) const;
 
     // ---- meshes and mesh instances (gltf_meshes.cpp) ---------------------------------
+    void checkDeclaredGeometry() const;
     void stageInstance(int nodeIndex, StagedNode& out);
     BaseMesh& baseMesh(int meshIndex);
     BaseMesh convertMesh(int meshIndex);
@@ -236,6 +243,8 @@ private:
     static std::vector<T> gather(const AccessorView& v, Read read);
     std::vector<float> readFloats(const AccessorView& v, const std::string& what) const;
     static std::vector<std::uint32_t> readUInts(const AccessorView& v);
+    // Counts bytes against kDecodedGeometry*, before they are allocated.
+    void chargeDecoded(std::uint64_t bytes, const std::string& what) const;
 
     // ---- materials and textures (gltf_materials.cpp) ---------------------------------
     int defaultMaterial();
@@ -254,6 +263,8 @@ private:
 
     const tg::Model& m_;
     const Fail& fail_;
+    std::uint64_t decodedBytesLimit_ = 0;
+    mutable std::uint64_t decodedBytes_ = 0;
     Staged s_;
     std::vector<int> parentOf_;
     std::vector<int> materialSlot_;

@@ -128,33 +128,19 @@ void decodeMeshoptViews(tg::Model& model, const Prechecked& pre, const Fail& fai
 }
 
 // Images decoded for tinygltf (its image loader): as RGBA8 through
-// decodeTexture, so each is capped at kMaxTexturePixels before decoding, and
-// all of a file's images together at kMaxGltfTexturePixels (a file may name
-// one big external image many times).
-constexpr std::uint64_t kMaxGltfTexturePixels = std::uint64_t(1) << 28;
-struct ImageBudget {
-    std::uint64_t pixels = 0;
-};
-
+// decodeTexture, within kMaxTexturePixels each and kMaxFileTexturePixels in all.
 bool decodeImage(tg::Image* image, const int index, std::string* err, std::string*, int, int,
                  const unsigned char* bytes, int size, void* user) {
-    auto& budget = *static_cast<ImageBudget*>(user);
+    auto& budget = *static_cast<TexturePixelBudget*>(user);
     std::optional<Texture> t;
     try {
-        t = decodeTexture(bytes, size < 0 ? 0 : std::size_t(size), cat("images[", index, "]"));
+        t = decodeTexture(bytes, size < 0 ? 0 : std::size_t(size), cat("images[", index, "]"), budget);
     } catch (const InputError& e) {
         if (err) *err += std::string(e.what()) + "\n";
         return false;
     }
     if (!t) {
         if (err) *err += cat("images[", index, "]: not an image stb_image decodes\n");
-        return false;
-    }
-    budget.pixels += std::uint64_t(t->width) * std::uint64_t(t->height);
-    if (budget.pixels > kMaxGltfTexturePixels) {
-        if (err)
-            *err += cat("images[", index, "]: the file's images have more than ", kMaxGltfTexturePixels,
-                        " pixels in all\n");
         return false;
     }
     image->width = t->width;
@@ -198,7 +184,7 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
     tg::Model model;
     {
         tg::TinyGLTF loader;
-        ImageBudget budget;
+        TexturePixelBudget budget;
         loader.SetImageLoader(decodeImage, &budget);
         loader.SetFsCallbacks(
             tg::FsCallbacks{&tg::FileExists, &tg::ExpandFilePath, &readSideFile, &tg::WriteWholeFile, nullptr});

@@ -61,7 +61,17 @@ void GltfConverter::stageInstance(int nodeIndex, StagedNode& out) {
         out.mesh = base.rigidVariant;
         return;
     }
-    // Deformation writes into the asset: every deformable instance owns one.
+    // Deformation writes into the asset: every deformable instance owns one
+    // (with rest positions and normals: charged as twice its vertices).
+    std::uint64_t copyBytes = 0;
+    for (const Geometry& g : base.asset.geometries) {
+        copyBytes += 2 * (g.positions.size() + g.normals.size()) * sizeof(vec3) + g.uv0.size() * sizeof(vec2) +
+                     g.colors.size() * sizeof(vec4) + g.indices.size() * sizeof(std::uint32_t) +
+                     g.joints.size() * sizeof(glm::uvec4) + g.weights.size() * sizeof(vec4);
+        for (const MorphTarget& t : g.morphTargets)
+            copyBytes += (t.positionDeltas.size() + t.normalDeltas.size()) * sizeof(vec3);
+    }
+    chargeDecoded(copyBytes, nodeLabel(nodeIndex));
     MeshAsset copy = base.asset;
     for (Geometry& g : copy.geometries) {
         if (!skinned) {
@@ -73,6 +83,41 @@ void GltfConverter::stageInstance(int nodeIndex, StagedNode& out) {
     }
     out.mesh = static_cast<int>(s_.meshes.size());
     s_.meshes.push_back(std::move(copy));
+}
+
+// The geometry the file declares it will decode, against the budget before
+// anything is read: every mesh's primitives' accessors once (meshes are
+// converted once), and again twice (rest positions and normals) for each
+// node that deforms one (skinned or morphed: such an instance owns a copy).
+// view() and stageInstance() then charge what is actually read and copied.
+void GltfConverter::checkDeclaredGeometry() const {
+    const auto declaredBytes = [&](int accessor) -> std::uint64_t {
+        if (accessor < 0 || static_cast<std::size_t>(accessor) >= m_.accessors.size()) return 0;
+        const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessor)];
+        return std::uint64_t(acc.count) *
+               std::uint64_t(std::max(tg::GetNumComponentsInType(static_cast<std::uint32_t>(acc.type)), 0)) * 4u;
+    };
+    std::vector<std::uint64_t> meshBytes(m_.meshes.size(), 0);
+    std::uint64_t total = 0;
+    for (std::size_t i = 0; i < m_.meshes.size(); ++i) {
+        for (const tg::Primitive& prim : m_.meshes[i].primitives) {
+            for (const char* name : {"POSITION", "NORMAL", "TEXCOORD_0", "COLOR_0", "JOINTS_0", "WEIGHTS_0"})
+                meshBytes[i] += declaredBytes(attribute(prim, name));
+            meshBytes[i] += declaredBytes(prim.indices);
+            for (const std::map<std::string, int>& target : prim.targets)
+                for (const char* name : {"POSITION", "NORMAL"}) meshBytes[i] += declaredBytes(attribute(target, name));
+        }
+        total += meshBytes[i];
+    }
+    for (const tg::Node& node : m_.nodes) {
+        if (node.mesh < 0 || static_cast<std::size_t>(node.mesh) >= m_.meshes.size()) continue;
+        const tg::Mesh& mesh = m_.meshes[static_cast<std::size_t>(node.mesh)];
+        const bool morphed = !mesh.primitives.empty() && !mesh.primitives.front().targets.empty();
+        if (node.skin >= 0 || morphed) total += 2 * meshBytes[static_cast<std::size_t>(node.mesh)];
+    }
+    if (total > decodedBytesLimit_)
+        fail_(cat("the file's meshes and deformable instances declare ", total, " bytes of geometry, more than the ",
+                  decodedBytesLimit_, " it may decode (1 GiB + 64 x its buffers' bytes)"));
 }
 
 BaseMesh& GltfConverter::baseMesh(int meshIndex) {

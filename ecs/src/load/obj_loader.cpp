@@ -215,6 +215,7 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
     // Step: materials (MTL -> rtlab, docs/scene-format.md), textures staged.
     std::vector<Texture> textures;
     std::vector<Material> materials;
+    TexturePixelBudget textureBudget;
     for (const tinyobj::material_t& mt : reader.GetMaterials()) {
         Material m;
         m.name = mt.name;
@@ -226,13 +227,14 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
         if (m.baseColor.a < 1.f) m.alphaMode = AlphaMode::Blend;
         std::optional<Texture> t;
         if (!mt.diffuse_texname.empty()) {
-            t = readTextureNamed(path.parent_path(), mt.diffuse_texname);
+            t = readTextureNamed(path.parent_path(), mt.diffuse_texname, textureBudget);
             if (!t)
                 warnings.push_back(where + ": texture " + mt.diffuse_texname + " not found or not readable, left out");
         }
         if (!mt.alpha_texname.empty() &&
             mt.alpha_texname != mt.diffuse_texname) {  // the same file: its alpha already counts
-            const std::optional<Texture> dissolve = readTextureNamed(path.parent_path(), mt.alpha_texname);
+            const std::optional<Texture> dissolve =
+                readTextureNamed(path.parent_path(), mt.alpha_texname, textureBudget);
             if (!dissolve)
                 warnings.push_back(where + ": texture " + mt.alpha_texname +
                                    " (map_d) not found or not readable, left out");

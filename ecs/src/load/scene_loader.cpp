@@ -83,7 +83,8 @@ std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& tex
     return materialIds;
 }
 
-std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name) {
+std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name,
+                                     TexturePixelBudget& budget) {
     int w = 0, h = 0, channels = 0;
     if (size == 0 || size > std::size_t(std::numeric_limits<int>::max())) return std::nullopt;
     if (!stbi_info_from_memory(bytes, static_cast<int>(size), &w, &h, &channels)) return std::nullopt;
@@ -91,6 +92,10 @@ std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t siz
     if (std::uint64_t(w) * std::uint64_t(h) > kMaxTexturePixels)
         throw InputError(name, "image of " + std::to_string(w) + " x " + std::to_string(h) + " pixels, more than the " +
                                    std::to_string(kMaxTexturePixels) + " a texture may have");
+    budget.pixels += std::uint64_t(w) * std::uint64_t(h);
+    if (budget.pixels > kMaxFileTexturePixels)
+        throw InputError(
+            name, "the scene file's images have more than " + std::to_string(kMaxFileTexturePixels) + " pixels in all");
     stbi_uc* pixels = stbi_load_from_memory(bytes, static_cast<int>(size), &w, &h, &channels, 4);
     if (!pixels) return std::nullopt;
     Texture t;
@@ -102,14 +107,18 @@ std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t siz
     return t;
 }
 
-std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written) {
+std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written,
+                                        TexturePixelBudget& budget) {
     std::replace(written.begin(), written.end(), '\\', '/');
     const std::filesystem::path asWritten = dir / written;
     const std::filesystem::path beside = dir / std::filesystem::path(written).filename();
-    for (const std::filesystem::path& path : {asWritten, beside}) {
+    std::vector<std::filesystem::path> candidates{asWritten};
+    if (beside != asWritten) candidates.push_back(beside);  // each file tried (and its pixels charged) once
+    for (const std::filesystem::path& path : candidates) {
         const std::optional<std::vector<unsigned char>> bytes = readRegularFile(path);
         if (!bytes) continue;
-        if (std::optional<Texture> t = decodeTexture(bytes->data(), bytes->size(), path.filename().string())) return t;
+        if (std::optional<Texture> t = decodeTexture(bytes->data(), bytes->size(), path.filename().string(), budget))
+            return t;
     }
     return std::nullopt;
 }

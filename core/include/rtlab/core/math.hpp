@@ -4,6 +4,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -31,6 +32,16 @@ inline bool isFinite(const mat4& m) {
     for (int c = 0; c < 4; ++c)
         if (!isFinite(m[c])) return false;
     return true;
+}
+
+// The largest absolute row sum of a transform's linear part: how much it can
+// lengthen a vector in the max norm (any glm matrix of 3 or more columns).
+template <class Mat>
+double maxNormGain(const Mat& m) {
+    double gain = 0.0;
+    for (int row = 0; row < 3; ++row)
+        gain = std::max(gain, std::abs(double(m[0][row])) + std::abs(double(m[1][row])) + std::abs(double(m[2][row])));
+    return gain;
 }
 
 // Axis-aligned bounding box; empty (lo > hi) until something is added.

@@ -32,14 +32,4 @@ inline float maxAbsCoordinate(const Aabb& b) {
     return b.empty() ? 0.f : std::max(maxAbsCoordinate(b.lo), maxAbsCoordinate(b.hi));
 }
 
-// The largest absolute row sum of a transform's linear part: how much it can
-// lengthen a vector in the max norm.
-template <class Mat>
-double maxNormGain(const Mat& m) {
-    double gain = 0.0;
-    for (int row = 0; row < 3; ++row)
-        gain = std::max(gain, std::abs(double(m[0][row])) + std::abs(double(m[1][row])) + std::abs(double(m[2][row])));
-    return gain;
-}
-
 }  // namespace rtlab::tracer

@@ -84,10 +84,20 @@ inline constexpr std::uint64_t kMaxTexturePixels = std::uint64_t(1) << 26;
 // external glTF buffers): 2 GiB.
 inline constexpr std::uint64_t kMaxSideFileBytes = std::uint64_t(2) << 30;
 
+// The most pixels all the images of one scene file may have together (2^28):
+// a file may name one big image from many materials.
+inline constexpr std::uint64_t kMaxFileTexturePixels = std::uint64_t(1) << 28;
+// The pixels one scene file's loader has decoded so far, against kMaxFileTexturePixels.
+struct TexturePixelBudget {
+    std::uint64_t pixels = 0;
+};
+
 // Compressed image bytes (anything stb_image reads) as an 8-bit RGBA texture;
 // nothing when they do not decode. InputError naming `name` when the image
-// declares more than kMaxTexturePixels, checked before decoding.
-std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name);
+// declares more than kMaxTexturePixels, or takes `budget` past
+// kMaxFileTexturePixels, checked before decoding.
+std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name,
+                                     TexturePixelBudget& budget);
 // A file read whole, when it is a regular file of at most maxBytes; nothing
 // otherwise (missing, a directory, a device such as /dev/zero, a pipe, too big).
 std::optional<std::vector<unsigned char>> readRegularFile(const std::filesystem::path& path,
@@ -96,7 +106,8 @@ std::optional<std::vector<unsigned char>> readRegularFile(const std::filesystem:
 // (Windows separators accepted); when that is not there, its file name in
 // `dir` (an absolute path of the author's machine). Nothing when not found or
 // unreadable.
-std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written);
+std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written,
+                                        TexturePixelBudget& budget);
 // Whether some texel is not fully opaque (the texture cuts out: an alpha mask).
 bool hasTransparentTexel(const Texture& texture);
 // A Phong / MTL shininess exponent as roughness: sqrt(2 / (Ns + 2)), in [0, 1].
