@@ -220,17 +220,17 @@ def main():
     print("fuzz: seeds: " + ", ".join(f"{t} {counts[t]}" for t in targets), flush=True)
     print(f"fuzz: {len(targets)} targets, {a.seconds} s each, {a.jobs} at a time", flush=True)
     results = []
+    ledger = os.path.join(a.out, "runs.jsonl")
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
         for r in pool.map(lambda t: fuzz_one(a, t), targets):
             results.append(r)
+            with open(ledger, "a") as f:  # each target as it ends: a stopped run keeps the targets it finished
+                f.write(json.dumps({"date": time.strftime("%Y-%m-%dT%H:%M:%S"), "results": [r]}) + "\n")
             print(f"fuzz: {r['target']:<14} {r['execs']:>9} execs {r['execsPerSecond']:>6} /s {r['edges']:>6} edges "
                   f"corpus {r['corpus']:>5}  {len(r['findings'])} findings" +
                   "".join(f"\n      finding: {f}" for f in r["findings"]) +
                   (f"\n      stopped with exit {r['exit']}; see {r['log']}" if r["exit"] and not r["findings"] else ""),
                   flush=True)
-    ledger = os.path.join(a.out, "runs.jsonl")
-    with open(ledger, "a") as f:
-        f.write(json.dumps({"date": time.strftime("%Y-%m-%dT%H:%M:%S"), "results": results}) + "\n")
     bad = [r for r in results if r["findings"] or r["exit"]]
     print(f"fuzz: {sum(r['execs'] for r in results)} executions in all; "
           f"{'findings in ' + ', '.join(r['target'] for r in bad) if bad else 'no findings'} (runs logged in {ledger})")

@@ -79,19 +79,38 @@ TEST(CliInputLimits, ImagesDeclaringTooManyPixelsAreRefusedBeforeDecoding) {
     writeText(dir / "huge.obj", "mtllib huge.mtl\n" + kQuadObj + "usemtl m\nf 1/1 2/2 3/3\n");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "huge.obj").string()),
                         "huge.png: image of 10000 x 10000 pixels, more than the 67108864 a texture may have"));
-    // Five materials naming one 8192 x 8192 image: each within the limit, 2^28 pixels at most for the file.
-    writeText(dir / "big.png", pngHeader(8192, 8192));
-    std::string mtl;
-    for (int k = 0; k < 5; ++k) mtl += "newmtl m" + std::to_string(k) + "\nmap_Kd big.png\n";
+    // Five 8192 x 8192 images, each within the limit: a scene decodes 2^28 pixels plus 4 per compressed byte.
+    std::string mtl, shared;
+    for (int k = 0; k < 5; ++k) {
+        const std::string png = "big" + std::to_string(k) + ".png";
+        writeText(dir / png, pngHeader(8192, 8192));
+        mtl += "newmtl m" + std::to_string(k) + "\nmap_Kd " + png + "\n";
+        shared += "newmtl m" + std::to_string(k) + "\nmap_Kd big0.png\n";
+    }
     writeText(dir / "many.mtl", mtl);
     writeText(dir / "many.obj", "mtllib many.mtl\n" + kQuadObj + "usemtl m0\nf 1/1 2/2 3/3\n");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "many.obj").string()),
-                        "big.png: the scene file's images have more than 268435456 pixels in all"));
-    // Four of them are within it: the scene loads (the header-only image is left out with a warning).
-    writeText(dir / "four.mtl", mtl.substr(0, mtl.size() * 4 / 5));
+                        "many.obj: big4.png: the scene's images have 335544320 pixels, more than the 268436116 it "
+                        "may decode (2^28 + 4 per byte of its compressed images)"));
+    // Four of them are within it, and five materials naming one image read it once: both load
+    // (the header-only image is left out with a warning).
+    writeText(dir / "four.mtl", mtl.substr(0, mtl.find("newmtl m4")));
     writeText(dir / "four.obj", "mtllib four.mtl\n" + kQuadObj + "usemtl m0\nf 1/1 2/2 3/3\n");
     const CliRun four = runCli("info --scene " + (dir / "four.obj").string());
     EXPECT_EQ(four.exitCode, 0) << four.out;
+    writeText(dir / "shared.mtl", shared);
+    writeText(dir / "shared.obj", "mtllib shared.mtl\n" + kQuadObj + "usemtl m0\nf 1/1 2/2 3/3\n");
+    const CliRun sharedRun = runCli("info --scene " + (dir / "shared.obj").string());
+    EXPECT_EQ(sharedRun.exitCode, 0) << sharedRun.out;
+    const auto missing = [](const std::string& out) {
+        std::size_t n = 0;
+        for (std::size_t at = out.find("not found or not readable"); at != std::string::npos;
+             at = out.find("not found or not readable", at + 1))
+            ++n;
+        return n;
+    };
+    EXPECT_EQ(missing(four.out), 4u) << four.out;
+    EXPECT_EQ(missing(sharedRun.out), 1u) << "read once:\n" << sharedRun.out;
 }
 
 TEST(CliInputLimits, GltfGeometryDeclaredBeyondItsBuffersIsRefusedBeforeDecoding) {
@@ -104,14 +123,16 @@ TEST(CliInputLimits, GltfGeometryDeclaredBeyondItsBuffersIsRefusedBeforeDecoding
     writeText(dir / "reused.gltf", R"({"asset": {"version": "2.0"}, )" + accessor + R"(, "meshes": [{"primitives": [)" +
                                        primitives + R"(]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]})");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "reused.gltf").string()),
-                        "bytes of geometry, more than the 1073741824 it may decode"));
+                        "declare more than 1073741824 bytes of geometry, the most it may decode (1 GiB + 64 x its "
+                        "glTF buffers' bytes)"));
     // One morphed mesh (402 MB) instanced by two nodes, each of which owns a copy with its rest pose.
     writeText(dir / "morphed.gltf",
               R"({"asset": {"version": "2.0"}, )" + accessor +
                   R"(, "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "targets": [{"POSITION": 0}]}]}],)"
                   R"( "nodes": [{"mesh": 0}, {"mesh": 0}], "scenes": [{"nodes": [0, 1]}]})");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "morphed.gltf").string()),
-                        "bytes of geometry, more than the 1073741824 it may decode"));
+                        "bytes of geometry, the most it may decode"));
+    // (A scene .json's entries share one budget: GltfLoaderAssimpModels.ADecodeBudgetIsSharedByTheFilesOfOneLoad.)
 }
 
 TEST(CliInputLimits, DeepJsonAndHugeStudiesAndConfigurationsAreRefused) {
@@ -154,10 +175,13 @@ TEST(CliInputLimits, DeepJsonAndHugeStudiesAndConfigurationsAreRefused) {
                         "cache lines in all"));
 }
 
-TEST(CliInputLimits, DracoPointCountsBeyondTheAccessorsAreRefusedBeforeDecoding) {
-    // A sequential Draco mesh (bitstream 2.2) declaring 2^31 - 1 points: Draco allocates its declared count.
+// A glTF whose one primitive is a sequential Draco mesh (bitstream 2.2) of
+// one face declaring `pointsVarint` points (Draco allocates its declared
+// count), with POSITION (3 points) and, when texcoordCount > 0, a TEXCOORD_0
+// accessor of that many elements, both named by the Draco extension.
+std::string dracoGltf(const std::string& pointsVarint, std::uint64_t texcoordCount) {
     std::string draco = std::string("DRACO\x02\x02\x01\x00\x00\x00", 11);
-    draco += std::string("\x01\xff\xff\xff\xff\x07\x01\x00\x01\x02", 10);  // varints: 1 face, 2^31 - 1 points
+    draco += "\x01" + pointsVarint + std::string("\x01\x00\x01\x02", 4);  // varints: 1 face, the points
     draco += std::string(16, '\0');
     draco += std::string((4 - draco.size() % 4) % 4, '\0');
     static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -172,20 +196,33 @@ TEST(CliInputLimits, DracoPointCountsBeyondTheAccessorsAreRefusedBeforeDecoding)
         b64 += i + 2 < draco.size() ? kAlphabet[v & 63] : '=';
     }
     const std::string n = std::to_string(draco.size());
+    const bool uv = texcoordCount > 0;
+    return R"({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_draco_mesh_compression"],)"
+           R"( "extensionsRequired": ["KHR_draco_mesh_compression"],)"
+           R"( "buffers": [{"uri": "data:application/octet-stream;base64,)" +
+           b64 + R"(", "byteLength": )" + n + R"(}], "bufferViews": [{"buffer": 0, "byteLength": )" + n +
+           R"(}], "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0],)"
+           R"( "max": [1, 1, 1]}, {"componentType": 5125, "count": 3, "type": "SCALAR"})" +
+           (uv ? R"(, {"componentType": 5126, "count": )" + std::to_string(texcoordCount) + R"(, "type": "VEC2"})"
+               : std::string()) +
+           R"(], "meshes": [{"primitives": [{"attributes": {"POSITION": 0)" + (uv ? R"(, "TEXCOORD_0": 2)" : "") +
+           R"(}, "indices": 1, "extensions": {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes":)"
+           R"( {"POSITION": 0)" +
+           (uv ? R"(, "TEXCOORD_0": 1)" : "") +
+           R"(}}}}]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})";
+}
+
+TEST(CliInputLimits, DracoPointCountsBeyondTheAccessorsAreRefusedBeforeDecoding) {
     const fs::path dir = freshDir("limits_draco");
     fs::create_directories(dir);
-    writeText(dir / "points.gltf",
-              R"({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_draco_mesh_compression"],)"
-              R"( "extensionsRequired": ["KHR_draco_mesh_compression"],)"
-              R"( "buffers": [{"uri": "data:application/octet-stream;base64,)" +
-                  b64 + R"(", "byteLength": )" + n + R"(}], "bufferViews": [{"buffer": 0, "byteLength": )" + n +
-                  R"(}], "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0],)"
-                  R"( "max": [1, 1, 1]}, {"componentType": 5125, "count": 3, "type": "SCALAR"}],)"
-                  R"( "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "extensions":)"
-                  R"( {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],)"
-                  R"( "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0})");
+    writeText(dir / "points.gltf", dracoGltf(std::string("\xff\xff\xff\xff\x07", 5), 0));  // 2^31 - 1
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "points.gltf").string()),
                         "the Draco data declares 2147483647 points, more than its accessors' 3"));
+    // Every accessor must hold the decoded points: a large count on one attribute
+    // (1e8 texture coordinates, within the geometry budget) allows no more than the smallest.
+    writeText(dir / "uv.gltf", dracoGltf(std::string("\x80\xc2\xd7\x2f", 4), 100000000));  // 1e8
+    EXPECT_TRUE(refused(runCli("info --scene " + (dir / "uv.gltf").string()),
+                        "the Draco data declares 100000000 points, more than its accessors' 3"));
 }
 
 TEST(CliInputLimits, ExrWindowsBeyondTheFileSizeAreRefusedBeforeAllocating) {

@@ -70,6 +70,42 @@ TEST(GltfLoaderAssimpModels, EveryFileLoadsOrThrowsInputErrorQuickly) {
     }
 }
 
+// The files of one scene load share one DecodeBudget (a scene .json's
+// entries): geometry and texture pixels already decoded count against the
+// next file, which is refused before it decodes.
+TEST(GltfLoaderAssimpModels, ADecodeBudgetIsSharedByTheFilesOfOneLoad) {
+    const std::filesystem::path box = kModels / "BoxTextured-glTF" / "BoxTextured.gltf";
+    ecs::World world;
+    ecs::load::DecodeBudget budget;
+    ecs::load::loadGltf(world, box, ecs::kNullEntity, &budget);
+    const std::uint64_t geometry = budget.geometryBytes, buffers = budget.bufferBytes;
+    EXPECT_EQ(geometry, 24u * (12 + 12 + 8) + 36u * 4) << "POSITION, NORMAL, TEXCOORD_0 and 36 indices";
+    EXPECT_GT(buffers, 0u);
+    EXPECT_EQ(budget.pixels, 211u * 211u) << "CesiumLogoFlat.png, 211 x 211";
+    // Room for half of the box once its second copy's buffers are added.
+    budget.geometryBytes = ecs::load::DecodeBudget::kBaseGeometryBytes +
+                           ecs::load::DecodeBudget::kGeometryBytesPerBufferByte * 2 * buffers - geometry / 2;
+    try {
+        ecs::load::loadGltf(world, box, ecs::kNullEntity, &budget);
+        ADD_FAILURE() << "the second box was loaded";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("bytes of geometry, the most it may decode"), std::string::npos)
+            << e.what();
+    }
+    // The same for texture pixels: fewer left than the logo has.
+    ecs::load::DecodeBudget pixels;
+    pixels.pixels = ecs::load::DecodeBudget::kBasePixels - 100;
+    const std::string error = [&] {
+        try {
+            ecs::load::loadGltf(world, box, ecs::kNullEntity, &pixels);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    }();
+    EXPECT_NE(error.find("the scene's images have"), std::string::npos) << error;
+}
+
 TEST(GltfLoaderAssimpModels, TwoCylinderEngineLoads) {
     SKIP_WITHOUT_ASSIMP_MODELS();
     World world;

@@ -37,8 +37,7 @@ mat4 toMat4(const aiMatrix4x4& m) {
 
 // A material's diffuse texture: embedded in the file (compressed) or a file beside it.
 std::optional<Texture> textureOf(const aiScene* scene, const aiMaterial* material, const std::filesystem::path& dir,
-                                 std::vector<std::string>& warnings, const std::string& where,
-                                 TexturePixelBudget& budget) {
+                                 std::vector<std::string>& warnings, const std::string& where, DecodeBudget& budget) {
     aiString name;
     if (material->GetTexture(aiTextureType_DIFFUSE, 0, &name) != AI_SUCCESS) return std::nullopt;
     std::optional<Texture> t;
@@ -192,7 +191,8 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
     // Step: materials and their textures.
     std::vector<Texture> textures;
     std::vector<Material> materials;
-    TexturePixelBudget textureBudget;
+    DecodeBudget budget;
+    std::map<std::string, std::optional<TextureId>> textureNamed;  // each texture decoded once
     for (unsigned i = 0; i < scene->mNumMaterials; ++i) {
         const aiMaterial* am = scene->mMaterials[i];
         Material m;
@@ -209,9 +209,22 @@ std::vector<Entity> loadWithAssimp(World& world, const std::filesystem::path& pa
         if (am->Get(AI_MATKEY_SHININESS, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f)
             m.roughness = roughnessFromPhongExponent(v);
         if (am->Get(AI_MATKEY_REFRACTI, v) == AI_SUCCESS && std::isfinite(v) && v > 0.f) m.ior = v;
-        if (std::optional<Texture> t = textureOf(scene, am, path.parent_path(), warnings, where, textureBudget)) {
-            m.baseColorTexture = static_cast<TextureId>(textures.size());
-            textures.push_back(std::move(*t));
+        aiString textureName;
+        if (am->GetTexture(aiTextureType_DIFFUSE, 0, &textureName) == AI_SUCCESS) {
+            const auto [it, added] = textureNamed.try_emplace(textureName.C_Str());
+            if (added) {
+                std::optional<Texture> t;
+                try {
+                    t = textureOf(scene, am, path.parent_path(), warnings, where, budget);
+                } catch (const InputError& e) {
+                    throw InputError(where, e.what());  // the texture's problem, named within the file
+                }
+                if (t) {
+                    it->second = static_cast<TextureId>(textures.size());
+                    textures.push_back(std::move(*t));
+                }
+            }
+            if (it->second) m.baseColorTexture = *it->second;
         }
         for (int k = 0; k < 3; ++k)
             if (!std::isfinite(m.baseColor[k])) m.baseColor[k] = 1.f;

@@ -186,10 +186,12 @@ std::optional<std::vector<std::uint32_t>> GltfConverter::decodeDraco(const tg::P
         requests.push_back({static_cast<std::uint32_t>(id), acc.componentType, componentCount(acc.type)});
         accessors.push_back(accessor);
     }
-    std::size_t length = 0, maxPoints = 0;
+    // Every accessor must hold the decoded point count: the smallest bounds it
+    // (a large count on one attribute must not let Draco allocate it).
+    std::size_t length = 0, maxPoints = accessors.empty() ? 0 : SIZE_MAX;
     const unsigned char* bytes = bufferViewBytes(bufferView, length, label);
     for (const int accessor : accessors)
-        maxPoints = std::max<std::size_t>(maxPoints, m_.accessors[static_cast<std::size_t>(accessor)].count);
+        maxPoints = std::min<std::size_t>(maxPoints, m_.accessors[static_cast<std::size_t>(accessor)].count);
     compression::DracoMesh mesh = compression::decodeDracoMesh(bytes, length, requests, maxPoints);
     if (!mesh.error.empty()) fail_(cat(label, ": ", mesh.error));
     for (std::size_t i = 0; i < accessors.size(); ++i) {
@@ -209,18 +211,17 @@ std::optional<std::vector<std::uint32_t>> GltfConverter::decodeDraco(const tg::P
     return std::move(mesh.indices);
 }
 
-GltfConverter::GltfConverter(const tg::Model& model, const Fail& fail) : m_(model), fail_(fail) {
-    std::uint64_t bufferBytes = 0;
-    for (const tg::Buffer& b : m_.buffers) bufferBytes += b.data.size();
-    decodedBytesLimit_ = kDecodedGeometryBaseBytes + kDecodedGeometryBytesPerBufferByte * bufferBytes;
+GltfConverter::GltfConverter(const tg::Model& model, const Fail& fail, DecodeBudget& budget)
+    : m_(model), fail_(fail), budget_(budget) {
+    for (const tg::Buffer& b : m_.buffers) budget_.bufferBytes += b.data.size();
 }
 
 void GltfConverter::chargeDecoded(std::uint64_t bytes, const std::string& what) const {
-    decodedBytes_ += bytes;
-    if (decodedBytes_ > decodedBytesLimit_)
-        fail_(cat(what, ": the file decodes to more than ", decodedBytesLimit_,
-                  " bytes of geometry (1 GiB + 64 x its buffers' bytes; accessors read by many primitives or many "
-                  "deformable instances of one mesh)"));
+    budget_.geometryBytes += bytes;
+    if (budget_.geometryBytes > budget_.geometryLimit())
+        fail_(cat(what, ": the scene decodes to more than ", budget_.geometryLimit(),
+                  " bytes of geometry (1 GiB + 64 x its glTF buffers' bytes; accessors read by many primitives or "
+                  "many deformable instances of one mesh)"));
 }
 
 void GltfConverter::requireCount(const AccessorView& v, const std::string& what, std::size_t expected) const {

@@ -24,8 +24,8 @@ Staged GltfConverter::convert() {
                  m_.extensionsUsed.end();
 
     validateHierarchy();
-    checkDeclaredGeometry();
     const std::vector<int> roots = sceneRoots();
+    checkDeclaredGeometry(roots);
     traverse(roots);
     convertAnimations();
     return std::move(s_);

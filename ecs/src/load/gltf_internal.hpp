@@ -28,13 +28,7 @@ namespace tg = tinygltf;
 // Limits that keep malformed input from exhausting the stack or memory.
 constexpr std::uint64_t kMaxJsonInteger = 0x7fffffffu;          // tinygltf stores indices in int
 constexpr std::size_t kMaxUnbackedAccessorElements = 1u << 24;  // accessors without bufferView are zeros
-// The geometry a file may decode to (every accessor read, as float/uint32,
-// and every deformable instance's copy): 1 GiB plus 64 x its buffers' bytes.
-// Reuse multiplies without it: a primitive list naming one accessor many
-// times, or many skinned nodes of one mesh, asked tens of GB of a 1 MB file.
-constexpr std::uint64_t kDecodedGeometryBaseBytes = std::uint64_t(1) << 30;
-constexpr std::uint64_t kDecodedGeometryBytesPerBufferByte = 64;
-constexpr float kInfiniteFar = 1e30f;  // zfar for glTF's infinite projection
+constexpr float kInfiniteFar = 1e30f;                           // zfar for glTF's infinite projection
 
 constexpr int kByte = TINYGLTF_COMPONENT_TYPE_BYTE;
 constexpr int kUByte = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
@@ -176,7 +170,8 @@ struct BaseMesh {
 // gltf_materials.cpp and gltf_animations.cpp.
 class GltfConverter {
 public:
-    GltfConverter(const tg::Model& model, const Fail& fail);
+    // Charges what it decodes to `budget` (the glTF geometry part of a DecodeBudget).
+    GltfConverter(const tg::Model& model, const Fail& fail, DecodeBudget& budget);
 
     Staged convert();
 
@@ -212,7 +207,7 @@ private:
     Light convertLight(int index) const;
 
     // ---- meshes and mesh instances (gltf_meshes.cpp) ---------------------------------
-    void checkDeclaredGeometry() const;
+    void checkDeclaredGeometry(const std::vector<int>& roots) const;
     void stageInstance(int nodeIndex, StagedNode& out);
     BaseMesh& baseMesh(int meshIndex);
     BaseMesh convertMesh(int meshIndex);
@@ -243,7 +238,7 @@ private:
     static std::vector<T> gather(const AccessorView& v, Read read);
     std::vector<float> readFloats(const AccessorView& v, const std::string& what) const;
     static std::vector<std::uint32_t> readUInts(const AccessorView& v);
-    // Counts bytes against kDecodedGeometry*, before they are allocated.
+    // Counts bytes against the budget's geometry limit, before they are allocated.
     void chargeDecoded(std::uint64_t bytes, const std::string& what) const;
 
     // ---- materials and textures (gltf_materials.cpp) ---------------------------------
@@ -263,8 +258,7 @@ private:
 
     const tg::Model& m_;
     const Fail& fail_;
-    std::uint64_t decodedBytesLimit_ = 0;
-    mutable std::uint64_t decodedBytes_ = 0;
+    DecodeBudget& budget_;
     Staged s_;
     std::vector<int> parentOf_;
     std::vector<int> materialSlot_;

@@ -128,10 +128,10 @@ void decodeMeshoptViews(tg::Model& model, const Prechecked& pre, const Fail& fai
 }
 
 // Images decoded for tinygltf (its image loader): as RGBA8 through
-// decodeTexture, within kMaxTexturePixels each and kMaxFileTexturePixels in all.
+// decodeTexture, within kMaxTexturePixels each and the load's DecodeBudget in all.
 bool decodeImage(tg::Image* image, const int index, std::string* err, std::string*, int, int,
                  const unsigned char* bytes, int size, void* user) {
-    auto& budget = *static_cast<TexturePixelBudget*>(user);
+    auto& budget = *static_cast<DecodeBudget*>(user);
     std::optional<Texture> t;
     try {
         t = decodeTexture(bytes, size < 0 ? 0 : std::size_t(size), cat("images[", index, "]"), budget);
@@ -167,8 +167,11 @@ bool readSideFile(std::vector<unsigned char>* out, std::string* err, const std::
 }  // namespace
 }  // namespace gltf
 
-std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, Entity parent) {
+std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, Entity parent,
+                             DecodeBudget* sharedBudget) {
     using namespace gltf;
+    DecodeBudget ownBudget;
+    DecodeBudget& budget = sharedBudget ? *sharedBudget : ownBudget;
     const Fail fail(path.string());
     const std::string ext = lowercase(path.extension().string());
     const bool binary = ext == ".glb";
@@ -184,7 +187,6 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
     tg::Model model;
     {
         tg::TinyGLTF loader;
-        TexturePixelBudget budget;
         loader.SetImageLoader(decodeImage, &budget);
         loader.SetFsCallbacks(
             tg::FsCallbacks{&tg::FileExists, &tg::ExpandFilePath, &readSideFile, &tg::WriteWholeFile, nullptr});
@@ -213,7 +215,7 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
     decodeMeshoptViews(model, pre, fail);
 
     // Stage 3, then 4.
-    Staged staged = GltfConverter(model, fail).convert();
+    Staged staged = GltfConverter(model, fail, budget).convert();
     const std::uint32_t points = staged.skippedPointPrimitives, lines = staged.skippedLinePrimitives;
     std::vector<Entity> roots = commit(world, std::move(staged), parent);
     if (points + lines > 0) {

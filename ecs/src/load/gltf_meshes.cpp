@@ -85,39 +85,62 @@ void GltfConverter::stageInstance(int nodeIndex, StagedNode& out) {
     s_.meshes.push_back(std::move(copy));
 }
 
-// The geometry the file declares it will decode, against the budget before
-// anything is read: every mesh's primitives' accessors once (meshes are
-// converted once), and again twice (rest positions and normals) for each
-// node that deforms one (skinned or morphed: such an instance owns a copy).
-// view() and stageInstance() then charge what is actually read and copied.
-void GltfConverter::checkDeclaredGeometry() const {
+// The geometry the loaded scene declares it will decode, against the budget
+// before anything is read: each reached mesh's primitives' accessors once
+// (a mesh is converted once), and for each reached node that deforms its
+// mesh (skinned or morphed: the instance owns a copy) the mesh again plus its
+// positions and normals (the rest pose). view() and stageInstance() then
+// charge what is actually read and copied. Stops at the limit, so the sums
+// (each term below 2^38) never wrap.
+void GltfConverter::checkDeclaredGeometry(const std::vector<int>& roots) const {
+    const std::uint64_t limit = budget_.geometryLimit();
+    std::uint64_t total = budget_.geometryBytes;
+    const auto add = [&](std::uint64_t& sum, std::uint64_t bytes) {
+        sum += bytes;
+        if (sum > limit)
+            fail_(cat("the scene's meshes and deformable instances declare more than ", limit,
+                      " bytes of geometry, the most it may decode (1 GiB + 64 x its glTF buffers' bytes)"));
+    };
     const auto declaredBytes = [&](int accessor) -> std::uint64_t {
         if (accessor < 0 || static_cast<std::size_t>(accessor) >= m_.accessors.size()) return 0;
         const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessor)];
         return std::uint64_t(acc.count) *
                std::uint64_t(std::max(tg::GetNumComponentsInType(static_cast<std::uint32_t>(acc.type)), 0)) * 4u;
     };
-    std::vector<std::uint64_t> meshBytes(m_.meshes.size(), 0);
-    std::uint64_t total = 0;
-    for (std::size_t i = 0; i < m_.meshes.size(); ++i) {
+    // Step: the nodes the scene reaches (the hierarchy is validated: a forest).
+    std::vector<int> reached, stack(roots.begin(), roots.end());
+    while (!stack.empty()) {
+        const int n = stack.back();
+        stack.pop_back();
+        if (n < 0 || static_cast<std::size_t>(n) >= m_.nodes.size()) continue;
+        reached.push_back(n);
+        for (const int c : m_.nodes[static_cast<std::size_t>(n)].children) stack.push_back(c);
+    }
+    // Step: their meshes once each, then the deformable copies.
+    constexpr std::uint64_t kNotCounted = ~std::uint64_t(0);
+    std::vector<std::uint64_t> meshBytes(m_.meshes.size(), kNotCounted), restBytes(m_.meshes.size(), 0);
+    for (const int n : reached) {
+        const int mi = m_.nodes[static_cast<std::size_t>(n)].mesh;
+        if (mi < 0 || static_cast<std::size_t>(mi) >= m_.meshes.size()) continue;
+        const auto i = static_cast<std::size_t>(mi);
+        if (meshBytes[i] != kNotCounted) continue;
+        meshBytes[i] = 0;
         for (const tg::Primitive& prim : m_.meshes[i].primitives) {
-            for (const char* name : {"POSITION", "NORMAL", "TEXCOORD_0", "COLOR_0", "JOINTS_0", "WEIGHTS_0"})
-                meshBytes[i] += declaredBytes(attribute(prim, name));
-            meshBytes[i] += declaredBytes(prim.indices);
+            for (const auto& [name, accessor] : prim.attributes) add(meshBytes[i], declaredBytes(accessor));
+            add(meshBytes[i], declaredBytes(prim.indices));
             for (const std::map<std::string, int>& target : prim.targets)
-                for (const char* name : {"POSITION", "NORMAL"}) meshBytes[i] += declaredBytes(attribute(target, name));
+                for (const auto& [name, accessor] : target) add(meshBytes[i], declaredBytes(accessor));
+            add(restBytes[i], declaredBytes(attribute(prim, "POSITION")) + declaredBytes(attribute(prim, "NORMAL")));
         }
-        total += meshBytes[i];
+        add(total, meshBytes[i]);
     }
-    for (const tg::Node& node : m_.nodes) {
+    for (const int n : reached) {
+        const tg::Node& node = m_.nodes[static_cast<std::size_t>(n)];
         if (node.mesh < 0 || static_cast<std::size_t>(node.mesh) >= m_.meshes.size()) continue;
-        const tg::Mesh& mesh = m_.meshes[static_cast<std::size_t>(node.mesh)];
-        const bool morphed = !mesh.primitives.empty() && !mesh.primitives.front().targets.empty();
-        if (node.skin >= 0 || morphed) total += 2 * meshBytes[static_cast<std::size_t>(node.mesh)];
+        const auto i = static_cast<std::size_t>(node.mesh);
+        const bool morphed = !m_.meshes[i].primitives.empty() && !m_.meshes[i].primitives.front().targets.empty();
+        if (node.skin >= 0 || morphed) add(total, meshBytes[i] + restBytes[i]);
     }
-    if (total > decodedBytesLimit_)
-        fail_(cat("the file's meshes and deformable instances declare ", total, " bytes of geometry, more than the ",
-                  decodedBytesLimit_, " it may decode (1 GiB + 64 x its buffers' bytes)"));
 }
 
 BaseMesh& GltfConverter::baseMesh(int meshIndex) {

@@ -17,6 +17,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <utility>
 #include <optional>
 #include <sstream>
 #include <filesystem>
@@ -215,7 +216,39 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
     // Step: materials (MTL -> rtlab, docs/scene-format.md), textures staged.
     std::vector<Texture> textures;
     std::vector<Material> materials;
-    TexturePixelBudget textureBudget;
+    DecodeBudget budget;
+    // Each (map_Kd, map_d) pair read and decoded once, however many materials name it.
+    std::map<std::pair<std::string, std::string>, std::optional<TextureId>> textureOf;
+    std::vector<bool> cutsOut;  // per staged texture: some texel not opaque
+    const auto stageTexture = [&](const tinyobj::material_t& mt) -> std::optional<TextureId> {
+        const std::string& alpha = mt.alpha_texname != mt.diffuse_texname ? mt.alpha_texname : std::string();
+        const auto key = std::make_pair(mt.diffuse_texname, alpha);
+        if (const auto it = textureOf.find(key); it != textureOf.end()) return it->second;
+        std::optional<Texture> t;
+        try {
+            if (!mt.diffuse_texname.empty()) {
+                t = readTextureNamed(path.parent_path(), mt.diffuse_texname, budget);
+                if (!t)
+                    warnings.push_back(where + ": texture " + mt.diffuse_texname +
+                                       " not found or not readable, left out");
+            }
+            if (!alpha.empty()) {  // the same file as map_Kd: its alpha already counts
+                const std::optional<Texture> dissolve = readTextureNamed(path.parent_path(), alpha, budget);
+                if (!dissolve)
+                    warnings.push_back(where + ": texture " + alpha + " (map_d) not found or not readable, left out");
+                else t = withDissolveMap(std::move(t), *dissolve);
+            }
+        } catch (const InputError& e) {
+            throw InputError(where, e.what());  // the texture's problem, named within the OBJ
+        }
+        std::optional<TextureId> id;
+        if (t) {
+            id = static_cast<TextureId>(textures.size());
+            cutsOut.push_back(hasTransparentTexel(*t));
+            textures.push_back(std::move(*t));
+        }
+        return textureOf[key] = id;
+    };
     for (const tinyobj::material_t& mt : reader.GetMaterials()) {
         Material m;
         m.name = mt.name;
@@ -225,25 +258,9 @@ std::vector<Entity> loadObj(World& world, const std::filesystem::path& path, Ent
         m.roughness = roughnessFromPhongExponent(float(mt.shininess));
         if (mt.ior > 0.f) m.ior = mt.ior;
         if (m.baseColor.a < 1.f) m.alphaMode = AlphaMode::Blend;
-        std::optional<Texture> t;
-        if (!mt.diffuse_texname.empty()) {
-            t = readTextureNamed(path.parent_path(), mt.diffuse_texname, textureBudget);
-            if (!t)
-                warnings.push_back(where + ": texture " + mt.diffuse_texname + " not found or not readable, left out");
-        }
-        if (!mt.alpha_texname.empty() &&
-            mt.alpha_texname != mt.diffuse_texname) {  // the same file: its alpha already counts
-            const std::optional<Texture> dissolve =
-                readTextureNamed(path.parent_path(), mt.alpha_texname, textureBudget);
-            if (!dissolve)
-                warnings.push_back(where + ": texture " + mt.alpha_texname +
-                                   " (map_d) not found or not readable, left out");
-            else t = withDissolveMap(std::move(t), *dissolve);
-        }
-        if (t) {
-            if (hasTransparentTexel(*t)) m.alphaMode = AlphaMode::Mask;  // cut-outs (foliage, chains)
-            m.baseColorTexture = static_cast<TextureId>(textures.size());
-            textures.push_back(std::move(*t));
+        if (const std::optional<TextureId> id = stageTexture(mt)) {
+            if (cutsOut[*id]) m.alphaMode = AlphaMode::Mask;  // cut-outs (foliage, chains)
+            m.baseColorTexture = *id;
         }
         materials.push_back(std::move(m));
     }

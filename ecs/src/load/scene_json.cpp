@@ -553,10 +553,11 @@ SceneDesc parseScene(const Parser& p, const json& doc) {
 void build(World& world, const Parser& p, const SceneDesc& s) {
     world.settings() = s.settings;
 
+    DecodeBudget budget;  // one for the whole scene: 1024 entries naming one small file get one allowance
     for (const GltfDesc& g : s.gltfs) {
         const Entity parent = world.create(g.name);
         world.emplace(parent, LocalTransform{g.translation, g.rotation, g.scale});
-        loadGltf(world, g.file, parent);  // InputError naming the glTF file propagates
+        loadGltf(world, g.file, parent, &budget);  // InputError naming the glTF file propagates
     }
 
     std::uint64_t fogVoxels = 0;  // all procedural fogs together, checked before any is built

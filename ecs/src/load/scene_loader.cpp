@@ -84,7 +84,7 @@ std::vector<MaterialId> commitMaterials(World& world, std::vector<Texture>&& tex
 }
 
 std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name,
-                                     TexturePixelBudget& budget) {
+                                     DecodeBudget& budget) {
     int w = 0, h = 0, channels = 0;
     if (size == 0 || size > std::size_t(std::numeric_limits<int>::max())) return std::nullopt;
     if (!stbi_info_from_memory(bytes, static_cast<int>(size), &w, &h, &channels)) return std::nullopt;
@@ -93,9 +93,11 @@ std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t siz
         throw InputError(name, "image of " + std::to_string(w) + " x " + std::to_string(h) + " pixels, more than the " +
                                    std::to_string(kMaxTexturePixels) + " a texture may have");
     budget.pixels += std::uint64_t(w) * std::uint64_t(h);
-    if (budget.pixels > kMaxFileTexturePixels)
-        throw InputError(
-            name, "the scene file's images have more than " + std::to_string(kMaxFileTexturePixels) + " pixels in all");
+    budget.imageBytes += size;
+    if (budget.pixels > budget.pixelLimit())
+        throw InputError(name, "the scene's images have " + std::to_string(budget.pixels) + " pixels, more than the " +
+                                   std::to_string(budget.pixelLimit()) +
+                                   " it may decode (2^28 + 4 per byte of its compressed images)");
     stbi_uc* pixels = stbi_load_from_memory(bytes, static_cast<int>(size), &w, &h, &channels, 4);
     if (!pixels) return std::nullopt;
     Texture t;
@@ -107,13 +109,13 @@ std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t siz
     return t;
 }
 
-std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written,
-                                        TexturePixelBudget& budget) {
+std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written, DecodeBudget& budget) {
     std::replace(written.begin(), written.end(), '\\', '/');
     const std::filesystem::path asWritten = dir / written;
     const std::filesystem::path beside = dir / std::filesystem::path(written).filename();
     std::vector<std::filesystem::path> candidates{asWritten};
-    if (beside != asWritten) candidates.push_back(beside);  // each file tried (and its pixels charged) once
+    if (beside.lexically_normal() != asWritten.lexically_normal())
+        candidates.push_back(beside);  // each file tried (and its pixels charged) once
     for (const std::filesystem::path& path : candidates) {
         const std::optional<std::vector<unsigned char>> bytes = readRegularFile(path);
         if (!bytes) continue;

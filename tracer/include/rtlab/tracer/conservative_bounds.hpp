@@ -32,4 +32,6 @@ inline float maxAbsCoordinate(const Aabb& b) {
     return b.empty() ? 0.f : std::max(maxAbsCoordinate(b.lo), maxAbsCoordinate(b.hi));
 }
 
+using rtlab::maxNormGain;  // moved to core/math.hpp; kept here for code that names it in this namespace
+
 }  // namespace rtlab::tracer

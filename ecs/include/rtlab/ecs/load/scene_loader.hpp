@@ -5,6 +5,7 @@
 // crashes, hangs or leaves a half-built World behind a successful return.
 #include <rtlab/ecs/world.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -16,13 +17,36 @@ namespace rtlab::ecs::load {
 // source has none, so every scene renders.
 void loadScene(World& world, const std::string& source);
 
+// What one scene load may decode (docs/reliability.md, "Limits"), across
+// every file it reads: a scene .json's glTF entries share one. A small file
+// can declare gigabytes (a solid image of 8192 x 8192 pixels is a few KB; an
+// accessor read by many primitives; one texture named by many materials);
+// real files decode to a bounded multiple of their bytes.
+struct DecodeBudget {
+    // Texture pixels: 2^28 (1 GiB as RGBA8), plus 4 per byte of compressed image read.
+    static constexpr std::uint64_t kBasePixels = std::uint64_t(1) << 28;
+    static constexpr std::uint64_t kPixelsPerImageByte = 4;
+    // glTF geometry (every accessor read, as 4-byte components, and every
+    // deformable instance's copy): 1 GiB, plus 64 per byte of the glTF buffers read.
+    static constexpr std::uint64_t kBaseGeometryBytes = std::uint64_t(1) << 30;
+    static constexpr std::uint64_t kGeometryBytesPerBufferByte = 64;
+
+    std::uint64_t pixels = 0, imageBytes = 0;
+    std::uint64_t geometryBytes = 0, bufferBytes = 0;
+
+    std::uint64_t pixelLimit() const { return kBasePixels + kPixelsPerImageByte * imageBytes; }
+    std::uint64_t geometryLimit() const { return kBaseGeometryBytes + kGeometryBytesPerBufferByte * bufferBytes; }
+};
+
 // glTF 2.0 (.gltf or .glb) through tinygltf: node hierarchy, triangle meshes
 // (strips/fans converted; points/lines rejected), all index widths, normals
 // (generated when missing), UV0, materials, cameras, KHR_lights_punctual,
 // animations, skins, morph targets. New root entities are parented to
 // `parent` when it is valid. Returns the entities created for the glTF scene's
-// root nodes.
-std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, Entity parent = kNullEntity);
+// root nodes. `budget`: shared with the other files of one scene load (a
+// scene .json's entries); the file's own when null.
+std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, Entity parent = kNullEntity,
+                             DecodeBudget* budget = nullptr);
 
 // Wavefront OBJ + MTL through tinyobjloader (docs/scene-format.md, "OBJ and
 // MTL"): one entity and mesh per object or group, a geometry per material,
@@ -84,20 +108,12 @@ inline constexpr std::uint64_t kMaxTexturePixels = std::uint64_t(1) << 26;
 // external glTF buffers): 2 GiB.
 inline constexpr std::uint64_t kMaxSideFileBytes = std::uint64_t(2) << 30;
 
-// The most pixels all the images of one scene file may have together (2^28):
-// a file may name one big image from many materials.
-inline constexpr std::uint64_t kMaxFileTexturePixels = std::uint64_t(1) << 28;
-// The pixels one scene file's loader has decoded so far, against kMaxFileTexturePixels.
-struct TexturePixelBudget {
-    std::uint64_t pixels = 0;
-};
-
 // Compressed image bytes (anything stb_image reads) as an 8-bit RGBA texture;
 // nothing when they do not decode. InputError naming `name` when the image
-// declares more than kMaxTexturePixels, or takes `budget` past
-// kMaxFileTexturePixels, checked before decoding.
+// declares more than kMaxTexturePixels, or takes `budget` past its pixel
+// limit, checked from the header before decoding.
 std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name,
-                                     TexturePixelBudget& budget);
+                                     DecodeBudget& budget);
 // A file read whole, when it is a regular file of at most maxBytes; nothing
 // otherwise (missing, a directory, a device such as /dev/zero, a pipe, too big).
 std::optional<std::vector<unsigned char>> readRegularFile(const std::filesystem::path& path,
@@ -106,8 +122,7 @@ std::optional<std::vector<unsigned char>> readRegularFile(const std::filesystem:
 // (Windows separators accepted); when that is not there, its file name in
 // `dir` (an absolute path of the author's machine). Nothing when not found or
 // unreadable.
-std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written,
-                                        TexturePixelBudget& budget);
+std::optional<Texture> readTextureNamed(const std::filesystem::path& dir, std::string written, DecodeBudget& budget);
 // Whether some texel is not fully opaque (the texture cuts out: an alpha mask).
 bool hasTransparentTexel(const Texture& texture);
 // A Phong / MTL shininess exponent as roughness: sqrt(2 / (Ns + 2)), in [0, 1].
