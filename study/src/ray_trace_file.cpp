@@ -80,6 +80,7 @@ RayTraceWriter::~RayTraceWriter() {
 }
 
 void RayTraceWriter::write(const void* data, std::size_t bytes) {
+    if (bytes == 0) return;  // data may be an empty vector's null pointer, which fwrite must not get
     if (std::fwrite(data, 1, bytes, file_) != bytes)
         throw std::runtime_error(temporary_.string() + ": write failed (disk full?)");
     bodyBytes_ += bytes;

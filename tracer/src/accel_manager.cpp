@@ -51,13 +51,16 @@ std::vector<std::uint32_t> mortonTriangleOrder(const ecs::Geometry& g) {
     Aabb bounds;
     for (const vec3& p : g.positions) bounds.extend(p);
     const vec3 scale = 1023.f / glm::max(bounds.extent(), vec3(1e-30f));
+    // Coordinates near FLT_MAX overflow the centroid or the extent (inf -
+    // inf is NaN, which has no integer value): such a cell is 0.
+    const auto cell = [](float v) { return v > 0.f ? static_cast<std::uint32_t>(std::min(v, 1023.f)) : 0u; };
     std::vector<std::pair<std::uint32_t, std::uint32_t>> keyed(n);
     for (std::size_t t = 0; t < n; ++t) {
         const vec3 c =
             (g.positions[g.indices[3 * t]] + g.positions[g.indices[3 * t + 1]] + g.positions[g.indices[3 * t + 2]]) /
             3.f;
-        const glm::uvec3 q = glm::uvec3(glm::clamp((c - bounds.lo) * scale, vec3(0.f), vec3(1023.f)));
-        keyed[t] = {spreadBits10(q.x) | (spreadBits10(q.y) << 1) | (spreadBits10(q.z) << 2),
+        const vec3 q = (c - bounds.lo) * scale;
+        keyed[t] = {spreadBits10(cell(q.x)) | (spreadBits10(cell(q.y)) << 1) | (spreadBits10(cell(q.z)) << 2),
                     static_cast<std::uint32_t>(t)};
     }
     std::sort(keyed.begin(), keyed.end());
