@@ -79,7 +79,7 @@ TEST(CliInputLimits, ImagesDeclaringTooManyPixelsAreRefusedBeforeDecoding) {
     writeText(dir / "huge.obj", "mtllib huge.mtl\n" + kQuadObj + "usemtl m\nf 1/1 2/2 3/3\n");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "huge.obj").string()),
                         "huge.png: image of 10000 x 10000 pixels, more than the 67108864 a texture may have"));
-    // Five 8192 x 8192 images, each within the limit: a scene decodes 2^28 pixels plus 4 per compressed byte.
+    // Five 8192 x 8192 images, each within the limit: a scene decodes 2^28 pixels plus 16 per compressed byte.
     std::string mtl, shared;
     for (int k = 0; k < 5; ++k) {
         const std::string png = "big" + std::to_string(k) + ".png";
@@ -90,8 +90,8 @@ TEST(CliInputLimits, ImagesDeclaringTooManyPixelsAreRefusedBeforeDecoding) {
     writeText(dir / "many.mtl", mtl);
     writeText(dir / "many.obj", "mtllib many.mtl\n" + kQuadObj + "usemtl m0\nf 1/1 2/2 3/3\n");
     EXPECT_TRUE(refused(runCli("info --scene " + (dir / "many.obj").string()),
-                        "many.obj: big4.png: the scene's images have 335544320 pixels, more than the 268436116 it "
-                        "may decode (2^28 + 4 per byte of its compressed images)"));
+                        "many.obj: big4.png: the scene's images have 335544320 pixels, more than the 268438096 it "
+                        "may decode (2^28 + 16 per byte of its compressed images"));
     // Four of them are within it, and five materials naming one image read it once: both load
     // (the header-only image is left out with a warning).
     writeText(dir / "four.mtl", mtl.substr(0, mtl.find("newmtl m4")));

@@ -74,6 +74,7 @@ TEST(GltfLoaderAssimpModels, EveryFileLoadsOrThrowsInputErrorQuickly) {
 // entries): geometry and texture pixels already decoded count against the
 // next file, which is refused before it decodes.
 TEST(GltfLoaderAssimpModels, ADecodeBudgetIsSharedByTheFilesOfOneLoad) {
+    SKIP_WITHOUT_ASSIMP_MODELS();
     const std::filesystem::path box = kModels / "BoxTextured-glTF" / "BoxTextured.gltf";
     ecs::World world;
     ecs::load::DecodeBudget budget;

@@ -95,9 +95,11 @@ std::optional<Texture> decodeTexture(const unsigned char* bytes, std::size_t siz
     budget.pixels += std::uint64_t(w) * std::uint64_t(h);
     budget.imageBytes += size;
     if (budget.pixels > budget.pixelLimit())
-        throw InputError(name, "the scene's images have " + std::to_string(budget.pixels) + " pixels, more than the " +
-                                   std::to_string(budget.pixelLimit()) +
-                                   " it may decode (2^28 + 4 per byte of its compressed images)");
+        throw InputError(name,
+                         "the scene's images have " + std::to_string(budget.pixels) + " pixels, more than the " +
+                             std::to_string(budget.pixelLimit()) +
+                             " it may decode (2^28 + 16 per byte of its compressed images; a scene .json's entries "
+                             "share it)");
     stbi_uc* pixels = stbi_load_from_memory(bytes, static_cast<int>(size), &w, &h, &channels, 4);
     if (!pixels) return std::nullopt;
     Texture t;

@@ -23,9 +23,11 @@ void loadScene(World& world, const std::string& source);
 // accessor read by many primitives; one texture named by many materials);
 // real files decode to a bounded multiple of their bytes.
 struct DecodeBudget {
-    // Texture pixels: 2^28 (1 GiB as RGBA8), plus 4 per byte of compressed image read.
+    // Texture pixels: 2^28 (1 GiB as RGBA8), plus 16 per byte of compressed
+    // image read (64 bytes of RGBA8, the geometry's ratio: photographs and
+    // JPEG maps compress far less, a solid PNG over a thousand times more).
     static constexpr std::uint64_t kBasePixels = std::uint64_t(1) << 28;
-    static constexpr std::uint64_t kPixelsPerImageByte = 4;
+    static constexpr std::uint64_t kPixelsPerImageByte = 16;
     // glTF geometry (every accessor read, as 4-byte components, and every
     // deformable instance's copy): 1 GiB, plus 64 per byte of the glTF buffers read.
     static constexpr std::uint64_t kBaseGeometryBytes = std::uint64_t(1) << 30;
