@@ -71,6 +71,10 @@ void addFrameOptions(CLI::App& cmd, session::FrameOptions& o, unsigned use, bool
     }
 }
 
+std::string jsonText(const nlohmann::json& j) {
+    return j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 nlohmann::json hitJson(const tracer::CommittedHit& h) {
     if (!h.hit) return {{"hit", false}};
     return {{"hit", true},

@@ -23,6 +23,9 @@ void addFrameOptions(CLI::App& command, session::FrameOptions& options, unsigned
 // (shaders::rayTypeName), as a bit mask over ray types; InputError otherwise.
 std::uint32_t rayTypeMask(const std::string& list);
 
+// A JSON document as text (2-space indent). Strings from the scene's files
+// (warnings, names) may be invalid UTF-8: written as U+FFFD, never thrown on.
+std::string jsonText(const nlohmann::json& j);
 // A committed hit for stats.json ({"hit": false}, or t, instance, geometry, primitive).
 nlohmann::json hitJson(const tracer::CommittedHit& hit);
 

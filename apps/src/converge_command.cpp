@@ -499,8 +499,7 @@ void ConvergeRun::writeResults() {
                     {"extrapolated", headline().extrapolated},
                     {"equalErrorSpeedupFrames", headline().speedupFrames},
                     {"extrapolatedFrames", headline().extrapolatedFrames}};
-    writeTextFileAtomically(std::filesystem::path(out_) / "converge.json",
-                            j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    writeTextFileAtomically(std::filesystem::path(out_) / "converge.json", jsonText(j) + "\n");
     writeTextFileAtomically(std::filesystem::path(out_) / "converge.csv", csv);
 
     std::vector<PlotSeries> series;

@@ -20,7 +20,7 @@ int runPlan(const PlanOptions& o) {
     if (o.json) {
         nlohmann::json j = plan.toJson();
         j["sceneSource"] = o.frame.scene;
-        std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+        std::cout << jsonText(j) << "\n";
     } else {
         std::cout << "plan for " << o.frame.scene << " (gi: " << shaders::giTechniqueName(plan.gi) << ")\n"
                   << plan.toText();

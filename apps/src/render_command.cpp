@@ -306,9 +306,7 @@ int runRender(const session::FrameOptions& o) {
         stats["frames"].push_back(fj);
     }
     progress("");
-    // Strings from the scene's files (warnings, names) may be invalid UTF-8: written as U+FFFD.
-    writeTextFileAtomically(fs::path(o.out) / "stats.json",
-                            stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    writeTextFileAtomically(fs::path(o.out) / "stats.json", jsonText(stats) + "\n");
     std::cerr << "rtlab: wrote " << o.frames << " frame(s) to " << o.out << "\n";
     if (!o.verify) return 0;
     // Totals over the frames' verify trees.

@@ -135,8 +135,7 @@ int runReplay(const ReplayOptions& options) {
         stats["frames"].push_back(std::move(fj));
     }
     progress("");
-    writeTextFileAtomically(std::filesystem::path(o.out) / "stats.json",
-                            stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    writeTextFileAtomically(std::filesystem::path(o.out) / "stats.json", jsonText(stats) + "\n");
     std::cerr << "rtlab: replayed " << replayed << " rays of " << byFrame.size() << " frame(s) on " << o.backend << ", "
               << differing << " hit(s) differ from the recording; wrote " << o.out << "/stats.json\n";
     return differing > 0 ? 1 : 0;

@@ -27,18 +27,6 @@ int componentSize(int componentType) {
         default: return 0;
     }
 }
-int componentCount(int type) {
-    switch (type) {
-        case TINYGLTF_TYPE_SCALAR: return 1;
-        case TINYGLTF_TYPE_VEC2: return 2;
-        case TINYGLTF_TYPE_VEC3: return 3;
-        case TINYGLTF_TYPE_VEC4: return 4;
-        case TINYGLTF_TYPE_MAT2: return 4;
-        case TINYGLTF_TYPE_MAT3: return 9;
-        case TINYGLTF_TYPE_MAT4: return 16;
-        default: return 0;
-    }
-}
 std::string typeName(int type) {
     switch (type) {
         case TINYGLTF_TYPE_SCALAR: return "SCALAR";
@@ -114,6 +102,19 @@ std::uint32_t readUInt(const unsigned char* p, int ct) {
 }
 
 }  // namespace
+
+int componentCount(int type) {
+    switch (type) {
+        case TINYGLTF_TYPE_SCALAR: return 1;
+        case TINYGLTF_TYPE_VEC2: return 2;
+        case TINYGLTF_TYPE_VEC3: return 3;
+        case TINYGLTF_TYPE_VEC4: return 4;
+        case TINYGLTF_TYPE_MAT2: return 4;
+        case TINYGLTF_TYPE_MAT3: return 9;
+        case TINYGLTF_TYPE_MAT4: return 16;
+        default: return 0;
+    }
+}
 
 std::vector<vec3> GltfConverter::readVec3(int accessor, const std::string& what, std::size_t expectedCount,
                                           const std::vector<Format>& formats, const char* expected) {

@@ -164,6 +164,9 @@ struct BaseMesh {
     int rigidVariant = -1;           // index into Staged::meshes, shared by rigid instances
 };
 
+// Components of an accessor type (SCALAR 1 ... MAT4 16); 0 for an unknown type.
+int componentCount(int type);
+
 // Validates the parsed model and converts what the loaded scene reaches. The
 // members are defined by concept: gltf_convert.cpp (driver, hierarchy, nodes,
 // skins, cameras, lights), gltf_meshes.cpp, gltf_accessors.cpp,

@@ -104,8 +104,7 @@ void GltfConverter::checkDeclaredGeometry(const std::vector<int>& roots) const {
     const auto declaredBytes = [&](int accessor) -> std::uint64_t {
         if (accessor < 0 || static_cast<std::size_t>(accessor) >= m_.accessors.size()) return 0;
         const tg::Accessor& acc = m_.accessors[static_cast<std::size_t>(accessor)];
-        return std::uint64_t(acc.count) *
-               std::uint64_t(std::max(tg::GetNumComponentsInType(static_cast<std::uint32_t>(acc.type)), 0)) * 4u;
+        return std::uint64_t(acc.count) * std::uint64_t(componentCount(acc.type)) * 4u;
     };
     // Step: the nodes the scene reaches (the hierarchy is validated: a forest).
     std::vector<int> reached, stack(roots.begin(), roots.end());
