@@ -7,6 +7,11 @@ macro(rtlab_find_dependency)
 endmacro()
 include(${CMAKE_CURRENT_LIST_DIR}/rtlabLibraryDependencies.cmake)
 find_package(CLI11 REQUIRED)
+# OpenVDB, for rtlab's OpenVDB module (ecs/CMakeLists.txt) only. Debian's
+# OpenVDB ships a find module, not a config file.
+list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
+find_package(OpenVDB REQUIRED)
+list(POP_BACK CMAKE_MODULE_PATH)
 # OpenMPI (libopenmpi-dev) for distributed sweeps: optional. RTLAB_WITH_MPI
 # is ON when found; -DRTLAB_USE_MPI=OFF builds without it even then.
 option(RTLAB_USE_MPI "Distribute rtlab sweep with MPI when MPI is found" ON)

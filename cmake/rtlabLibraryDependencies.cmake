@@ -14,9 +14,5 @@ rtlab_find_dependency(draco CONFIG)          # KHR_draco_mesh_compression (libdr
 rtlab_find_dependency(meshoptimizer CONFIG)  # EXT_meshopt_compression (libmeshoptimizer-dev)
 rtlab_find_dependency(tinyobjloader CONFIG)  # OBJ + MTL (libtinyobjloader-dev)
 rtlab_find_dependency(assimp CONFIG)         # PLY and FBX (libassimp-dev)
-# Debian's OpenVDB ships a find module, not a config file.
-set(_rtlab_saved_module_path "${CMAKE_MODULE_PATH}")
-list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
-rtlab_find_dependency(OpenVDB)
-set(CMAKE_MODULE_PATH "${_rtlab_saved_module_path}")
-unset(_rtlab_saved_module_path)
+# OpenVDB is not among them: only rtlab's OpenVDB module links it (a shared
+# module the ecs library opens at run time; cmake/Dependencies.cmake finds it).

@@ -615,6 +615,37 @@ TEST(Cli, ASlowLoadSaysHowLongItTook) {
     EXPECT_EQ(std::count(failed.out.begin(), failed.out.end(), '\n'), 1) << failed.out;
 }
 
+// OpenVDB is loaded only for volumes (its module, docs/api.md): without the
+// module a scene without volumes renders, while making or reading a grid is
+// an internal error (exit 1) saying where the module was looked for, never
+// blamed on the file.
+TEST(Cli, OpenVdbIsLoadedOnlyForVolumes) {
+    const std::string withoutModule = "RTLAB_OPENVDB_MODULE=/nonexistent/librtlab_openvdb.so " + std::string(RTLAB_CLI);
+    const fs::path out = freshDir("without_openvdb");
+    const CliRun cornell =
+        runCommand(withoutModule + " render --scene builtin:cornell --width 16 --height 16 --out " + out.string());
+    EXPECT_EQ(cornell.exitCode, 0) << cornell.out;
+    const CliRun fog = runCommand(withoutModule + " info --scene builtin:showcase");  // a procedural fog
+    EXPECT_EQ(fog.exitCode, 1) << fog.out;
+    EXPECT_NE(fog.out.find("OpenVDB module librtlab_openvdb.so, which was not found (tried "
+                           "/nonexistent/librtlab_openvdb.so (absent)); set RTLAB_OPENVDB_MODULE"),
+              std::string::npos)
+        << fog.out;
+    // A .vdb file: its separate-process check fails the same way.
+    const fs::path vdb = fs::path(RTLAB_SOURCE_DIR) / "tests" / "regression_inputs" / "vdb" / "slow_reject_1.vdb";
+    const fs::path scene = out / "volume.json";
+    std::ofstream(scene) << R"({"gltf": [], "volumes": [{"file": ")" << vdb.string() << R"("}]})";
+    const CliRun file = runCommand(withoutModule + " info --scene " + scene.string());
+    EXPECT_EQ(file.exitCode, 1) << file.out;
+    EXPECT_NE(file.out.find("the separate-process check of " + vdb.string() + " failed: volumes need"),
+              std::string::npos)
+        << file.out;
+    EXPECT_EQ(file.out.find("corrupt"), std::string::npos) << file.out;
+    // With the module, the same file is the file's fault.
+    const CliRun corrupt = runCli("info --scene " + scene.string());
+    EXPECT_EQ(corrupt.exitCode, 2) << corrupt.out;
+}
+
 // docs/scene-format.md's table of every OBJ, PLY and FBX file of
 // assimp-testmodels holds row by row: rtlab info's outcome (triangles, an
 // empty scene with its warning, or exit 2 with one line) and assimp info's

@@ -29,12 +29,20 @@ foreach(pattern include/rtlab/tracer/pipeline.hpp include/rtlab/rtcore_sim/sched
                 lib*/librtlab_core.a lib*/librtlab_ecs.a lib*/librtlab_tracer.a lib*/librtlab_rtcore_sim.a
                 lib*/librtlab_shaders_cpp.a lib*/librtlab_denoise.a lib*/librtlab_study.a lib*/cmake/rtlab/rtlabConfig.cmake
                 lib*/cmake/rtlab/rtlabConfigVersion.cmake lib*/cmake/rtlab/rtlabTargets.cmake bin/rtlab
+                lib*/rtlab/librtlab_openvdb.so
                 share/doc/rtlab/api.md)
   file(GLOB found "${prefix}/${pattern}")
   if(NOT found)
     message(FATAL_ERROR "the install has no ${pattern}")
   endif()
 endforeach()
+# The installed rtlab opens the installed OpenVDB module (beside it, not the
+# build tree's) when a scene has a volume: the showcase's procedural fog.
+run_step("installed rtlab with a volume" ${CMAKE_COMMAND} -E env LD_DEBUG=files
+         "${prefix}/bin/rtlab" info --scene builtin:showcase)
+if(NOT step_output MATCHES "file=${prefix}/lib[^ ]*/rtlab/librtlab_openvdb.so")
+  message(FATAL_ERROR "the installed rtlab did not open the installed OpenVDB module:\n${step_output}")
+endif()
 # Internal headers stay out of the package.
 file(GLOB_RECURSE private_headers "${prefix}/include/*detail.hpp" "${prefix}/include/*render_context.hpp")
 if(private_headers)

@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstdint>
 #include <new>
+#include <stdexcept>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -121,6 +122,12 @@ void checkInSeparateProcess(const std::string& kind, const std::string& library,
         if (at != std::string::npos) throw InputError(where, line.substr(at + where.size() + 2));
         throw InputError(where, line.empty() ? "unreadable" : line);
     }
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 1) {  // the check's own fault, not the file's
+        const std::string prefix = "rtlab: internal error: ";
+        std::string line = message.substr(0, message.find('\n'));
+        if (line.rfind(prefix, 0) == 0) line = line.substr(prefix.size());
+        throw std::runtime_error("the separate-process check of " + where + " failed: " + line);
+    }
     const std::string how =
         WIFSIGNALED(status) ? std::string(strsignal(WTERMSIG(status))) : "exit " + std::to_string(WEXITSTATUS(status));
     throw InputError(where, library + " crashed reading it (" + how +
@@ -147,6 +154,9 @@ int runReaderCheck(const std::string& kind, const std::string& parentPid, const 
     } catch (const std::bad_alloc&) {
         std::fprintf(stderr, "rtlab: %s: implausible sizes (more memory than the check allows)\n", path.c_str());
         return 2;
+    } catch (const std::exception& e) {  // not the file's fault (e.g. the OpenVDB module is missing)
+        std::fprintf(stderr, "rtlab: internal error: %s\n", e.what());
+        return 1;
     }
     return 0;
 }

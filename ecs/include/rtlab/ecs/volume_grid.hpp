@@ -1,7 +1,9 @@
 #pragma once
 // A density grid for participating media. OpenVDB stays behind this opaque
 // type: it is included by exactly one translation unit
-// (ecs/src/load/vdb_volume.cpp), because its headers are slow to compile.
+// (ecs/openvdb_module/openvdb_grid.cpp), because its headers are slow to
+// compile, and lives in a module (librtlab_openvdb.so) opened the first time
+// a grid is made or read, because its library is slow to load.
 #include <rtlab/core/math.hpp>
 
 #include <cstdint>
@@ -29,7 +31,8 @@ public:
     // voxel size it refuses.
     static std::uint64_t proceduralFogVoxels(const Aabb& bounds, float voxelSize);
     // Loads the float grid `gridName` ("" = the first float grid) of a .vdb
-    // file. Throws InputError naming the file on any problem.
+    // file. Throws InputError naming the file on any problem, and
+    // std::runtime_error when the OpenVDB module is not installed.
     // OpenVDB crashes on some corrupt files: where a check command is set
     // (load::setReaderCheckCommand; rtlab sets one) the file is read in a
     // separate process first, and a crash there is an InputError here.
@@ -45,8 +48,9 @@ public:
     // Trilinearly interpolated density at a world-space position (0 outside).
     float density(const vec3& worldPosition) const;
 
+    struct Impl;  // defined by the OpenVDB module's boundary (ecs/src/load/openvdb_module.hpp)
+
 private:
-    struct Impl;
     explicit VolumeGrid(std::unique_ptr<Impl> impl);
     std::unique_ptr<Impl> impl_;
 };
