@@ -3,6 +3,7 @@
 #include <rtlab/session/frame_options.hpp>
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/shaders_cpp/effect_table.hpp>
 
 #include <algorithm>
@@ -134,6 +135,11 @@ const FrameOptionField* frameOptionByKey(std::string_view key) {
     for (const FrameOptionField& f : frameOptionFields())
         if (f.key == key) return &f;
     return nullptr;
+}
+
+void checkSceneSource(const std::string& source) {
+    const std::string prefix = "builtin:";
+    if (source.rfind(prefix, 0) == 0) ecs::load::checkBuiltinScene(source.substr(prefix.size()));
 }
 
 CameraPlacement parseCameraPlacement(const std::string& text, const std::string& flag) {

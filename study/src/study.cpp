@@ -94,6 +94,11 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
         throw InputError(where, path + ": must be a scene source string or {\"scene\": SRC} (got " + w.dump() + ")");
     }
     if (workload.scene.empty()) throw InputError(where, path + ": empty scene source");
+    try {
+        session::checkSceneSource(workload.scene);  // an unknown builtin is refused before any point runs
+    } catch (const InputError& e) {
+        throw InputError(where, path + ": " + e.what());
+    }
     return workload;
 }
 

@@ -318,13 +318,23 @@ TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
 
 TEST(Sweep, PointWithBadSceneStopsWithExitTwoNamingThePoint) {
     const fs::path study =
-        writeStudy("badscene", R"({"workloads": ["builtin:nope"], "render": {"width": 16, "height": 16}})");
+        writeStudy("badscene", R"({"workloads": ["/nonexistent/scene.gltf"], "render": {"width": 16, "height": 16}})");
     const fs::path out = freshDir("sweep_badscene");
     const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
     EXPECT_EQ(r.exitCode, 2) << r.out;
-    EXPECT_NE(r.out.find("point p0000 (builtin:nope) exited with 2"), std::string::npos) << r.out;
-    EXPECT_NE(r.out.find("nope"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("point p0000 (/nonexistent/scene.gltf) exited with 2"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("no such file"), std::string::npos) << r.out;
     EXPECT_TRUE(rows(out).empty());
+    // An unknown builtin is refused before any point runs: one line, nothing written.
+    const fs::path typo =
+        writeStudy("typo", R"({"workloads": ["builtin:nope"], "render": {"width": 16, "height": 16}})");
+    const fs::path typoOut = freshDir("sweep_typo");
+    const CliRun refused = runCli("sweep " + typo.string() + " --out " + typoOut.string());
+    EXPECT_EQ(refused.exitCode, 2) << refused.out;
+    EXPECT_EQ(refused.out, "rtlab: " + typo.string() +
+                               ": workloads[0]: builtin:nope: unknown builtin scene (available: showcase, cornell, "
+                               "terrain, forest, hairball, slivers)\n");
+    EXPECT_FALSE(fs::exists(typoOut / "results.jsonl"));
 }
 
 TEST(Report, WritesSelfContainedHtmlWithPlotsTableConfigAndCommands) {

@@ -125,6 +125,11 @@ TEST(StudyParse, BadStudiesNameFileAndKey) {
          "s.json: workloads[0].rays: t.rtrays: no such file"},
         {R"({"workloads": [{"scene": "builtin:cornell", "camera": "0,0,1,0,0,1"}]})",
          "s.json: workloads[0].camera: eye and target are the same point"},
+        // A builtin workload is checked before any point runs (a typo used to fail every point).
+        {R"({"workloads": ["builtin:cornall"]})",
+         "s.json: workloads[0]: builtin:cornall: unknown builtin scene (available: showcase, cornell"},
+        {R"({"workloads": ["builtin:cornell", {"scene": "builtin:terrain?triangles=1"}]})",
+         "s.json: workloads[1]: builtin:terrain?triangles=1: parameter 'triangles' is 1, out of range"},
         {R"({"workloads": [{"scene": "builtin:cornell", "camera": ""}]})",
          "s.json: workloads[0].camera: must be a non-empty string"},
         {R"({"workloads": ["builtin:cornell"], "render": {"camera": "0,0,1,0,0,0"}})",

@@ -308,7 +308,10 @@ std::vector<std::string> builtinSceneNames() {
     return names;
 }
 
-void loadBuiltinScene(World& world, const std::string& nameAndParameters) {
+namespace {
+
+// The scene `nameAndParameters` names and its parameters, checked.
+std::pair<const BuiltinScene*, Parameters> parseBuiltinSource(const std::string& nameAndParameters) {
     const std::string source = "builtin:" + nameAndParameters;
     const std::size_t question = nameAndParameters.find('?');
     const std::string name = nameAndParameters.substr(0, question);
@@ -318,6 +321,15 @@ void loadBuiltinScene(World& world, const std::string& nameAndParameters) {
         throw InputError(source, "unknown builtin scene (available: " + joined(builtinSceneNames()) + ")");
     Parameters values;
     if (question != std::string::npos) values = parseParameters(source, *scene, nameAndParameters.substr(question + 1));
+    return {&*scene, std::move(values)};
+}
+
+}  // namespace
+
+void checkBuiltinScene(const std::string& nameAndParameters) { parseBuiltinSource(nameAndParameters); }
+
+void loadBuiltinScene(World& world, const std::string& nameAndParameters) {
+    auto [scene, values] = parseBuiltinSource(nameAndParameters);
     world.settings().parameters.clear();
     for (const ParameterSpec& spec : scene->parameters) {
         values.emplace(spec.key, spec.defaultValue);  // keeps a given value

@@ -87,6 +87,9 @@ void loadSceneJson(World& world, const std::filesystem::path& path);
 // parameters used are recorded in world.settings().parameters.
 void loadBuiltinScene(World& world, const std::string& nameAndParameters);
 std::vector<std::string> builtinSceneNames();
+// The checks of loadBuiltinScene without building anything: throws the same
+// InputError for an unknown name or a bad parameter.
+void checkBuiltinScene(const std::string& nameAndParameters);
 
 // Adds a camera looking at the scene bounds from +Z when the world has no
 // active camera, and a directional light when it has no light at all.
