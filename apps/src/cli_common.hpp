@@ -26,6 +26,10 @@ std::uint32_t rayTypeMask(const std::string& list);
 // A JSON document as text (2-space indent). Strings from the scene's files
 // (warnings, names) may be invalid UTF-8: written as U+FFFD, never thrown on.
 std::string jsonText(const nlohmann::json& j);
+// An error message as the one line rtlab prints: the control characters a
+// file's bytes may bring (a newline in an EXR channel name) as \n, \r, \t
+// or \xNN.
+std::string oneLine(const std::string& message);
 // A committed hit for stats.json ({"hit": false}, or t, instance, geometry, primitive).
 nlohmann::json hitJson(const tracer::CommittedHit& hit);
 

@@ -1,5 +1,6 @@
 // rtlab command line. Exit codes (DESIGN.md): 0 success, 2 bad input or
 // usage (one line on stderr naming the file and the problem), 1 internal error.
+#include "cli_common.hpp"
 #include "commands.hpp"
 
 #include <rtlab/ecs/load/scene_loader.hpp>
@@ -63,10 +64,10 @@ int main(int argc, char** argv) {
         if (app.got_subcommand("gpucheck-export")) return app::runGpuCheckExport(gpucheckExport);
         if (app.got_subcommand("export")) return app::runExport(exportOptions);
     } catch (const InputError& e) {
-        std::cerr << "rtlab: " << e.what() << "\n";
+        std::cerr << "rtlab: " << app::oneLine(e.what()) << "\n";
         return static_cast<int>(ExitCode::BadInput);
     } catch (const std::exception& e) {
-        std::cerr << "rtlab: internal error: " << e.what() << "\n";
+        std::cerr << "rtlab: internal error: " << app::oneLine(e.what()) << "\n";
         return static_cast<int>(ExitCode::Internal);
     }
     return static_cast<int>(ExitCode::Internal);

@@ -61,8 +61,6 @@ void initializeOpenVdbOnce() {
     std::call_once(flag, [] { openvdb::initialize(); });
 }
 
-// Largest procedural grid (voxel lattice points), ~128 MiB of float values.
-
 // ---- procedural fog ---------------------------------------------------------
 
 // Deterministic lattice value in [0, 1) from integer coordinates and a seed.
@@ -417,8 +415,8 @@ std::unique_ptr<VolumeGrid::Impl> loadVdb(const std::filesystem::path& path, con
     return impl;
 }
 
-const openvdb_module::Functions kFunctions{openvdb_module::kAbiVersion, sizeof(VolumeGrid::Impl), makeProceduralFog,
-                                           loadVdb};
+const openvdb_module::Functions kFunctions{openvdb_module::kAbiVersion, sizeof(VolumeGrid::Impl),
+                                           RTLAB_OPENVDB_ABI_TOKEN, makeProceduralFog, loadVdb};
 
 }  // namespace
 }  // namespace rtlab::ecs

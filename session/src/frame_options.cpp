@@ -7,6 +7,7 @@
 #include <rtlab/shaders_cpp/effect_table.hpp>
 
 #include <algorithm>
+#include <filesystem>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
@@ -139,7 +140,13 @@ const FrameOptionField* frameOptionByKey(std::string_view key) {
 
 void checkSceneSource(const std::string& source) {
     const std::string prefix = "builtin:";
-    if (source.rfind(prefix, 0) == 0) ecs::load::checkBuiltinScene(source.substr(prefix.size()));
+    if (source.rfind(prefix, 0) == 0) {
+        ecs::load::checkBuiltinScene(source.substr(prefix.size()));
+        return;
+    }
+    std::error_code ec;
+    if (!std::filesystem::exists(source, ec)) throw InputError(source, "no such file");
+    if (!std::filesystem::is_regular_file(source, ec)) throw InputError(source, "not a regular file");
 }
 
 CameraPlacement parseCameraPlacement(const std::string& text, const std::string& flag) {

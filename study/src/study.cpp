@@ -66,7 +66,9 @@ OverrideSet parseOverrideObject(const json& object, const std::string& where, co
     return set;
 }
 
-Workload parseWorkload(const json& w, const std::string& where, const std::string& path) {
+// checkSources: the scene and rays files exist and a builtin scene's name and
+// parameters are valid (not for a stored study being reported or resumed).
+Workload parseWorkload(const json& w, const std::string& where, const std::string& path, bool checkSources) {
     Workload workload;
     if (w.is_string()) {
         workload.scene = w.get<std::string>();
@@ -81,7 +83,7 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
                 throw InputError(where,
                                  path + ".rays: empty (a .rays file or directory from rtlab render --record-rays)");
             std::error_code ec;
-            if (!std::filesystem::exists(workload.rays, ec))
+            if (checkSources && !std::filesystem::exists(workload.rays, ec))
                 throw InputError(where, path + ".rays: " + workload.rays + ": no such file or directory");
         }
         if (w.contains("camera")) {
@@ -95,7 +97,8 @@ Workload parseWorkload(const json& w, const std::string& where, const std::strin
     }
     if (workload.scene.empty()) throw InputError(where, path + ": empty scene source");
     try {
-        session::checkSceneSource(workload.scene);  // an unknown builtin is refused before any point runs
+        if (checkSources)
+            session::checkSceneSource(workload.scene);  // an unknown builtin is refused before any point runs
     } catch (const InputError& e) {
         throw InputError(where, path + ": " + e.what());
     }
@@ -213,7 +216,8 @@ Study parseStudy(const json& j, const std::string& where, bool checkPoints) {
     if (!workloads.is_array() || workloads.empty())
         throw InputError(where, "workloads: must be a non-empty list of scene sources");
     for (std::size_t i = 0; i < workloads.size(); ++i)
-        study.workloads.push_back(parseWorkload(workloads[i], where, "workloads[" + std::to_string(i) + "]"));
+        study.workloads.push_back(
+            parseWorkload(workloads[i], where, "workloads[" + std::to_string(i) + "]", checkPoints));
 
     // Step: render settings.
     if (j.contains("render")) {

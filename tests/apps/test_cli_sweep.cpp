@@ -317,13 +317,17 @@ TEST(Sweep, BadStudiesExitTwoNamingFileAndKey) {
 }
 
 TEST(Sweep, PointWithBadSceneStopsWithExitTwoNamingThePoint) {
-    const fs::path study =
-        writeStudy("badscene", R"({"workloads": ["/nonexistent/scene.gltf"], "render": {"width": 16, "height": 16}})");
+    // A scene file that exists (checked when the study is read) but does not load (read by the point).
+    const fs::path broken = freshDir("sweep_badscene_file") / "broken.gltf";
+    fs::create_directories(broken.parent_path());
+    std::ofstream(broken) << "{";
+    const fs::path study = writeStudy(
+        "badscene", R"({"workloads": [")" + broken.string() + R"("], "render": {"width": 16, "height": 16}})");
     const fs::path out = freshDir("sweep_badscene");
     const CliRun r = runCli("sweep " + study.string() + " --out " + out.string());
     EXPECT_EQ(r.exitCode, 2) << r.out;
-    EXPECT_NE(r.out.find("point p0000 (/nonexistent/scene.gltf) exited with 2"), std::string::npos) << r.out;
-    EXPECT_NE(r.out.find("no such file"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("point p0000 (" + broken.string() + ") exited with 2: " + broken.string()), std::string::npos)
+        << r.out;
     EXPECT_TRUE(rows(out).empty());
     // An unknown builtin is refused before any point runs: one line, nothing written.
     const fs::path typo =
@@ -335,6 +339,11 @@ TEST(Sweep, PointWithBadSceneStopsWithExitTwoNamingThePoint) {
                                ": workloads[0]: builtin:nope: unknown builtin scene (available: showcase, cornell, "
                                "terrain, forest, hairball, slivers)\n");
     EXPECT_FALSE(fs::exists(typoOut / "results.jsonl"));
+    // So is a missing scene file.
+    const fs::path missing = writeStudy("missing", R"({"workloads": ["builtin:cornell", "/nonexistent/scene.gltf"]})");
+    const CliRun absent = runCli("sweep " + missing.string() + " --out " + freshDir("sweep_missing").string());
+    EXPECT_EQ(absent.exitCode, 2) << absent.out;
+    EXPECT_EQ(absent.out, "rtlab: " + missing.string() + ": workloads[1]: /nonexistent/scene.gltf: no such file\n");
 }
 
 TEST(Report, WritesSelfContainedHtmlWithPlotsTableConfigAndCommands) {

@@ -286,6 +286,31 @@ TEST_F(GltfCompressionFiles, MeshoptFallbackBufferMisuseIsRefusedBeforeAllocatin
         << err;
 }
 
+// The geometry budget grows by the file's buffer bytes (1 GiB + 64 x them),
+// not by the fallback buffers meshopt decodes into: those are the decoder's
+// output, up to 64 x the compressed bytes, and counting them let a file
+// decode 64 x 64 x its bytes. Here the primitives declare just over the
+// file's allowance, which the fallback buffer's bytes would have covered.
+TEST_F(GltfCompressionFiles, MeshoptFallbackBuffersDoNotRaiseTheGeometryBudget) {
+    const fs::path p = meshoptFile(icosphere()).write(file("many.gltf"));
+    Json doc = Json::parse(std::ifstream(p));
+    const std::uint64_t compressed = doc["buffers"][0]["byteLength"].get<std::uint64_t>();
+    const std::uint64_t fallback = doc["buffers"][1]["byteLength"].get<std::uint64_t>();
+    const std::uint64_t limit = (std::uint64_t{1} << 30) + 64 * compressed;
+    // What one primitive declares, read as 4-byte components: POSITION, NORMAL (VEC3) and the indices.
+    std::uint64_t perPrimitive = 0;
+    for (const Json& a : doc["accessors"])
+        perPrimitive += a["count"].get<std::uint64_t>() * (a["type"] == "VEC3" ? 3 : 1) * 4;
+    const std::uint64_t primitives = limit / perPrimitive + 1;
+    ASSERT_LT(primitives * perPrimitive, limit + 64 * fallback);  // within the allowance the fallback buffer gave
+    const Json primitive = doc["meshes"][0]["primitives"][0];
+    doc["meshes"][0]["primitives"] = Json::array();
+    for (std::uint64_t i = 0; i < primitives; ++i) doc["meshes"][0]["primitives"].push_back(primitive);
+    std::ofstream(p) << doc.dump();
+    const std::string err = loadError(p);
+    EXPECT_NE(err.find("declare more than " + std::to_string(limit) + " bytes of geometry"), std::string::npos) << err;
+}
+
 // ---------------------------------------------------------------------------
 // KHR_mesh_quantization
 // ---------------------------------------------------------------------------

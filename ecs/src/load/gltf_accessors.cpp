@@ -212,9 +212,14 @@ std::optional<std::vector<std::uint32_t>> GltfConverter::decodeDraco(const tg::P
     return std::move(mesh.indices);
 }
 
-GltfConverter::GltfConverter(const tg::Model& model, const Fail& fail, DecodeBudget& budget)
+GltfConverter::GltfConverter(const tg::Model& model, const Fail& fail, DecodeBudget& budget,
+                             const std::vector<std::pair<std::size_t, std::uint64_t>>& placeholders)
     : m_(model), fail_(fail), budget_(budget) {
-    for (const tg::Buffer& b : m_.buffers) budget_.bufferBytes += b.data.size();
+    std::vector<bool> decoded(m_.buffers.size(), false);
+    for (const auto& [index, bytes] : placeholders)
+        if (index < decoded.size()) decoded[index] = true;
+    for (std::size_t i = 0; i < m_.buffers.size(); ++i)
+        if (!decoded[i]) budget_.bufferBytes += m_.buffers[i].data.size();
 }
 
 void GltfConverter::chargeDecoded(std::uint64_t bytes, const std::string& what) const {

@@ -173,8 +173,12 @@ int componentCount(int type);
 // gltf_materials.cpp and gltf_animations.cpp.
 class GltfConverter {
 public:
-    // Charges what it decodes to `budget` (the glTF geometry part of a DecodeBudget).
-    GltfConverter(const tg::Model& model, const Fail& fail, DecodeBudget& budget);
+    // Charges what it decodes to `budget` (the glTF geometry part of a
+    // DecodeBudget), whose allowance grows by the model's buffers' bytes, but
+    // for `placeholders` (Prechecked's): they hold decoded meshopt data, not
+    // bytes of the file.
+    GltfConverter(const tg::Model& model, const Fail& fail, DecodeBudget& budget,
+                  const std::vector<std::pair<std::size_t, std::uint64_t>>& placeholders = {});
 
     Staged convert();
 

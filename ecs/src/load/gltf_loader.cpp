@@ -215,7 +215,7 @@ std::vector<Entity> loadGltf(World& world, const std::filesystem::path& path, En
     decodeMeshoptViews(model, pre, fail);
 
     // Stage 3, then 4.
-    Staged staged = GltfConverter(model, fail, budget).convert();
+    Staged staged = GltfConverter(model, fail, budget, pre.placeholders).convert();
     const std::uint32_t points = staged.skippedPointPrimitives, lines = staged.skippedLinePrimitives;
     std::vector<Entity> roots = commit(world, std::move(staged), parent);
     if (points + lines > 0) {

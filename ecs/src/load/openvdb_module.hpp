@@ -31,8 +31,10 @@ struct VolumeGrid::Impl {
 
 namespace openvdb_module {
 
-// Raised whenever Functions or VolumeGrid::Impl change: a module of another
-// build is refused rather than called.
+// A module of another build is refused rather than called: the first two
+// fields of Functions never move; abiToken (RTLAB_OPENVDB_ABI_TOKEN, which
+// ecs/CMakeLists.txt derives from the compiler and the headers of this
+// boundary) must match too.
 inline constexpr std::uint32_t kAbiVersion = 1;
 
 // What the module gives: `extern "C" const Functions* rtlab_openvdb_module()`.
@@ -41,6 +43,7 @@ inline constexpr std::uint32_t kAbiVersion = 1;
 struct Functions {
     std::uint32_t abiVersion;
     std::size_t implSize;  // sizeof(VolumeGrid::Impl) where the module was built
+    const char* abiToken;  // RTLAB_OPENVDB_ABI_TOKEN where the module was built
     // The grid of VolumeGrid::makeProceduralFog, whose arguments are checked:
     // n lattice points per axis.
     std::unique_ptr<VolumeGrid::Impl> (*makeProceduralFog)(const Aabb& bounds, float voxelSize, float peakDensity,

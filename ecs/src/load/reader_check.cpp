@@ -122,12 +122,12 @@ void checkInSeparateProcess(const std::string& kind, const std::string& library,
         if (at != std::string::npos) throw InputError(where, line.substr(at + where.size() + 2));
         throw InputError(where, line.empty() ? "unreadable" : line);
     }
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 1) {  // the check's own fault, not the file's
-        const std::string prefix = "rtlab: internal error: ";
-        std::string line = message.substr(0, message.find('\n'));
-        if (line.rfind(prefix, 0) == 0) line = line.substr(prefix.size());
-        throw std::runtime_error("the separate-process check of " + where + " failed: " + line);
-    }
+    // The check's own fault, not the file's: exit 1 with its one line (a
+    // sanitizer's report also exits 1, and that is a crash reading the file).
+    const std::string internal = "rtlab: internal error: ";
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 1 && message.rfind(internal, 0) == 0)
+        throw std::runtime_error("the separate-process check of " + where +
+                                 " failed: " + message.substr(internal.size(), message.find('\n') - internal.size()));
     const std::string how =
         WIFSIGNALED(status) ? std::string(strsignal(WTERMSIG(status))) : "exit " + std::to_string(WEXITSTATUS(status));
     throw InputError(where, library + " crashed reading it (" + how +

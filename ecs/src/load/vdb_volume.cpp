@@ -17,6 +17,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <stdexcept>
 #include <vector>
@@ -30,9 +31,12 @@ namespace rtlab::ecs {
 namespace {
 
 std::vector<std::filesystem::path> moduleCandidates() {
-    if (const char* chosen = std::getenv("RTLAB_OPENVDB_MODULE"); chosen && *chosen) return {chosen};
-    std::vector<std::filesystem::path> candidates;
     std::error_code ec;
+    if (const char* chosen = std::getenv("RTLAB_OPENVDB_MODULE"); chosen && *chosen) {
+        const std::filesystem::path absolute = std::filesystem::absolute(chosen, ec);  // dlopen would search
+        return {ec ? std::filesystem::path(chosen) : absolute};
+    }
+    std::vector<std::filesystem::path> candidates;
     const std::filesystem::path program = std::filesystem::read_symlink("/proc/self/exe", ec);
     if (!ec) candidates.push_back((program.parent_path() / RTLAB_OPENVDB_MODULE_FROM_BINDIR).lexically_normal());
     candidates.emplace_back(RTLAB_OPENVDB_MODULE_BUILT);
@@ -64,7 +68,8 @@ const openvdb_module::Functions& openVdbModule() {
         using Entry = const openvdb_module::Functions* (*)();
         const auto entry = reinterpret_cast<Entry>(dlsym(handle, openvdb_module::kEntryPoint));
         const openvdb_module::Functions* found = entry ? entry() : nullptr;
-        if (!found || found->abiVersion != openvdb_module::kAbiVersion || found->implSize != sizeof(VolumeGrid::Impl)) {
+        if (!found || found->abiVersion != openvdb_module::kAbiVersion || found->implSize != sizeof(VolumeGrid::Impl) ||
+            std::strcmp(found->abiToken, RTLAB_OPENVDB_ABI_TOKEN) != 0) {
             tried += " (another build's module)";
             dlclose(handle);
             continue;
@@ -72,8 +77,9 @@ const openvdb_module::Functions& openVdbModule() {
         functions = found;  // never closed: grids made by it live until exit
         return *functions;
     }
-    throw std::runtime_error("volumes need rtlab's OpenVDB module librtlab_openvdb.so, which was not found (tried " +
-                             tried + "); set RTLAB_OPENVDB_MODULE to its path");
+    throw std::runtime_error(
+        "volumes need rtlab's OpenVDB module librtlab_openvdb.so, which was not found or could not be loaded (tried " +
+        tried + "); set RTLAB_OPENVDB_MODULE to its path");
 }
 
 }  // namespace

@@ -39,9 +39,9 @@ struct CameraPlacement {
 // on anything else: not 6, 9 or 10 finite numbers, eye equal to target, up
 // zero or along the view, a field of view outside (0, 180).
 CameraPlacement parseCameraPlacement(const std::string& text, const std::string& flag = "--camera");
-// What can be checked of a scene source without loading it: a builtin:
-// source's name and parameters (InputError naming the source). Files are
-// checked when they are read.
+// What can be checked of a scene source without loading it (InputError
+// naming the source): a builtin: source's name and parameters, a file's
+// existence. A file's contents are checked when it is read.
 void checkSceneSource(const std::string& source);
 
 struct FrameOptions {

@@ -91,7 +91,9 @@ struct Study {
 
 // Parses a study; `where` (the file name) prefixes every error. With
 // checkPoints, every point's whole RT-core configuration is resolved and
-// validated too (reading render.rtcoreConfig).
+// validated too (reading render.rtcoreConfig), every builtin workload's name
+// and parameters are checked and every scene and rays file must exist (without: a
+// stored study, reported or read back).
 Study parseStudy(const nlohmann::json& json, const std::string& where, bool checkPoints = true);
 // Reads and parses STUDY.json (InputError naming the file when unreadable or invalid).
 Study loadStudy(const std::filesystem::path& path);
