@@ -282,7 +282,12 @@ std::unique_ptr<VolumeGrid::Impl> makeProceduralFog(const Aabb& bounds, float vo
     if (peakDensity > 0.f) {
         // Serial fill: every voxel is a pure function of (i, j, k, seed), the
         // order of insertion is fixed, so the tree is identical on every run.
-        openvdb::FloatGrid::Accessor acc = grid->getAccessor();
+        // Not registered with the tree: a registered accessor grows the
+        // tree's accessor table, and prune() then walks it with TBB's
+        // concurrent_hash_map iterator, which casts its bucket marker (3) to
+        // a node pointer: UBSan stops there (fuzz_scene_json). Nothing else
+        // touches the tree during the fill, so nothing needs the registration.
+        openvdb::tree::ValueAccessor<openvdb::FloatTree, false> acc(grid->tree());
         for (std::int32_t k = 0; k < n[2]; ++k) {
             const float w = static_cast<float>(k) * voxelSize / extent.z;
             for (std::int32_t j = 0; j < n[1]; ++j) {
