@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <algorithm>
 #include <iterator>
 #include <limits>
 #include <random>
@@ -253,6 +254,33 @@ TEST_F(ImageFiles, ExrReadGarbageFails) {
         writeBytes(dir / "noise.exr", bytes);
         EXPECT_THROW(readExr(dir / "noise.exr"), InputError) << "seed " << seed;
     }
+}
+
+// OpenEXR believes the sizes inside a header attribute's value (fuzz_exr: an
+// 843-byte file took 13 s of memset); rtlab checks them against the bytes
+// that hold them before OpenEXR reads the header.
+TEST_F(ImageFiles, ExrHeaderSizesBeyondTheirBytesAreRefused) {
+    const fs::path path = dir / "order.exr";
+    writeExr(path, makeTestImage(4, 4, {"R", "G", "B"}));  // with its string-vector channel-order attribute
+    const std::vector<unsigned char> bytes = readBytes(path);
+    const std::string type = "stringvector";
+    const auto at = std::search(bytes.begin(), bytes.end(), type.begin(), type.end());
+    ASSERT_NE(at, bytes.end());
+    // After the type name and its 0: the attribute's size, then the first string's length.
+    const std::size_t lengthAt = static_cast<std::size_t>(at - bytes.begin()) + type.size() + 1 + 4;
+    std::vector<unsigned char> hugeString = bytes;
+    hugeString[lengthAt + 3] = 0x7f;  // the first string: 2^31 - something bytes
+    writeBytes(dir / "huge_string.exr", hugeString);
+    expectInputError(
+        [&] { readExr(dir / "huge_string.exr"); },
+        {"huge_string.exr", "header attribute 'rtlabChannelOrder' holds a string longer than the attribute"});
+    std::vector<unsigned char> hugeAttribute = bytes;
+    hugeAttribute[lengthAt - 1] = 0x7f;  // the attribute's own size
+    writeBytes(dir / "huge_attribute.exr", hugeAttribute);
+    expectInputError([&] { readExr(dir / "huge_attribute.exr"); },
+                     {"huge_attribute.exr", "header attribute 'rtlabChannelOrder' declares", "left in the file"});
+    // The file itself reads.
+    EXPECT_EQ(readExr(path).channelNames().size(), 3u);
 }
 
 TEST_F(ImageFiles, ExrReadTruncatedFails) {
