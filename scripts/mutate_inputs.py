@@ -8,6 +8,7 @@ changes 1, 2, 4 or 16 random bytes (a bit flip 70% of the time, else a random
 byte), and runs the rtlab command that reads that format with a time limit:
 
   gltf, glb, scene_json, obj, ply, fbx   render --scene CASE at 32x18, --denoise none
+                                         (a scene_json case beside a one-triangle model.gltf)
   vdb                                    render of a scene .json naming CASE
   mtl                                    render of a fixed OBJ whose mtllib is CASE
   ray_trace                              replay --scene builtin:cornell --rays CASE (embree, rtcore alternately)
@@ -31,6 +32,14 @@ EXTENSION = {"gltf": ".gltf", "glb": ".glb", "scene_json": ".json", "vdb": ".vdb
              "exr": ".exr"}
 QUAD_OBJ = ("mtllib case.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
             "usemtl material\nf 1/1 2/2 3/3\nusemtl other\nf 1/1 3/3 4/4\n")
+# The model beside every scene_json case (the seed gltf_model.json names it;
+# fuzz/scene_json_fuzzer.cpp writes the same): one triangle, its buffer a data URI.
+MODEL_GLTF = ('{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}], '
+              '"meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], '
+              '"accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", '
+              '"min": [0, 0, 0], "max": [1, 1, 0]}], "bufferViews": [{"buffer": 0, "byteLength": 36}], '
+              '"buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,'
+              'AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]}')
 VDB_SCENE = ('{"gltf": [], "volumes": [{"file": "case.vdb", "densityScale": 0.5}], '
              '"camera": {"position": [0, 1, 6], "lookAt": [0, 0, 0], "yfov": 0.8}}')
 
@@ -52,6 +61,8 @@ def commands(rtlab, fmt, case, work, i):
     if fmt == "vdb":
         open(os.path.join(work, "scene.json"), "w").write(VDB_SCENE)
         return render + [os.path.join(work, "scene.json")]
+    if fmt == "scene_json":
+        open(os.path.join(work, "model.gltf"), "w").write(MODEL_GLTF)
     if fmt == "mtl":
         open(os.path.join(work, "case.obj"), "w").write(QUAD_OBJ)
         return render + [os.path.join(work, "case.obj")]

@@ -214,10 +214,12 @@ Image readExr(const std::filesystem::path& path) {
     stream.read(reinterpret_cast<char*>(magic.data()), magic.size());
     if (stream.gcount() != static_cast<std::streamsize>(magic.size()) || magic != kExrMagic)
         throw InputError(path.string(), "not an OpenEXR file");
-    {
-        std::error_code sizeError;
-        const std::uint64_t fileSize = std::filesystem::file_size(path, sizeError);
-        const std::string problem = sizeError ? "" : checkExrHeaders(stream, fileSize);
+    // Its size bounds the header's sizes and the decoded pixels.
+    std::error_code sizeError;
+    const std::uint64_t fileSize = std::filesystem::file_size(path, sizeError);
+    const bool sizeKnown = !sizeError;
+    if (sizeKnown) {
+        const std::string problem = checkExrHeaders(stream, fileSize);
         if (!problem.empty()) throw InputError(path.string(), "corrupt OpenEXR file: " + problem);
     }
     stream.clear();
@@ -243,10 +245,9 @@ Image readExr(const std::filesystem::path& path) {
         // A file's pixels cannot decode to more than deflate's largest ratio
         // (1032:1, ZIP and PIZ) times its size, plus a little: a small file
         // declaring a huge window is corrupt, refused before allocating.
-        std::error_code ec;
-        const std::int64_t fileBytes = static_cast<std::int64_t>(std::filesystem::file_size(path, ec));
+        const std::int64_t fileBytes = static_cast<std::int64_t>(fileSize);
         const std::int64_t decodedBytes = width * height * static_cast<std::int64_t>(names.size()) * 2;  // half
-        if (!ec && decodedBytes > kMaxCompressionRatio * fileBytes + kDecodedBytesSlack)
+        if (sizeKnown && decodedBytes > kMaxCompressionRatio * fileBytes + kDecodedBytesSlack)
             throw InputError(path.string(), "OpenEXR header declares " + std::to_string(width) + "x" +
                                                 std::to_string(height) + " pixels of " + std::to_string(names.size()) +
                                                 " channels, more than its " + std::to_string(fileBytes) +

@@ -40,7 +40,8 @@ endforeach()
 # build tree's) when a scene has a volume: the showcase's procedural fog.
 run_step("installed rtlab with a volume" ${CMAKE_COMMAND} -E env LD_DEBUG=files
          "${prefix}/bin/rtlab" info --scene builtin:showcase)
-if(NOT step_output MATCHES "file=${prefix}/lib[^ ]*/rtlab/librtlab_openvdb.so")
+string(REGEX REPLACE "([][+.*?()^$|\\])" "\\\\\\1" prefix_pattern "${prefix}")  # the prefix taken literally
+if(NOT step_output MATCHES "file=${prefix_pattern}/lib[^ ]*/rtlab/librtlab_openvdb\\.so")
   message(FATAL_ERROR "the installed rtlab did not open the installed OpenVDB module:\n${step_output}")
 endif()
 # Internal headers stay out of the package.

@@ -37,6 +37,7 @@ using nlohmann::json;
 // ---- descriptions (phase 1 output) -------------------------------------------
 
 struct GltfDesc {
+    std::string keyPath;  // "gltf[i]", naming the entry in its file's errors
     fs::path file;
     std::string name;
     vec3 translation{0.f};
@@ -332,6 +333,7 @@ json parseDocument(const std::string& text, const Parser& p) {
 GltfDesc parseGltf(const Parser& p, const json& j, const std::string& kp) {
     p.expectObject(j, kp, {"file", "name", "translation", "rotation", "scale"});
     GltfDesc d;
+    d.keyPath = kp;
     if (!j.contains("file")) p.fail(joinKey(kp, "file"), "required");
     d.file = p.file(j["file"], joinKey(kp, "file"));
     d.name = j.contains("name") ? p.string(j["name"], joinKey(kp, "name")) : d.file.stem().string();
@@ -557,7 +559,13 @@ void build(World& world, const Parser& p, const SceneDesc& s) {
     for (const GltfDesc& g : s.gltfs) {
         const Entity parent = world.create(g.name);
         world.emplace(parent, LocalTransform{g.translation, g.rotation, g.scale});
-        loadGltf(world, g.file, parent, &budget);  // InputError naming the glTF file propagates
+        try {
+            loadGltf(world, g.file, parent, &budget);
+        } catch (const InputError& e) {
+            // The entry, then the glTF file's own error (which names the file):
+            // a budget the entries share may run out in a file that alone is small.
+            p.fail(g.keyPath, e.what());
+        }
     }
 
     std::uint64_t fogVoxels = 0;  // all procedural fogs together, checked before any is built

@@ -87,10 +87,21 @@ const openvdb_module::Functions& openVdbModule() {
 VolumeGrid::VolumeGrid(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 VolumeGrid::~VolumeGrid() = default;
 
-std::uint64_t VolumeGrid::proceduralFogVoxels(const Aabb& bounds, float voxelSize) {
+namespace {
+
+// What is wrong with a procedural fog's box and voxel size, or nullptr.
+const char* fogLatticeProblem(const Aabb& bounds, float voxelSize) {
     if (!isFinite(bounds.lo) || !isFinite(bounds.hi) || !(bounds.lo.x < bounds.hi.x) || !(bounds.lo.y < bounds.hi.y) ||
-        !(bounds.lo.z < bounds.hi.z) || !std::isfinite(voxelSize) || !(voxelSize > 0.f))
-        return 0;  // makeProceduralFog says what is wrong
+        !(bounds.lo.z < bounds.hi.z))
+        return "procedural fog: bounds must be finite with lo < hi on every axis";
+    if (!std::isfinite(voxelSize) || !(voxelSize > 0.f)) return "procedural fog: voxel size must be finite and > 0";
+    return nullptr;
+}
+
+}  // namespace
+
+std::uint64_t VolumeGrid::proceduralFogVoxels(const Aabb& bounds, float voxelSize) {
+    if (fogLatticeProblem(bounds, voxelSize)) return 0;  // makeProceduralFog says what is wrong
     const vec3 extent = bounds.extent();
     std::uint64_t total = 1;
     for (int a = 0; a < 3; ++a) {
@@ -104,11 +115,7 @@ std::uint64_t VolumeGrid::proceduralFogVoxels(const Aabb& bounds, float voxelSiz
 
 std::shared_ptr<VolumeGrid> VolumeGrid::makeProceduralFog(const Aabb& bounds, float voxelSize, float peakDensity,
                                                           std::uint32_t seed) {
-    if (!isFinite(bounds.lo) || !isFinite(bounds.hi) || !(bounds.lo.x < bounds.hi.x) || !(bounds.lo.y < bounds.hi.y) ||
-        !(bounds.lo.z < bounds.hi.z))
-        throw std::invalid_argument("procedural fog: bounds must be finite with lo < hi on every axis");
-    if (!std::isfinite(voxelSize) || !(voxelSize > 0.f))
-        throw std::invalid_argument("procedural fog: voxel size must be finite and > 0");
+    if (const char* problem = fogLatticeProblem(bounds, voxelSize)) throw std::invalid_argument(problem);
     if (!std::isfinite(peakDensity) || peakDensity < 0.f)
         throw std::invalid_argument("procedural fog: peak density must be finite and >= 0");
     if (proceduralFogVoxels(bounds, voxelSize) > kMaxProceduralVoxels)
