@@ -47,7 +47,7 @@ std::vector<FrameOptionField> makeFields() {
         field("--width", "width", &F::width, kRenderLike | kUseConverge, "Image width in pixels").range(1, 16384),
         field("--height", "height", &F::height, kRenderLike | kUseConverge, "Image height in pixels").range(1, 16384),
         field("--spp", "spp", &F::spp, kRenderLike, "Samples per pixel per effect").range(1, 1 << 20),
-        field("--frames", "frames", &F::frames, kRenderLike, "Number of frames").range(1, 100000),
+        field("--frames", "frames", &F::frames, kRenderLike, "Number of frames").range(1, kMaxFrames),
         field("--backend", "backend", &F::backend, kRenderLike | kUseReplay, "Traversal back end")
             .oneOf({"embree", "rtcore"}),
         field("--rtcore-config", "rtcoreConfig", &F::rtcoreConfig, kUseRender | kUseReplay | kUseStudy,

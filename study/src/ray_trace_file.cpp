@@ -2,6 +2,7 @@
 
 #include <rtlab/core/error.hpp>
 #include <rtlab/rtcore_sim/rtcore.hpp>
+#include <rtlab/session/frame_options.hpp>
 
 #include <algorithm>
 #include <bit>
@@ -229,6 +230,10 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
                                     std::to_string(size));
     if (h.rayTypeCount == 0 || h.rayTypeCount > 16 || h.backend > 1)
         throw InputError(where, "corrupt header (ray-type count or back end)");
+    // A replay advances the scene frame by frame to the recorded one.
+    if (h.frame >= std::uint32_t(session::kMaxFrames))
+        throw InputError(where, "corrupt header (frame " + std::to_string(h.frame) + "; a render makes at most " +
+                                    std::to_string(session::kMaxFrames) + " frames)");
     // Step: the body, checksummed, then split into batches.
     f.storage_.resize((h.bodyBytes + 7) / 8);
     in.read(reinterpret_cast<char*>(f.storage_.data()), std::streamsize(h.bodyBytes));

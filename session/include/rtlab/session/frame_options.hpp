@@ -24,6 +24,10 @@
 
 namespace rtlab::session {
 
+// The most frames one render makes (--frames); a recorded frame's index is
+// below it (the ray-trace reader checks: a replay advances the scene to it).
+inline constexpr int kMaxFrames = 100000;
+
 // A --camera value, parsed: where the camera is and what it looks at, or
 // "interior": a camera placed from the scene's bounds once it is loaded (at
 // the centre of the horizontal extent, 35% up the height, looking along the
