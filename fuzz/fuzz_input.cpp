@@ -46,6 +46,10 @@ std::filesystem::path writeInput(const std::uint8_t* data, std::size_t size, con
     return path;
 }
 
+void copyIntoWorkDirectory(const std::filesystem::path& source, const std::string& name) {
+    std::filesystem::copy_file(source, workDirectory() / name, std::filesystem::copy_options::overwrite_existing);
+}
+
 void loadAndRenderScene(const std::string& source) {
     session::FrameOptions options;
     options.scene = source;

@@ -25,6 +25,9 @@ void initialize(int* argc, char*** argv);
 // Writes data to <working directory>/name; returns its path.
 std::filesystem::path writeInput(const std::uint8_t* data, std::size_t size, const std::string& name);
 
+// Copies a file to <working directory>/name (a fixed file beside the inputs).
+void copyIntoWorkDirectory(const std::filesystem::path& source, const std::string& name);
+
 // `rtlab info --scene SOURCE`, then, when it loaded, the first frame as
 // `rtlab render --width 8 --height 8 --denoise none --threads 1` makes it
 // (snapshot, acceleration structures, plan, every planned pass).

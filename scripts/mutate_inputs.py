@@ -32,14 +32,9 @@ EXTENSION = {"gltf": ".gltf", "glb": ".glb", "scene_json": ".json", "vdb": ".vdb
              "exr": ".exr"}
 QUAD_OBJ = ("mtllib case.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
             "usemtl material\nf 1/1 2/2 3/3\nusemtl other\nf 1/1 3/3 4/4\n")
-# The model beside every scene_json case (the seed gltf_model.json names it;
-# fuzz/scene_json_fuzzer.cpp writes the same): one triangle, its buffer a data URI.
-MODEL_GLTF = ('{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}], '
-              '"meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], '
-              '"accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", '
-              '"min": [0, 0, 0], "max": [1, 1, 0]}], "bufferViews": [{"buffer": 0, "byteLength": 36}], '
-              '"buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,'
-              'AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]}')
+# The model beside every scene_json case (the seed gltf_model.json names it; the
+# fuzz target and the regression test put the same file beside theirs): one triangle.
+MODEL_GLTF = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "fuzz", "scene_json_model.gltf")
 VDB_SCENE = ('{"gltf": [], "volumes": [{"file": "case.vdb", "densityScale": 0.5}], '
              '"camera": {"position": [0, 1, 6], "lookAt": [0, 0, 0], "yfov": 0.8}}')
 
@@ -62,7 +57,7 @@ def commands(rtlab, fmt, case, work, i):
         open(os.path.join(work, "scene.json"), "w").write(VDB_SCENE)
         return render + [os.path.join(work, "scene.json")]
     if fmt == "scene_json":
-        open(os.path.join(work, "model.gltf"), "w").write(MODEL_GLTF)
+        shutil.copy(MODEL_GLTF, os.path.join(work, "model.gltf"))
     if fmt == "mtl":
         open(os.path.join(work, "case.obj"), "w").write(QUAD_OBJ)
         return render + [os.path.join(work, "case.obj")]
@@ -111,7 +106,8 @@ def run_case(a, fmt, i, seed_name, data, root):
         return outcome, None
     kept = os.path.join(a.out, f"{fmt}_{a.seed}_{i}{EXTENSION[fmt]}")
     shutil.copy(case, kept)
-    return "failed", f"mutate_inputs: {fmt} case {i} from {seed_name}: {why}; kept as {kept} ({' '.join(cmd)})"
+    beside = " (reproduce with fuzz/scene_json_model.gltf beside it as model.gltf)" if fmt == "scene_json" else ""
+    return "failed", f"mutate_inputs: {fmt} case {i} from {seed_name}: {why}; kept as {kept}{beside} ({' '.join(cmd)})"
 
 
 def main():

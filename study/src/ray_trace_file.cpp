@@ -228,6 +228,10 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
         throw InputError(where, "truncated or padded: the header announces " +
                                     std::to_string(h.bodyBytes + sizeof(RayTraceHeader)) + " bytes, the file has " +
                                     std::to_string(size));
+    if (h.laneCount > kMaxBatchLanes + kLanesPerBodyByte * h.bodyBytes)
+        throw InputError(where, "corrupt header (" + std::to_string(h.laneCount) + " lanes, more than " +
+                                    std::to_string(kMaxBatchLanes) + " + " + std::to_string(kLanesPerBodyByte) +
+                                    " per body byte)");
     if (h.rayTypeCount == 0 || h.rayTypeCount > 16 || h.backend > 1)
         throw InputError(where, "corrupt header (ray-type count or back end)");
     // A replay advances the scene frame by frame to the recorded one.
@@ -244,6 +248,7 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
         throw InputError(where, "corrupt: the body's checksum does not match the header");
     const auto* bytes = reinterpret_cast<const unsigned char*>(f.storage_.data());
     std::uint64_t offset = 0, lanes = 0, rays = 0, launchRays = 0;
+    std::uint64_t launchThreads = 0, openLaunchThreads = 0;  // all launches' threads; the open launch's
     f.batches_.reserve(h.batchCount);
     for (std::uint64_t b = 0; b < h.batchCount; ++b) {
         const std::string batchName = "batch " + std::to_string(b);
@@ -288,7 +293,12 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
                 throw InputError(where, "corrupt: " + batchName + " lies outside its launch's threads");
             if (!f.batches_.empty() && f.batches_.back().launch->launch > batch.launch->launch)
                 throw InputError(where, "corrupt: " + batchName + "'s launch is out of order");
-            if (f.batches_.empty() || f.batches_.back().launch->launch != batch.launch->launch) launchRays = 0;
+            if (f.batches_.empty() || f.batches_.back().launch->launch != batch.launch->launch) {
+                launchRays = 0;
+                launchThreads += openLaunchThreads;
+                openLaunchThreads = 0;
+            }
+            openLaunchThreads = std::max<std::uint64_t>(openLaunchThreads, batch.launch->launchThreads);
             // Links: parents earlier in the launch, verdict counts adding up.
             std::uint64_t sum = 0;
             for (const RayLinkRecord& l : batch.links) {
@@ -308,6 +318,12 @@ RayTraceFile RayTraceFile::read(const std::filesystem::path& path) {
     }
     if (offset != h.bodyBytes || lanes != h.laneCount || rays != h.rayCount)
         throw InputError(where, "corrupt: the batches do not match the header's counts");
+    // A replay's model allocates and walks every thread of every launch.
+    launchThreads += openLaunchThreads;
+    if (launchThreads > rtcore_sim::kMaxLaunchThreads + kLaunchThreadsPerBodyByte * h.bodyBytes)
+        throw InputError(where, "corrupt: the launches declare " + std::to_string(launchThreads) +
+                                    " threads in all, more than " + std::to_string(rtcore_sim::kMaxLaunchThreads) +
+                                    " + " + std::to_string(kLaunchThreadsPerBodyByte) + " per body byte");
     return f;
 }
 

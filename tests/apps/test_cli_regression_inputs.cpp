@@ -28,19 +28,32 @@ void writeText(const fs::path& path, const std::string& text) { std::ofstream(pa
 std::vector<std::string> commandsFor(const std::string& target, const fs::path& input, const fs::path& work) {
     const std::string out = " --out '" + (work / "out").string() + "'";
     const std::string render = "render --width 8 --height 8 --denoise none --threads 1" + out + " --scene ";
+    const auto renderOf = [&](const fs::path& scene) {  // the render command of a scene file, quoted
+        std::string command = render;
+        command += '\'';
+        command += scene.string();
+        command += '\'';
+        return command;
+    };
     if (target == "vdb") {
         fs::copy_file(input, work / input.filename(), fs::copy_options::overwrite_existing);
         writeText(work / "scene.json", R"({"gltf": [], "volumes": [{"file": ")" + input.filename().string() +
                                            R"(", "densityScale": 0.5}], "camera": {"position": [0, 1, 6], )"
                                            R"("lookAt": [0, 0, 0], "yfov": 0.8}})");
-        return {render + "'" + (work / "scene.json").string() + "'"};
+        return {renderOf(work / "scene.json")};
     }
     if (target == "mtl") {
         fs::copy_file(input, work / "case.mtl", fs::copy_options::overwrite_existing);
         writeText(work / "case.obj",
                   "mtllib case.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
                   "usemtl material\nf 1/1 2/2 3/3\nusemtl other\nf 1/1 3/3 4/4\n");
-        return {render + "'" + (work / "case.obj").string() + "'"};
+        return {renderOf(work / "case.obj")};
+    }
+    if (target == "scene_json") {  // beside the model its fuzz target puts there
+        fs::copy_file(input, work / "case.json", fs::copy_options::overwrite_existing);
+        fs::copy_file(fs::path(RTLAB_SOURCE_DIR) / "fuzz" / "scene_json_model.gltf", work / "model.gltf",
+                      fs::copy_options::overwrite_existing);
+        return {renderOf(work / "case.json")};
     }
     const std::string file = "'" + input.string() + "'";
     if (target == "ray_trace")
@@ -53,7 +66,7 @@ std::vector<std::string> commandsFor(const std::string& target, const fs::path& 
             "--threads 1 --rtcore-config " +
             file + out};
     if (target == "exr") return {"compare " + file + " " + file};
-    return {render + file};  // gltf, glb, scene_json, obj, ply, fbx
+    return {render + file};  // gltf, glb, obj, ply, fbx
 }
 
 TEST(Cli, RegressionInputsExitTwoWithOneLineOrLoad) {

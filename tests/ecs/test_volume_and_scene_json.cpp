@@ -647,13 +647,7 @@ TEST(SceneJson, ErrorsOfReferencedFilesNameThoseFiles) {
     // A glTF's error follows the scene file and the entry naming it (the
     // entries share one decode budget: the entry that runs it out is named).
     World world2;
-    dir.write("triangle.gltf",
-              R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],)"
-              R"( "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],)"
-              R"( "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",)"
-              R"( "min": [0, 0, 0], "max": [1, 1, 0]}], "bufferViews": [{"buffer": 0, "byteLength": 36}],)"
-              R"( "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,)"
-              R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]})");
+    fs::copy_file(fs::path(RTLAB_SOURCE_DIR) / "fuzz" / "scene_json_model.gltf", dir.path() / "triangle.gltf");
     const fs::path twoEntries =
         dir.write("b.json", R"({"gltf": [{"file": "triangle.gltf"}, {"file": "broken.gltf"}]})");
     msg = inputErrorOf([&] { load::loadSceneJson(world2, twoEntries); });

@@ -292,6 +292,22 @@ TEST(RayTraceFile, DamagedFilesAreInputErrorsNamingTheFile) {
     counts[24] ^= 1;  // batchCount
     EXPECT_NE(damaged("counts.rays", counts).find("corrupt"), std::string::npos);
     EXPECT_NE(readError(scratch("missing.rays")).find("cannot open"), std::string::npos);
+    // Header fields the checksum does not cover, bounded by what a replay
+    // would do with them: the frame (the scene is advanced to it) and the lanes.
+    const auto withU32 = [&](std::size_t offset, std::uint32_t value) {
+        std::vector<char> b = bytes;
+        std::memcpy(b.data() + offset, &value, sizeof value);
+        return b;
+    };
+    const fs::path lastFrame = scratch("last_frame.rays");  // scratch() removes the file
+    writeBytes(lastFrame, withU32(64, 99999));
+    EXPECT_EQ(readError(lastFrame), "");
+    EXPECT_NE(damaged("frame.rays", withU32(64, 100000)).find("frame 100000; a render makes at most 100000 frames"),
+              std::string::npos);
+    std::vector<char> lanes = bytes;
+    const std::uint64_t manyLanes = std::uint64_t(1) << 40;
+    std::memcpy(lanes.data() + 32, &manyLanes, sizeof manyLanes);
+    EXPECT_NE(damaged("lanes.rays", lanes).find("lanes, more than 65536 + 64 per body byte"), std::string::npos);
     // Random garbage of every length up to 300 bytes never crashes.
     std::mt19937 rng(11);
     for (std::size_t n = 0; n < 300; n += 7) {
@@ -300,6 +316,38 @@ TEST(RayTraceFile, DamagedFilesAreInputErrorsNamingTheFile) {
         if (n >= 8) std::memcpy(garbage.data(), kRayTraceMagic, 8);
         EXPECT_FALSE(damaged("garbage.rays", garbage).empty()) << n;
     }
+}
+
+// The launches' threads (the model allocates and walks each) are bounded by
+// the file's size: one launch of the most threads reads, two do not.
+TEST(RayTraceFile, LaunchThreadsBeyondTheFilesSizeAreRefused) {
+    const auto write = [](const fs::path& path, std::uint32_t launches) {
+        RayTraceWriter writer(path);
+        for (std::uint32_t launch = 0; launch < launches; ++launch) {
+            const tracer::RayDesc ray{vec3(0.f), 0.f, vec3(0.f, 0.f, -1.f), 1.f};
+            const tracer::CommittedHit hit{};
+            const bool active[1] = {true};
+            const std::vector<std::uint32_t> parents = {RayLinkRecord::kNoParent}, counts = {0};
+            BatchLaunch where;
+            where.launch = launch;
+            where.launchThreads = rtcore_sim::kMaxLaunchThreads;
+            where.threadBase = 0;
+            where.parents = parents;
+            where.verdictCounts = counts;
+            writer.append(tracer::TraceArgs{}, 1, &ray, active, &hit, 1, where);
+        }
+        RayTraceInfo info;
+        info.rayTypeCount = 7;
+        info.backend = RecordedBackend::RtCore;
+        info.verdicts = true;
+        writer.finish(info);
+    };
+    const fs::path one = scratch("one_launch.rays"), two = scratch("two_launches.rays");  // scratch() removes the file
+    write(one, 1);
+    EXPECT_EQ(readError(one), "");
+    write(two, 2);
+    const std::string error = readError(two);
+    EXPECT_NE(error.find("the launches declare 134217728 threads in all"), std::string::npos) << error;
 }
 
 TEST(RayTraceFile, AnUnfinishedWriterLeavesNoFile) {

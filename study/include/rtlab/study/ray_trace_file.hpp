@@ -40,6 +40,13 @@ inline constexpr std::uint32_t kBatchTag = 0x48435442u;  // "BTCH"
 // 256, a tile): replay allocates per lane, so a reader cap keeps a 32-byte
 // batch from asking for gigabytes.
 inline constexpr std::uint32_t kMaxBatchLanes = 65536;
+// Work a replay does per byte of a file's body, at most: lanes (a recorded
+// tile of 256 lanes takes 32 bytes or more, so about 8 per byte) and launch
+// threads (the model allocates and walks every thread of a launch: a
+// 1920x1080 frame's launches, about 10 of 2 million threads, fit the base
+// alone; a launch of many threads tracing few rays is a small file).
+inline constexpr std::uint64_t kLanesPerBodyByte = 64;
+inline constexpr std::uint64_t kLaunchThreadsPerBodyByte = 1024;
 
 enum class RecordedBackend : std::uint32_t { Embree = 0, RtCore = 1 };
 
