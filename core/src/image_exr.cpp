@@ -66,8 +66,6 @@ std::vector<std::string> channelOrder(const Imf::Header& header) {
     return samePermutation ? order : fileOrder;
 }
 
-// OpenEXR's thread count for the next file: threadCount(), the global pool
-// resized (under a lock) when that changed.
 // Walks the header(s) of an EXR file (after the magic number and version:
 // attributes of name, type name, 32-bit size and value, each header ending
 // with an empty name; a multi-part file's list ending with an empty header)
@@ -135,6 +133,8 @@ std::string checkExrHeaders(std::istream& in, std::uint64_t fileSize) {
     }
 }
 
+// OpenEXR's thread count for the next file: threadCount(), the global pool
+// resized (under a lock) when that changed.
 int exrThreads() {
     static std::mutex resizing;
     const int threads = std::max(threadCount(), 1);
