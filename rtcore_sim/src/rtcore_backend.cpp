@@ -299,12 +299,18 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
                           tracer::CommittedHit* out, tracer::TraceCounters& counters) {
     if (tTracing == this)
         throw tracer::PipelineError("TraceRay called from an any-hit or intersection shader (not allowed by DXR)");
-    const std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
     tTracing = this;
     struct Leave {
         ~Leave() { tTracing = nullptr; }
     } leave;
     ++traceCalls_;
+    // Launch mode, a call of an open launch: traced without the lock.
+    if (launchMode() && launchDepth_ > 0 && !replaying_ && !keepCallVerdicts_ && !verify_) {
+        lock.unlock();
+        traceConcurrently(engine, args, rays, payloads, active, count, depth, out, counters);
+        return;
+    }
 
     // Step: the rays the model sees (valid, active lanes), in lane order.
     simRays_.clear();
@@ -355,7 +361,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     }
     filter.rethrowIfFailed();
 
-    finishCall(filter, active, count, replaying, out);
+    finishCall(filter, active, count, replaying, laneOf_, results_, out);
 
     // Step: per-ray records of primary rays (depth 1, ray type 0), in submission (lane) order.
     if (recordPrimary_ && depth == 1 && (args.rayContribution & 0xf) == 0) {
@@ -377,15 +383,16 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
 }
 
 // A call's committed hits (HitKind, record and attributes come from the
-// filter). Lanes in order: traced ones (laneOf_ is increasing) from the
-// model's results_, the rest (invalid rays) as misses.
+// filter). Lanes in order: traced ones (laneOf is increasing) from the
+// model's results, the rest (invalid rays) as misses.
 void RtCoreBackend::finishCall(const tracer::CandidateFilter& filter, const bool* active, std::size_t count,
-                               bool replaying, tracer::CommittedHit* out) const {
+                               bool replaying, std::span<const std::uint32_t> laneOf,
+                               std::span<const SimRayResult> results, tracer::CommittedHit* out) {
     std::size_t next = 0;
     for (std::uint32_t lane = 0; lane < count; ++lane) {
         if (!active[lane]) continue;
-        if (next < laneOf_.size() && laneOf_[next] == lane) {
-            const ModelHit& h = results_[next++].hit;
+        if (next < laneOf.size() && laneOf[next] == lane) {
+            const ModelHit& h = results[next++].hit;
             if (replaying) finishReplayed(filter, lane, h, out[lane]);
             else filter.finish(lane, h.hit, h.t, h.instanceIndex, h.geometryIndex, h.primitiveIndex, out[lane]);
         } else {
@@ -429,14 +436,7 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
     LoggingSide logging(replaying ? static_cast<ProgrammableSide&>(recorded) : filterSide, launch_.verdicts);
     lastCallFirst_ = launch_.rays.size();
     results_.resize(simRays_.size());
-    // Step: the launch's threads: every active lane's (as the recorder counts them, invalid rays included).
-    for (std::size_t lane = count; lane-- > 0;)
-        if (active[lane]) {
-            const std::uint64_t last = std::uint64_t(base) + lane + 1;
-            if (last > kMaxLaunchThreads) throw tracer::PipelineError("launch thread index out of range");
-            launch_.threads = std::max(launch_.threads, static_cast<std::uint32_t>(last));
-            break;
-        }
+    growLaunchThreads(active, count, base);
     for (std::uint32_t k = 0; k < simRays_.size(); ++k) {
         // Step: the ray and its thread (its parent is its thread's previous ray in the log).
         launch_.thread.push_back(static_cast<std::uint32_t>(std::uint64_t(base) + laneOf_[k]));  // < threads
@@ -457,8 +457,8 @@ void RtCoreBackend::traceFunctional(const tracer::TraceEngine& engine, const tra
         callVerdicts_ = RecordedVerdicts{callCounts_, callWords_};
     }
 
-    finishCall(filter, active, count, replaying, out);
-    recordPrimary(args, depth, active, count, lastCallFirst_);
+    finishCall(filter, active, count, replaying, laneOf_, results_, out);
+    recordPrimary(args, depth, active, count, laneOf_, lastCallFirst_, base);
     abort.armed = false;
     if (implicit) endLaunchLocked();
 }
@@ -485,16 +485,125 @@ LaunchRecord RtCoreBackend::launchRecord(const LaunchLog& log, std::uint64_t cyc
     return r;
 }
 
-// Launch mode: primary rays' records are filled when their launch is simulated.
+// Launch mode: the launch's threads grow to every active lane's (as the
+// recorder counts them, invalid rays included). Under the lock.
+void RtCoreBackend::growLaunchThreads(const bool* active, std::size_t count, std::uint32_t base) {
+    for (std::size_t lane = count; lane-- > 0;)
+        if (active[lane]) {
+            const std::uint64_t last = std::uint64_t(base) + lane + 1;
+            if (last > kMaxLaunchThreads) throw tracer::PipelineError("launch thread index out of range");
+            launch_.threads = std::max(launch_.threads, static_cast<std::uint32_t>(last));
+            return;
+        }
+}
+
+// Launch mode: a call's primary rays (their threads, and their rays from
+// `first` in the launch's log), recorded when their launch is simulated.
+// Under the lock.
 void RtCoreBackend::recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active,
-                                  std::size_t count, std::size_t first) {
+                                  std::size_t count, std::span<const std::uint32_t> laneOf, std::size_t first,
+                                  std::uint32_t base) {
     if (!recordPrimary_ || depth != 1 || (args.rayContribution & 0xf) != 0) return;
     std::size_t i = 0;
     for (std::uint32_t lane = 0; lane < count; ++lane) {
         if (!active[lane]) continue;
-        if (i < laneOf_.size() && laneOf_[i] == lane) launchPrimary_.emplace_back(primary_.size(), first + i++);
-        primary_.push_back(PrimaryRayRecord{});
+        const bool traced = i < laneOf.size() && laneOf[i] == lane;
+        launchPrimary_.push_back(LaunchPrimary{base + lane, traced ? first + i++ : kNoRay});
     }
+}
+
+// The launch's primary-ray records, in thread order (a thread's in the
+// order it traced them), with the model's figures once it is simulated.
+void RtCoreBackend::flushLaunchPrimary(bool simulated) {
+    std::stable_sort(launchPrimary_.begin(), launchPrimary_.end(),
+                     [](const LaunchPrimary& a, const LaunchPrimary& b) { return a.thread < b.thread; });
+    for (const LaunchPrimary& p : launchPrimary_) {
+        PrimaryRayRecord rec;
+        if (simulated && p.ray != kNoRay) {
+            rec.cycles = results_[p.ray].cycles;
+            rec.slotCycles = results_[p.ray].slotCycles;
+            rec.nodeVisits = results_[p.ray].work.nodeVisits;
+        }
+        primary_.push_back(rec);
+    }
+    launchPrimary_.clear();
+}
+
+// Launch mode, a call of an open launch (not verifying, recording or
+// replaying): the functional traversal of the call's rays on this host
+// thread's own buffers, without the lock, so that the calls of a launch run
+// in parallel; the lock is taken only to append them to the launch's log.
+// The log's order does not matter (see the header).
+void RtCoreBackend::traceConcurrently(const tracer::TraceEngine& engine, const tracer::TraceArgs& args,
+                                      const tracer::RayDesc* rays, void* const* payloads, const bool* active,
+                                      std::size_t count, std::uint32_t depth, tracer::CommittedHit* out,
+                                      tracer::TraceCounters& counters) {
+    // The host thread's buffers (a trace call does not nest: see tTracing).
+    struct CallBuffers {
+        std::vector<SimRay> simRays;
+        std::vector<std::uint32_t> laneOf;
+        std::vector<SimRayResult> results;
+        std::vector<tracer::LaneCommitState> lanes;
+        std::vector<std::uint32_t> verdicts;
+        std::vector<std::uint64_t> verdictEnd;
+    };
+    thread_local CallBuffers b;
+    // An exception drops the launch when its scope ends.
+    struct Abort {
+        RtCoreBackend* self;
+        bool armed = true;
+        ~Abort() {
+            if (!armed) return;
+            const std::lock_guard lock(self->mutex_);
+            self->launchFailed_ = true;
+        }
+    } abort{this};
+
+    // Step: the rays the model sees (valid, active lanes), in lane order.
+    b.simRays.clear();
+    b.laneOf.clear();
+    std::uint64_t invalid = 0;
+    for (std::uint32_t lane = 0; lane < count; ++lane) {
+        if (!active[lane]) continue;
+        if (!tracer::isValidRay(rays[lane])) {
+            ++invalid;
+            continue;
+        }
+        b.simRays.push_back(simRayOf(rays[lane], args));
+        b.laneOf.push_back(lane);
+    }
+    // Step: their hits, every verdict logged.
+    b.lanes.assign(count, tracer::LaneCommitState{});
+    tracer::CandidateFilter filter(engine, args, depth, counters, rays, payloads, b.lanes.data());
+    FilterSide filterSide(filter, b.laneOf);
+    b.verdicts.clear();
+    b.verdictEnd.clear();
+    LoggingSide logging(filterSide, b.verdicts);
+    b.results.resize(b.simRays.size());
+    for (std::uint32_t k = 0; k < b.simRays.size(); ++k) {
+        TraversalCounters work;
+        b.results[k].hit = traceRay(model_, b.simRays[k], logging, k, work);
+        b.verdictEnd.push_back(b.verdicts.size());
+    }
+    filter.rethrowIfFailed();
+
+    // Step: appended to the launch's log, each ray with its thread.
+    const std::uint32_t base = tracer::currentTraceScope().thread;
+    {
+        const std::lock_guard lock(mutex_);
+        if (launchDepth_ == 0) throw std::logic_error("RtCoreBackend: a launch ended while one of its calls ran");
+        invalidRays_ += invalid;
+        growLaunchThreads(active, count, base);
+        const std::size_t first = launch_.rays.size();
+        const std::uint64_t offset = launch_.verdicts.size();
+        launch_.rays.insert(launch_.rays.end(), b.simRays.begin(), b.simRays.end());
+        for (std::uint32_t lane : b.laneOf) launch_.thread.push_back(base + lane);  // < threads
+        for (std::uint64_t end : b.verdictEnd) launch_.verdictEnd.push_back(offset + end);
+        launch_.verdicts.insert(launch_.verdicts.end(), b.verdicts.begin(), b.verdicts.end());
+        recordPrimary(args, depth, active, count, b.laneOf, first, base);
+    }
+    finishCall(filter, active, count, false, b.laneOf, b.results, out);
+    abort.armed = false;
 }
 
 void LaunchLog::clear() {
@@ -548,6 +657,7 @@ void RtCoreBackend::endLaunchLocked() {
     if (launchDepth_ == 0) throw std::logic_error("RtCoreBackend::endLaunch without beginLaunch");
     if (--launchDepth_ > 0) return;
     if (!launchMode() || launch_.rays.empty() || launchFailed_) {
+        if (!launchFailed_) flushLaunchPrimary(false);  // invalid rays only
         launch_.clear();
         launchPrimary_.clear();
         launchFailed_ = false;
@@ -567,12 +677,7 @@ void RtCoreBackend::endLaunchLocked() {
     core_->runLaunch(launch_.rays, launch_.thread, launch_.threads, side, results_);
     side.checkConsumed();
     launches_.push_back(launchRecord(launch_, core_->cycle() - before, usedBefore, core_->resourceUse()));
-    for (const auto& [record, ray] : launchPrimary_) {
-        PrimaryRayRecord& rec = primary_[record];
-        rec.cycles = results_[ray].cycles;
-        rec.slotCycles = results_[ray].slotCycles;
-        rec.nodeVisits = results_[ray].work.nodeVisits;
-    }
+    flushLaunchPrimary(true);
 }
 
 void RtCoreBackend::verifyBatch(const tracer::TraceEngine& engine, const tracer::TraceArgs& args,

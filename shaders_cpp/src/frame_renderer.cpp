@@ -181,8 +181,8 @@ FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnaps
 FrameOutput renderFrame(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
                         const RenderSettings& settings, FrameHistory& history) {
     settings.validate();
-    if (settings.recordRayOrder && (!settings.backend || !settings.backend->orderDependent()))
-        throw std::invalid_argument("renderFrame: recordRayOrder needs an order-dependent back end");
+    if (settings.recordRayOrder && !settings.backend)
+        throw std::invalid_argument("renderFrame: recordRayOrder needs a back end");
     FrameOutput out;
     out.image = Image(settings.width, settings.height);
     detail::RenderContext ctx(accel, scene, plan, settings);

@@ -113,18 +113,12 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     const Pipeline pipeline(accel, std::move(desc), settings.backend);
 
     // Step: coherent primary rays through 8-wide packets.
-    std::vector<std::uint32_t> rayOrder;
-    if (settings.recordRayOrder) {
-        if (!settings.backend || !settings.backend->orderDependent())
-            throw std::invalid_argument("renderPreview: recordRayOrder needs an order-dependent back end");
-        rayOrder.reserve(beauty.size());
-    }
+    if (settings.recordRayOrder && !settings.backend)
+        throw std::invalid_argument("renderPreview: recordRayOrder needs a back end");
     const PinholeCamera camera(scene.camera, w, h);
     const tracer::TraceCounters counters = pipeline.dispatchCoherent(
         w, h, tracer::TraceArgs{},
         [&](int x, int y, PreviewPayload&) {
-            // The dispatch runs on one thread, tiles in order (order-dependent back end).
-            if (settings.recordRayOrder) rayOrder.push_back(static_cast<std::uint32_t>(y) * w + x);
             const CameraRay ray = camera.ray(x + 0.5f, y + 0.5f);
             return tracer::RayDesc{ray.origin, 0.f, ray.direction, kInfinity};
         },
@@ -144,7 +138,7 @@ PreviewResult renderPreview(const tracer::AccelManager& accel, const ecs::SceneS
     float* z = result.image.addChannel("depth.Z");
     std::copy(depth.begin(), depth.end(), z);
     result.counters = counters;
-    result.primaryRayPixels = std::move(rayOrder);
+    if (settings.recordRayOrder) result.primaryRayPixels = tilePixelOrder(w, h);
     result.primaryRays = counters.rays[0];
     result.hits = counters.hits[0];
     result.misses = counters.misses[0];

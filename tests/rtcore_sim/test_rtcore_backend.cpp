@@ -12,6 +12,7 @@
 #include <rtlab/rtcore_sim/scheduler.hpp>
 #include <rtlab/shaders_cpp/preview_shading.hpp>
 #include <rtlab/tracer/accel_manager.hpp>
+#include <rtlab/tracer/pipeline.hpp>
 
 #include <gtest/gtest.h>
 
@@ -190,7 +191,45 @@ TEST(RtCoreBackend, IdenticalForOneAndTwoThreads) {
     EXPECT_EQ(one.rtcore.preview.primaryRayPixels, two.rtcore.preview.primaryRayPixels);
 }
 
-TEST(RtCoreBackend, RecordingRayOrderNeedsAnOrderDependentBackEnd) {
+// Launch mode lets the pipeline run a launch's calls on several host threads
+// (its log's order does not matter); tile mode, verification and recording
+// keep them in order on one thread.
+TEST(RtCoreBackend, OnlyLaunchModeWithoutVerificationOrRecordingRunsConcurrently) {
+    RtCoreBackend launch{RtCoreConfig{}};
+    EXPECT_TRUE(launch.launchMode());
+    EXPECT_FALSE(launch.orderDependent());
+    launch.setVerify(true);
+    EXPECT_TRUE(launch.orderDependent());
+    launch.setVerify(false);
+    launch.keepCallVerdicts(true);
+    EXPECT_TRUE(launch.orderDependent());
+    RtCoreConfig tileConfig;
+    tileConfig.gpu.launch = LaunchMode::Tile;
+    EXPECT_TRUE(RtCoreBackend(tileConfig).orderDependent());
+}
+
+// The primary-ray records are in a dispatch's thread order, and
+// tilePixelOrder names the pixel of each thread as the pipeline numbers
+// them (an image of odd size: edge tiles are smaller).
+TEST(RtCoreBackend, TilePixelOrderIsThePipelinesThreadNumbering) {
+    ecs::World world;
+    ecs::load::loadScene(world, "builtin:cornell");
+    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
+    tracer::AccelManager accel;
+    accel.update(scene);
+    struct Payload {};
+    tracer::Pipeline<Payload>::Desc desc;
+    desc.missShaders.push_back([](const tracer::MissContext&, Payload&) {});
+    const tracer::Pipeline<Payload> pipeline(accel, std::move(desc));
+    const int w = 37, h = 21;
+    std::vector<std::uint32_t> pixelOfThread(std::size_t(w) * h, ~0u);
+    pipeline.dispatchRays(w, h, [&](int x, int y) {
+        pixelOfThread.at(tracer::currentTraceScope().thread) = static_cast<std::uint32_t>(y * w + x);
+    });
+    EXPECT_EQ(pixelOfThread, tilePixelOrder(w, h));
+}
+
+TEST(RtCoreBackend, RecordingRayOrderNeedsABackEnd) {
     ecs::World world;
     ecs::load::loadScene(world, "builtin:cornell");
     const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));

@@ -38,7 +38,6 @@ std::uint64_t runGBufferPass(PassFrame& passFrame, tracer::TraceCounters& counte
     RenderContext& ctx = passFrame.ctx;
     const FrameHistory& previous = passFrame.history;
     Image& out = passFrame.out.image;
-    std::vector<std::uint32_t>* rayOrder = ctx.settings.recordRayOrder ? &passFrame.out.primaryRayPixels : nullptr;
     const int w = ctx.width, h = ctx.height;
     const vec3 forward = -glm::normalize(vec3(ctx.scene.camera.worldFromCamera[2]));
     const PinholeCamera camera(ctx.scene.camera, w, h);
@@ -57,11 +56,12 @@ std::uint64_t runGBufferPass(PassFrame& passFrame, tracer::TraceCounters& counte
     const auto direction = [&](int x, int y) {
         return directions[static_cast<std::size_t>(y) * columns + static_cast<std::size_t>(x)];
     };
-    // Step: primary rays through pixel centres.
+    // Step: primary rays through pixel centres; with recordRayOrder, the
+    // pixel of each of the dispatch's threads (the back end's record order).
+    if (ctx.settings.recordRayOrder) passFrame.out.primaryRayPixels = tilePixelOrder(w, h);
     counters.add(ctx.pipeline().dispatchCoherent(
         w, h, ctx.args(kRayPrimary),
         [&](int x, int y, HitPayload&) {
-            if (rayOrder) rayOrder->push_back(static_cast<std::uint32_t>(ctx.pixelIndex(x, y)));
             return tracer::RayDesc{origin, 0.f, direction(x, y), kInfinity};
         },
         [&](int x, int y, const HitPayload& p) {

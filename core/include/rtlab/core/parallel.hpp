@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -24,6 +25,18 @@ inline std::vector<Tile> makeTiles(int width, int height, int tileSize = 16) {
             tiles.push_back(
                 {x, y, std::min(x + tileSize, width), std::min(y + tileSize, height), static_cast<int>(tiles.size())});
     return tiles;
+}
+
+// The pixels (y * width + x) in tile order: makeTiles' tiles in order, each
+// row-major. Thread k of a pipeline dispatch is pixel tilePixelOrder(...)[k]
+// (tracer::Pipeline numbers a dispatch's threads this way).
+inline std::vector<std::uint32_t> tilePixelOrder(int width, int height, int tileSize = 16) {
+    std::vector<std::uint32_t> pixels;
+    pixels.reserve(std::size_t(std::max(width, 0)) * std::size_t(std::max(height, 0)));
+    for (const Tile& t : makeTiles(width, height, tileSize))
+        for (int y = t.y0; y < t.y1; ++y)
+            for (int x = t.x0; x < t.x1; ++x) pixels.push_back(static_cast<std::uint32_t>(y * width + x));
+    return pixels;
 }
 
 // Runs body(i) for i in [0, count), in parallel, one task per index.

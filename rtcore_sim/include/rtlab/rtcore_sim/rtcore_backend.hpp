@@ -16,12 +16,16 @@
 // answered at once by the functional traversal (the model's own, so the hits
 // are the model's), their any-hit / intersection verdicts logged; at
 // endLaunch the timing model simulates the whole launch from that log
-// (RtCore::runLaunch), the verdicts replayed in order. gpu.launch = tile:
-// every trace call is one RtCore::run batch (a 16x16 tile of
-// dispatchCoherent, or one ray of traceRay), simulated before it returns.
-// The back end is order-dependent (a simulated clock), so the pipeline feeds
-// it tiles in order on one thread and results are identical for any thread
-// count.
+// (RtCore::runLaunch), the verdicts replayed in order. The calls of a
+// launch may run on several host threads at once: the log's order does not
+// matter (the model orders a launch's rays by thread, a thread's in the
+// order it traced them), so in launch mode the back end is not
+// order-dependent (unless verifying or recording, whose records follow the
+// call order). gpu.launch = tile: every trace call is one RtCore::run batch
+// (a 16x16 tile of dispatchCoherent, or one ray of traceRay), simulated
+// before it returns; the back end is order-dependent (a simulated clock),
+// so the pipeline feeds it tiles in order on one thread. Either way results
+// are identical for any thread count.
 //
 // Verification (setVerify): every ray is traced a second time through
 // Embree (TraceEngine::trace) and the two committed hits are compared; any-hit
@@ -47,7 +51,8 @@
 namespace rtlab::rtcore_sim {
 
 // What the model measured for one primary ray (recursion depth 1, ray type
-// 0), in submission order (see RtCoreBackend::recordPrimaryRays).
+// 0), in submission order; in launch mode, each launch's in thread order
+// (see RtCoreBackend::recordPrimaryRays).
 struct PrimaryRayRecord {
     std::uint32_t cycles = 0;      // latency: submission -> result returned (SimRayResult::cycles)
     std::uint32_t slotCycles = 0;  // admission into a ray slot -> traversal finished
@@ -168,7 +173,7 @@ public:
 
     // tracer::TraversalBackend
     std::string_view name() const override { return "rtcore"; }
-    bool orderDependent() const override { return true; }
+    bool orderDependent() const override { return !launchMode() || verify_ || keepCallVerdicts_; }
     void trace(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                tracer::CommittedHit* out, tracer::TraceCounters& counters) override;
@@ -180,15 +185,21 @@ private:
     void traceFunctional(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                          void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                          tracer::CommittedHit* out, tracer::TraceCounters& counters);
+    void traceConcurrently(const tracer::TraceEngine& engine, const tracer::TraceArgs& args,
+                           const tracer::RayDesc* rays, void* const* payloads, const bool* active, std::size_t count,
+                           std::uint32_t depth, tracer::CommittedHit* out, tracer::TraceCounters& counters);
+    void growLaunchThreads(const bool* active, std::size_t count, std::uint32_t base);
+    void flushLaunchPrimary(bool simulated);
     LaunchRecord launchRecord(const LaunchLog& log, std::uint64_t cycles, const std::vector<ResourceUse>& before,
                               const std::vector<ResourceUse>& after) const;
     void beginLaunchLocked(std::uint32_t threads, std::string_view label);
     void endLaunchLocked();
     void abortLaunchLocked();
-    void finishCall(const tracer::CandidateFilter& filter, const bool* active, std::size_t count, bool replaying,
-                    tracer::CommittedHit* out) const;
+    static void finishCall(const tracer::CandidateFilter& filter, const bool* active, std::size_t count, bool replaying,
+                           std::span<const std::uint32_t> laneOf, std::span<const SimRayResult> results,
+                           tracer::CommittedHit* out);
     void recordPrimary(const tracer::TraceArgs& args, std::uint32_t depth, const bool* active, std::size_t count,
-                       std::size_t first);
+                       std::span<const std::uint32_t> laneOf, std::size_t first, std::uint32_t base);
     void verifyBatch(const tracer::TraceEngine& engine, const tracer::TraceArgs& args, const tracer::RayDesc* rays,
                      void* const* payloads, const bool* active, std::size_t count, std::uint32_t depth,
                      const tracer::CommittedHit* out);
@@ -196,7 +207,10 @@ private:
     RtCoreConfig config_;
     ModelScene model_;
     std::unique_ptr<RtCore> core_;
-    std::mutex mutex_;  // the core is one simulated machine: one trace call at a time
+    // The core is one simulated machine: one trace call at a time, except
+    // the calls of an open launch (traceConcurrently), which take it only to
+    // append to the launch's log.
+    std::mutex mutex_;
 
     bool recordPrimary_ = false;
     std::vector<PrimaryRayRecord> primary_;
@@ -210,8 +224,15 @@ private:
     bool launchFailed_ = false;  // a scope was left by an exception: the launch is dropped, not simulated
     std::string launchLabel_;
     std::size_t lastCallFirst_ = 0;
-    // Launch mode: (record in primary_, ray of the launch) filled when the launch is simulated.
-    std::vector<std::pair<std::size_t, std::size_t>> launchPrimary_;
+    // Launch mode: the launch's primary rays (thread, ray of the launch's log
+    // or kNoRay for an invalid ray), appended to primary_ in thread order when
+    // the launch is simulated.
+    struct LaunchPrimary {
+        std::uint32_t thread;
+        std::size_t ray;
+    };
+    static constexpr std::size_t kNoRay = ~std::size_t(0);
+    std::vector<LaunchPrimary> launchPrimary_;
     std::vector<LaunchRecord> launches_;
     RecordedVerdicts replay_;
     bool replaying_ = false;

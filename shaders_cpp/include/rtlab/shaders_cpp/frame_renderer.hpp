@@ -44,7 +44,7 @@ struct RenderSettings {
     std::uint32_t frame = 0;  // frame index (random numbers, DDGI history)
     std::uint32_t seed = 0;
     tracer::TraversalBackend* backend = nullptr;  // nullptr = Embree
-    bool recordRayOrder = false;                  // FrameOutput::primaryRayPixels (order-dependent back ends only)
+    bool recordRayOrder = false;                  // FrameOutput::primaryRayPixels (with a back end)
     float aoRadius = 1.0f;                        // world units
     // AO contact sampling: a pixel whose neighbourhood (5x5) saw an occluder
     // nearer than aoContactFraction x aoRadius gets this many more AO samples
@@ -106,9 +106,10 @@ struct PathVertexRays {
 struct FrameOutput {
     Image image;  // beauty R,G,B + every pass's layers (docs/effects.md)
     std::array<PassReport, kPassCount> passes{};
-    tracer::TraceCounters counters;               // summed over passes (per ray type)
-    std::vector<std::uint32_t> primaryRayPixels;  // with RenderSettings::recordRayOrder
-    std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
+    tracer::TraceCounters counters;  // summed over passes (per ray type)
+    std::vector<std::uint32_t>
+        primaryRayPixels;                       // recordRayOrder: the G-buffer dispatch's thread order (tilePixelOrder)
+    std::uint64_t nonFiniteValuesRepaired = 0;  // NaN/Inf replaced by 0 before output (should stay 0)
     Image ddgiAtlas;       // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
     DdgiUpdateStats ddgi;  // --gi ddgi: the probe update's counters (probe states, rays, back faces)
     std::vector<PathVertexRays> pathVertices;  // --effects pathtrace: RenderSettings::pathMaxDepth + 1 entries

@@ -20,8 +20,8 @@ struct PreviewSettings {
     int height = 360;
     // Traversal back end (not owned); nullptr = Embree. See tracer::TraversalBackend.
     tracer::TraversalBackend* backend = nullptr;
-    // Fill PreviewResult::primaryRayPixels (which pixel each primary ray belongs
-    // to, in the order the rays were generated and traced).
+    // Fill PreviewResult::primaryRayPixels (which pixel each primary ray
+    // belongs to, in the order of the back end's primary-ray records).
     bool recordRayOrder = false;
 };
 
@@ -32,8 +32,8 @@ struct PreviewResult {
     std::uint64_t misses = 0;
     tracer::TraceCounters counters;
     // With PreviewSettings::recordRayOrder: pixel index (y * width + x) of
-    // every primary ray in generation order. With an order-dependent back end
-    // (the RT-core model) this is also the order in which rays were traced.
+    // every primary ray in the dispatch's thread order (tilePixelOrder), the
+    // order of the RT-core model's primary-ray records.
     std::vector<std::uint32_t> primaryRayPixels;
 };
 
