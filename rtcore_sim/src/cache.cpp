@@ -65,38 +65,41 @@ LineFill NodeCache::accessUnit(std::uint64_t unit, std::uint64_t now, MemoryPort
     const std::uint32_t sector = static_cast<std::uint32_t>(unit & (sectorsPerLine_ - 1));
     const std::size_t base = std::size_t(line & (sets_ - 1)) * params_.ways;
     const std::uint64_t hitReady = now + params_.hitLatency;
-    std::size_t victim = base;
-    for (std::size_t i = base; i < base + params_.ways; ++i) {
-        if (tags_[i] == line) {
-            used_[i] = ++stamp_;
-            if (prefetched_[i]) {
-                ++prefetchHits;
-                prefetched_[i] = 0;
-            }
-            const std::size_t slot = i * sectorsPerLine_ + sector;
-            if (!((valid_[i] >> sector) & 1u)) [[unlikely]] {
-                // A sector miss: the line is there, this sector was never read.
-                ++misses;
-                valid_[i] |= 1u << sector;
-                const LineFill fill = port.readLine(unit << unitShift_, params_.fillBytes(), now);
-                ready_[slot] = fill.ready;
-                if (isDeferred(fill.ready)) [[unlikely]]
-                    port.deferred()->ways.push_back(static_cast<std::uint32_t>(slot));
-                return fill;
-            }
-            ++hits;
-            if (ready_[slot] > hitReady) {
-                // A line whose read is deferred: whether this hit is pending is decided when it is answered.
-                if (isDeferred(ready_[slot])) [[unlikely]]
-                    return LineFill{ready_[slot] | kDeferredHit, 0, 0};
-                ++pendingHits;
-                return LineFill{ready_[slot], 0, 0};
-            }
-            return LineFill{hitReady, 0, 0};
+    // Step: the tag search alone (the common hit reads only the set's tags).
+    const std::size_t end = base + params_.ways;
+    std::size_t i = base;
+    while (i < end && tags_[i] != line) ++i;
+    if (i < end) {
+        used_[i] = ++stamp_;
+        if (prefetched_[i]) {
+            ++prefetchHits;
+            prefetched_[i] = 0;
         }
-        // Victim: the first empty way, else the least recently used one.
-        if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
+        const std::size_t slot = i * sectorsPerLine_ + sector;
+        if (!((valid_[i] >> sector) & 1u)) [[unlikely]] {
+            // A sector miss: the line is there, this sector was never read.
+            ++misses;
+            valid_[i] |= 1u << sector;
+            const LineFill fill = port.readLine(unit << unitShift_, params_.fillBytes(), now);
+            ready_[slot] = fill.ready;
+            if (isDeferred(fill.ready)) [[unlikely]]
+                port.deferred()->ways.push_back(static_cast<std::uint32_t>(slot));
+            return fill;
+        }
+        ++hits;
+        if (ready_[slot] > hitReady) {
+            // A line whose read is deferred: whether this hit is pending is decided when it is answered.
+            if (isDeferred(ready_[slot])) [[unlikely]]
+                return LineFill{ready_[slot] | kDeferredHit, 0, 0};
+            ++pendingHits;
+            return LineFill{ready_[slot], 0, 0};
+        }
+        return LineFill{hitReady, 0, 0};
     }
+    // Step: a miss. Victim: the first empty way, else the least recently used one.
+    std::size_t victim = base;
+    for (i = base; i < end; ++i)
+        if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
     ++misses;
     if (tags_[victim] != kInvalid) ++evictions;
     tags_[victim] = line;
@@ -211,19 +214,22 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counter
     // Step: the tag lookup in the line's set of its bank.
     const std::size_t set = std::size_t((line / l2_.banks) & (setsPerBank_ - 1));
     const std::size_t base = (std::size_t(bank) * setsPerBank_ + set) * l2_.ways;
-    std::size_t victim = base;
-    for (std::size_t i = base; i < base + l2_.ways; ++i) {
-        if (tags_[i] == line) {
-            ++c.hits;
-            used_[i] = ++stamp;
-            if (ready_[i] > tagDone) {  // still being filled: wait for DRAM
-                ++c.pendingHits;
-                return LineFill{ready_[i], tagDone - arrive, ready_[i] - tagDone};
-            }
-            return LineFill{tagDone, tagDone - arrive, 0};
+    const std::size_t end = base + l2_.ways;
+    std::size_t i = base;
+    while (i < end && tags_[i] != line) ++i;
+    if (i < end) {
+        ++c.hits;
+        used_[i] = ++stamp;
+        if (ready_[i] > tagDone) {  // still being filled: wait for DRAM
+            ++c.pendingHits;
+            return LineFill{ready_[i], tagDone - arrive, ready_[i] - tagDone};
         }
-        if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
+        return LineFill{tagDone, tagDone - arrive, 0};
     }
+    // Victim: the first empty way, else the least recently used one.
+    std::size_t victim = base;
+    for (i = base; i < end; ++i)
+        if (tags_[victim] != kInvalid && (tags_[i] == kInvalid || used_[i] < used_[victim])) victim = i;
     // Step: a miss reads the whole line from its DRAM channel.
     ++c.misses;
     if (tags_[victim] != kInvalid) ++c.evictions;

@@ -48,10 +48,14 @@ struct BatchState {
     // waiting in its input queue in order of their key (rayKey, per ray).
     bool reorderInput = false;
     std::vector<std::uint64_t> rayKey;
-    // A reordered batch (gpu.rayOrder, or a launch's groups): rays/results above
-    // are the reordered copies; order[i] = index in the caller's rays (side callbacks get it).
+    // A reordered batch (gpu.rayOrder, or a launch's groups): the batch's ray
+    // i is the caller's ray order[i] (side callbacks get that index); `rays`
+    // and `results` stay the caller's, read and written through ray(i) and
+    // result(i) (no copies: a launch has millions of rays).
     std::vector<std::uint32_t> order;
     std::uint32_t sideIndex(std::uint32_t i) const { return order.empty() ? i : order[i]; }
+    const SimRay& ray(std::uint32_t i) const { return rays[sideIndex(i)]; }
+    SimRayResult& result(std::uint32_t i) const { return results[sideIndex(i)]; }
 };
 
 // ---------------------------------------------------------------------------

@@ -46,6 +46,12 @@ public:
         heap_.pop_back();
         return true;
     }
+    // The next event to run, if any (whatever its cycle).
+    bool peek(std::uint32_t& event) const {
+        if (heap_.empty()) return false;
+        event = eventOf(heap_.front().entry);
+        return true;
+    }
     // The first cycle after `from` with an event; false when there is none.
     bool nextAfter(std::uint64_t from, std::uint64_t& out) const {
         if (heap_.empty()) return false;

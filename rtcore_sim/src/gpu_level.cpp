@@ -374,14 +374,8 @@ void RtCore::Impl::simulateBatch(std::span<const SimRay> rays, ProgrammableSide&
                                  std::span<SimRayResult> out, std::uint32_t warps, MakeGroups&& makeGroups) {
     batch.rays = rays;
     makeGroups();
-    if (!batch.order.empty()) {
-        orderedRays.resize(rays.size());
-        for (std::size_t i = 0; i < rays.size(); ++i) orderedRays[i] = rays[batch.order[i]];
-        orderedResults.assign(rays.size(), SimRayResult{});
-        batch.rays = orderedRays;
-    }
     batch.side = &programmable;
-    batch.results = batch.order.empty() ? out : std::span<SimRayResult>(orderedResults);
+    batch.results = out;
     batch.groupSubmit.assign(batch.groupFirst.size(), 0);
     batch.groupRemaining = batch.groupSize;
     std::uint32_t maxType = 0;
@@ -397,7 +391,6 @@ void RtCore::Impl::simulateBatch(std::span<const SimRay> rays, ProgrammableSide&
         simulate(cores.size() > 1 && programmable.concurrent());
         now = portsFree(clock);  // spill writes drain before the batch ends
         mergeRayTypes();
-        for (std::size_t i = 0; i < batch.order.size(); ++i) out[batch.order[i]] = orderedResults[i];
     } catch (...) {
         abortBatch();
         throw;

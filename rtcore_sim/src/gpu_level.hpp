@@ -26,8 +26,6 @@ struct RtCore::Impl {
     MemoryLayout layout;
     std::uint64_t layoutGeneration = ~std::uint64_t(0);
     BatchState batch;
-    std::vector<SimRay> orderedRays;  // the batch in gpu.rayOrder (when not submission)
-    std::vector<SimRayResult> orderedResults;
     std::unique_ptr<SharedL2> l2;  // l2 mode cache only
     std::vector<std::unique_ptr<Core>> cores;
     std::vector<std::size_t> cursor;  // scratch: per core, a position in its log (mergeByCycle)

@@ -197,6 +197,8 @@ public:
     // The entry the next step processes (when !finished()) and, for a
     // BlasRef entry, the mesh of the instance being traversed.
     const StackEntry& next() const { return current_; }
+    // Where next() and finished() live (a host prefetch hint for the timing model).
+    const void* nextEntryAddress() const { return &current_; }
     std::uint32_t currentMesh() const { return mesh_; }
     const ModelHit& hit() const { return hit_; }
     const TraversalCounters& counters() const { return counters_; }
