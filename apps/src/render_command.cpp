@@ -5,6 +5,7 @@
 
 #include <rtlab/core/error.hpp>
 #include <rtlab/core/image.hpp>
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/core/timer.hpp>
 #include <rtlab/ecs/world.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
@@ -16,9 +17,11 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <stdexcept>
+#include <vector>
 
 namespace rtlab::app {
 
@@ -268,18 +271,25 @@ int runRender(const session::FrameOptions& o) {
             denoised.push_back({{"layer", d.layer}, {"effect", d.effect}, {"stack", denoise::stackName(d.stack)}});
         const double denoiseMs = denoiseClock.elapsedMs();
 
-        // Step: the frame's files.
+        // Step: the frame's files, written at the same time (each one to a
+        // temporary name, then renamed; the first error is rethrown).
         const fs::path base = fs::path(o.out) / name;
-        writeExr(base.string() + ".exr", out.image, ExrPixelType::Float);
-        const std::string preview = writePreviewPng(base.string() + ".png", frame.plan, out.image);
+        std::string preview;
+        nlohmann::json heatmap;
+        std::vector<std::function<void()>> writes;
+        writes.emplace_back([&] { writeExr(base.string() + ".exr", out.image, ExrPixelType::Float); });
+        writes.emplace_back([&] { preview = writePreviewPng(base.string() + ".png", frame.plan, out.image); });
+        if (out.ddgiAtlas.width() > 0)
+            writes.emplace_back([&] { writeExr(base.string() + "_ddgi.exr", out.ddgiAtlas, ExrPixelType::Float); });
+        if (s.rtcore())
+            writes.emplace_back([&] {
+                heatmap = writeHeatmaps(base, o.width, o.height, out.primaryRayPixels, s.rtcore()->primaryRays());
+            });
+        parallelForEach(writes.size(), [&](std::size_t i) { writes[i](); });
         if (f == 0 && !preview.empty())
             std::cerr << "rtlab: " << name << ".png shows " << preview
                       << (preview == "ao.V" ? " (the AO visibility)" : " (the surfaces' albedo)")
                       << ": the effects chosen put no light in the beauty; every layer is in the .exr\n";
-        if (out.ddgiAtlas.width() > 0) writeExr(base.string() + "_ddgi.exr", out.ddgiAtlas, ExrPixelType::Float);
-        nlohmann::json heatmap;
-        if (s.rtcore())
-            heatmap = writeHeatmaps(base, o.width, o.height, out.primaryRayPixels, s.rtcore()->primaryRays());
 
         // Step: the frame's stats; everything outside "timing" and "measured" is deterministic.
         nlohmann::json fj;

@@ -2,6 +2,7 @@
 #include <rtlab/session/frame_session.hpp>
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/core/parallel.hpp>
 #include <rtlab/core/timer.hpp>
 #include <rtlab/ecs/load/scene_loader.hpp>
 #include <rtlab/ecs/world.hpp>
@@ -9,6 +10,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <exception>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -145,7 +147,23 @@ const FrameState& FrameSession::advance() {
     next.index = frame_ ? frame_->index + 1 : 0;
     next.update = world_->update(frame_ ? world_->settings().frameSeconds : 0.f);
     next.scene = ecs::makeSnapshot(*world_, next.update);
-    if (accel_) next.accel = accel_->update(next.scene);
+    // Step: Embree's BVHs and the model's, built at the same time (they
+    // share nothing but the snapshot); the first error in that order is rethrown.
+    std::exception_ptr accelError, modelError;
+    parallelForEach(2, [&](std::size_t task) {
+        try {
+            if (task == 0 && accel_) next.accel = accel_->update(next.scene);
+            if (task == 1 && rtcore_) {
+                const Stopwatch clock;
+                next.model = rtcore_->update(next.scene);
+                next.modelUpdateMs = clock.elapsedMs();
+            }
+        } catch (...) {
+            (task == 0 ? accelError : modelError) = std::current_exception();
+        }
+    });
+    if (accelError) std::rethrow_exception(accelError);
+    if (modelError) std::rethrow_exception(modelError);
     next.plan = shaders::planFrame(next.scene, planOptions_);
     if (next.index == 0 && stages_ == Stages::Render)
         for (const std::string& note : next.plan.notes) std::cerr << "rtlab: note: " << note << "\n";
@@ -154,11 +172,6 @@ const FrameState& FrameSession::advance() {
         std::cerr << "rtlab: warning: frame " << next.index << ": " << next.scene.untraceableInstances
                   << " mesh instance(s) not traced: a singular or non-finite transform (a zero scale), or one scaling "
                      "by more than 1e12\n";
-    }
-    if (rtcore_) {
-        const Stopwatch clock;
-        next.model = rtcore_->update(next.scene);
-        next.modelUpdateMs = clock.elapsedMs();
     }
     frame_ = std::move(next);
     return *frame_;
