@@ -13,6 +13,7 @@
 #include <exception>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace rtlab::rtcore_sim {
 
@@ -76,18 +77,24 @@ void RtCore::Impl::mergeByCycle(std::vector<std::size_t>& cursor, const CycleOf&
                                 Visitor&& visitor) const {
     const std::size_t n = cores.size();
     cursor.assign(n, 0);
-    for (;;) {
-        std::size_t best = n;
-        std::uint64_t bestCycle = ~std::uint64_t(0);
-        for (std::size_t k = 0; k < n; ++k)
-            if (cursor[k] < sizeOf(k) && (best == n || cycleOf(k, cursor[k]) < bestCycle)) {
-                best = k;
-                bestCycle = cycleOf(k, cursor[k]);
-            }
-        if (best == n) return;
+    // The cores with entries left, in a min-heap on (next entry's cycle, core).
+    using Head = std::pair<std::uint64_t, std::size_t>;
+    std::vector<Head> heads;
+    for (std::size_t k = 0; k < n; ++k)
+        if (sizeOf(k) > 0) heads.emplace_back(cycleOf(k, 0), k);
+    const auto later = [](const Head& a, const Head& b) { return a > b; };
+    std::make_heap(heads.begin(), heads.end(), later);
+    while (!heads.empty()) {
+        std::pop_heap(heads.begin(), heads.end(), later);
+        const auto [cycle, best] = heads.back();
+        heads.pop_back();
         // This core's entries of that cycle, then the next core's.
         const std::size_t size = sizeOf(best);
-        while (cursor[best] < size && cycleOf(best, cursor[best]) == bestCycle) visitor(best, cursor[best]++);
+        while (cursor[best] < size && cycleOf(best, cursor[best]) == cycle) visitor(best, cursor[best]++);
+        if (cursor[best] < size) {
+            heads.emplace_back(cycleOf(best, cursor[best]), best);
+            std::push_heap(heads.begin(), heads.end(), later);
+        }
     }
 }
 
