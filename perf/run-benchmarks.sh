@@ -13,10 +13,13 @@ for src in perf/*.cpp; do
   [ -x "$exe" ] || { echo "run-benchmarks: $exe not built" >&2; exit 1; }
   echo "== $name"
   extra=()
-  # The tracer's and the replay's ratios compare benchmarks that run seconds apart: five
-  # repetitions in random interleaved order, the fastest of each counts
+  # The tracer's, the replay's and the launch model's ratios compare benchmarks that run
+  # seconds apart: repetitions in random interleaved order, the fastest of each counts
   # (perf/summarize.py), so that a noisy neighbour does not decide a ratio.
-  case "$name" in tracer_overhead|replay_speed) extra=(--benchmark_repetitions=5 --benchmark_enable_random_interleaving=true) ;; esac
+  case "$name" in
+    tracer_overhead|replay_speed) extra=(--benchmark_repetitions=5 --benchmark_enable_random_interleaving=true) ;;
+    rtcore_speed) extra=(--benchmark_repetitions=3 --benchmark_enable_random_interleaving=true) ;;
+  esac
   "$exe" --benchmark_out="$out/$name.json" --benchmark_out_format=json "${extra[@]}"
   ran=$((ran + 1))
 done

@@ -172,10 +172,8 @@ SharedL2::SharedL2(const L2Params& l2, const DramParams& dram) : l2_(l2), dram_(
     tags_.assign(ways, kInvalid);
     ready_.assign(ways, 0);
     used_.assign(ways, 0);
-    bankFree_.assign(l2.banks, 0);
-    channelFree_.assign(dram.channels, 0);
-    bankBusyCycles.assign(l2.banks, 0);
-    channelBusyCycles.assign(dram.channels, 0);
+    banks_.assign(l2.banks, Port{});
+    channels_.assign(dram.channels, Port{});
     classes_ = std::gcd(l2.banks, dram.channels);
 }
 
@@ -187,13 +185,13 @@ void SharedL2::invalidate() {
 void SharedL2::resetStats() {
     counters = L2Counters{};
     invalidations = 0;
-    std::fill(bankBusyCycles.begin(), bankBusyCycles.end(), 0);
-    std::fill(channelBusyCycles.begin(), channelBusyCycles.end(), 0);
+    for (Port& p : banks_) p.busy = 0;
+    for (Port& p : channels_) p.busy = 0;
 }
 
 void SharedL2::resetTime() {
-    std::fill(bankFree_.begin(), bankFree_.end(), 0);
-    std::fill(channelFree_.begin(), channelFree_.end(), 0);
+    for (Port& p : banks_) p.free = 0;
+    for (Port& p : channels_) p.free = 0;
 }
 
 LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp) {
@@ -202,13 +200,14 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counter
     const std::uint64_t line = address >> lineShift_;
     const std::uint32_t bank = static_cast<std::uint32_t>(line % l2_.banks);
     // Step: the bank, first come first served in request order.
-    const std::uint64_t start = std::max(arrive, bankFree_[bank]);
+    Port& b = banks_[bank];
+    const std::uint64_t start = std::max(arrive, b.free);
     if (start > arrive) {
         ++c.bankConflicts;
         c.bankWaitCycles += start - arrive;
     }
-    bankFree_[bank] = start + l2_.bankCycles;
-    bankBusyCycles[bank] += l2_.bankCycles;
+    b.free = start + l2_.bankCycles;
+    b.busy += l2_.bankCycles;
     const std::uint64_t tagDone = start + l2_.hitLatency;
 
     // Step: the tag lookup in the line's set of its bank.
@@ -234,9 +233,10 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counter
     ++c.misses;
     if (tags_[victim] != kInvalid) ++c.evictions;
     const std::uint32_t channel = static_cast<std::uint32_t>(line % dram_.channels);
-    const std::uint64_t dramStart = std::max(tagDone, channelFree_[channel]);
-    channelFree_[channel] = dramStart + dramTransfer_;
-    channelBusyCycles[channel] += dramTransfer_;
+    Port& ch = channels_[channel];
+    const std::uint64_t dramStart = std::max(tagDone, ch.free);
+    ch.free = dramStart + dramTransfer_;
+    ch.busy += dramTransfer_;
     c.dramQueueCycles += dramStart - tagDone;
     ++c.dramReads;
     c.dramReadBytes += l2_.lineBytes;

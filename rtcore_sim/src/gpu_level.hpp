@@ -9,6 +9,7 @@
 #include "core_cycle.hpp"
 
 #include <nlohmann/json.hpp>
+#include <tbb/partitioner.h>
 
 #include <cstdint>
 #include <memory>
@@ -43,6 +44,10 @@ struct RtCore::Impl {
         std::vector<Key> order;  // scratch: one class's reads in the serial order
     };
     std::vector<L2Group> l2Groups;
+    // Host-parallel epochs: which host thread ran which core, replayed in the
+    // next epoch where the load allows, so a core's state stays in that
+    // thread's cache (tbb::affinity_partitioner).
+    tbb::affinity_partitioner coreAffinity, l2Affinity;
     bool everyCycle = false;  // debug: visit every cycle instead of jumping to the next event
     std::uint64_t now = 0;    // the clock between batches
     std::uint64_t clock = 0;  // the cycle being simulated during a batch

@@ -72,10 +72,10 @@ std::vector<ResourceUse> RtCore::resourceUse() const {
         out.push_back({"memoryPort", k, double(core.port.channel.busyCycles), 1.0});
     }
     if (impl_->l2) {
-        for (std::uint32_t b = 0; b < impl_->l2->bankBusyCycles.size(); ++b)
-            out.push_back({"l2Bank", b, double(impl_->l2->bankBusyCycles[b]), 1.0});
-        for (std::uint32_t ch = 0; ch < impl_->l2->channelBusyCycles.size(); ++ch)
-            out.push_back({"dramChannel", ch, double(impl_->l2->channelBusyCycles[ch]), 1.0});
+        for (std::uint32_t b = 0; b < impl_->l2->banks(); ++b)
+            out.push_back({"l2Bank", b, double(impl_->l2->bankBusyCycles(b)), 1.0});
+        for (std::uint32_t ch = 0; ch < impl_->l2->channels(); ++ch)
+            out.push_back({"dramChannel", ch, double(impl_->l2->channelBusyCycles(ch)), 1.0});
     }
     return out;
 }

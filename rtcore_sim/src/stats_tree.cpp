@@ -5,7 +5,6 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <numeric>
 #include <string>
 #include <vector>
 
@@ -204,9 +203,11 @@ nlohmann::json RtCore::Impl::statsJson() const {
     dram["channels"] = config.dram.channels;
     dram["peakBytesPerCycle"] = std::uint64_t(config.dram.channels) * config.dram.bytesPerCycle;
     if (l2) {
-        const std::uint64_t bankBusy =
-            std::accumulate(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end(), std::uint64_t(0));
-        const std::uint64_t bankMax = *std::max_element(l2->bankBusyCycles.begin(), l2->bankBusyCycles.end());
+        std::uint64_t bankBusy = 0, bankMax = 0;
+        for (std::uint32_t b = 0; b < l2->banks(); ++b) {
+            bankBusy += l2->bankBusyCycles(b);
+            bankMax = std::max(bankMax, l2->bankBusyCycles(b));
+        }
         l2j["sizeBytes"] = config.l2.sizeBytes;
         l2j["banks"] = config.l2.banks;
         l2j["accesses"] = l2->counters.accesses;
@@ -222,9 +223,11 @@ nlohmann::json RtCore::Impl::statsJson() const {
         l2j["busiestBankBusyCycles"] = bankMax;
         l2j["bankUtilization"] = rate(double(bankBusy), double(cycles) * config.l2.banks);
         l2j["busiestBankUtilization"] = rate(double(bankMax), double(cycles));
-        const std::uint64_t chBusy =
-            std::accumulate(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end(), std::uint64_t(0));
-        const std::uint64_t chMax = *std::max_element(l2->channelBusyCycles.begin(), l2->channelBusyCycles.end());
+        std::uint64_t chBusy = 0, chMax = 0;
+        for (std::uint32_t ch = 0; ch < l2->channels(); ++ch) {
+            chBusy += l2->channelBusyCycles(ch);
+            chMax = std::max(chMax, l2->channelBusyCycles(ch));
+        }
         dram["reads"] = l2->counters.dramReads;
         dram["readBytes"] = l2->counters.dramReadBytes;
         dram["busyCycles"] = chBusy;

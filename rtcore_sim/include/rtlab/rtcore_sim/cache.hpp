@@ -166,8 +166,8 @@ public:
 
     L2Counters counters;
     std::uint64_t invalidations = 0;
-    std::vector<std::uint64_t> bankBusyCycles;
-    std::vector<std::uint64_t> channelBusyCycles;
+    std::uint64_t bankBusyCycles(std::uint32_t bank) const { return banks_[bank].busy; }
+    std::uint64_t channelBusyCycles(std::uint32_t channel) const { return channels_[channel].busy; }
 
 private:
     static constexpr std::uint64_t kInvalid = ~std::uint64_t(0);
@@ -178,7 +178,13 @@ private:
     std::uint32_t dramTransfer_ = 1;
     std::uint32_t classes_ = 1;
     std::vector<std::uint64_t> tags_, ready_, used_;  // per way, [bank][set][way]
-    std::vector<std::uint64_t> bankFree_, channelFree_;
+    // A bank's or DRAM channel's state, one host cache line each: the
+    // classes' accesses on different host threads share no line.
+    struct alignas(64) Port {
+        std::uint64_t free = 0;  // the first cycle it takes a new request
+        std::uint64_t busy = 0;  // cycles busy since resetStats
+    };
+    std::vector<Port> banks_, channels_;
     std::uint64_t stamp_ = 0;
 };
 
