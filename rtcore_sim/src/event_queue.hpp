@@ -61,11 +61,18 @@ public:
         for (;;) {
             const std::size_t first = kArity * i + 1;
             if (first >= n) break;
+            // The least child, without a branch per comparison (their outcome is a coin toss).
             std::size_t least = first;
+            Key best = heap_[first];
             const std::size_t end = first + kArity < n ? first + kArity : n;
-            for (std::size_t c = first + 1; c < end; ++c) least = heap_[c] < heap_[least] ? c : least;
-            if (last < heap_[least]) break;
-            heap_[i] = heap_[least];
+            for (std::size_t c = first + 1; c < end; ++c) {
+                const Key k = heap_[c];
+                const bool less = __builtin_expect_with_probability(k < best, 1, 0.5);
+                least = less ? c : least;
+                best = less ? k : best;
+            }
+            if (last < best) break;
+            heap_[i] = best;
             i = least;
         }
         heap_[i] = last;
