@@ -640,6 +640,13 @@ void RtCoreBackend::beginLaunchLocked(std::uint32_t threads, std::string_view la
     launchFailed_ = false;
     launch_.clear();
     launch_.threads = threads;  // grows with the threads that trace
+    // Room for one ray per thread (a render's launch has at least that many
+    // rays), so the log does not grow by copies (capped: a sparse dispatch
+    // of many threads may trace few rays).
+    const std::size_t expected = std::min<std::size_t>(threads, std::size_t(1) << 23);
+    launch_.rays.reserve(expected);
+    launch_.thread.reserve(expected);
+    launch_.verdictEnd.reserve(expected);
     launchPrimary_.clear();
 }
 
