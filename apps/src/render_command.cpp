@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <functional>
 #include <iostream>
@@ -272,7 +273,8 @@ int runRender(const session::FrameOptions& o) {
         const double denoiseMs = denoiseClock.elapsedMs();
 
         // Step: the frame's files, written at the same time (each one to a
-        // temporary name, then renamed; the first error is rethrown).
+        // temporary name, then renamed); every write runs, then the first
+        // failed one's error in this order is rethrown.
         const fs::path base = fs::path(o.out) / name;
         std::string preview;
         nlohmann::json heatmap;
@@ -285,7 +287,16 @@ int runRender(const session::FrameOptions& o) {
             writes.emplace_back([&] {
                 heatmap = writeHeatmaps(base, o.width, o.height, out.primaryRayPixels, s.rtcore()->primaryRays());
             });
-        parallelForEach(writes.size(), [&](std::size_t i) { writes[i](); });
+        std::vector<std::exception_ptr> writeErrors(writes.size());
+        parallelForEach(writes.size(), [&](std::size_t i) {
+            try {
+                writes[i]();
+            } catch (...) {
+                writeErrors[i] = std::current_exception();
+            }
+        });
+        for (const std::exception_ptr& e : writeErrors)
+            if (e) std::rethrow_exception(e);
         if (f == 0 && !preview.empty())
             std::cerr << "rtlab: " << name << ".png shows " << preview
                       << (preview == "ao.V" ? " (the AO visibility)" : " (the surfaces' albedo)")

@@ -6,6 +6,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -300,10 +301,11 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
     if (tTracing == this)
         throw tracer::PipelineError("TraceRay called from an any-hit or intersection shader (not allowed by DXR)");
     std::unique_lock lock(mutex_);
-    tTracing = this;
     struct Leave {
-        ~Leave() { tTracing = nullptr; }
+        const RtCoreBackend* outer = tTracing;  // another back end's call this one is nested in, if any
+        ~Leave() { tTracing = outer; }
     } leave;
+    tTracing = this;
     ++traceCalls_;
     // Launch mode, a call of an open launch: traced without the lock.
     if (launchMode() && launchDepth_ > 0 && !replaying_ && !keepCallVerdicts_ && !verify_) {
@@ -547,7 +549,20 @@ void RtCoreBackend::traceConcurrently(const tracer::TraceEngine& engine, const t
         std::vector<std::uint32_t> verdicts;
         std::vector<std::uint64_t> verdictEnd;
     };
-    thread_local CallBuffers b;
+    // The host thread's buffers, or the call's own when they are in use
+    // (a shader of this call tracing through another RtCoreBackend).
+    thread_local CallBuffers threadBuffers;
+    thread_local bool threadBuffersInUse = false;
+    std::optional<CallBuffers> ownBuffers;
+    if (threadBuffersInUse) ownBuffers.emplace();
+    CallBuffers& b = ownBuffers ? *ownBuffers : threadBuffers;
+    struct Release {
+        bool* inUse;
+        ~Release() {
+            if (inUse) *inUse = false;
+        }
+    } release{ownBuffers ? nullptr : &threadBuffersInUse};
+    if (!ownBuffers) threadBuffersInUse = true;
     // An exception drops the launch when its scope ends.
     struct Abort {
         RtCoreBackend* self;
@@ -635,18 +650,18 @@ void RtCoreBackend::beginLaunchLocked(std::uint32_t threads, std::string_view la
     if (threads > kMaxLaunchThreads)
         throw tracer::PipelineError("a launch of " + std::to_string(threads) + " threads (the model takes at most " +
                                     std::to_string(kMaxLaunchThreads) + ")");
-    launchDepth_ = 1;
-    launchLabel_ = label;
-    launchFailed_ = false;
-    launch_.clear();
-    launch_.threads = threads;  // grows with the threads that trace
     // Room for one ray per thread (a render's launch has at least that many
     // rays), so the log does not grow by copies (capped: a sparse dispatch
-    // of many threads may trace few rays).
+    // of many threads may trace few rays). First: it may throw.
+    launch_.clear();
     const std::size_t expected = std::min<std::size_t>(threads, std::size_t(1) << 23);
     launch_.rays.reserve(expected);
     launch_.thread.reserve(expected);
     launch_.verdictEnd.reserve(expected);
+    launchDepth_ = 1;
+    launchLabel_ = label;
+    launchFailed_ = false;
+    launch_.threads = threads;  // grows with the threads that trace
     launchPrimary_.clear();
 }
 

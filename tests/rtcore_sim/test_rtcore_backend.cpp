@@ -17,10 +17,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace rtlab;
@@ -227,6 +229,37 @@ TEST(RtCoreBackend, TilePixelOrderIsThePipelinesThreadNumbering) {
         pixelOfThread.at(tracer::currentTraceScope().thread) = static_cast<std::uint32_t>(y * w + x);
     });
     EXPECT_EQ(pixelOfThread, tilePixelOrder(w, h));
+}
+
+// A dispatch made inside a tile numbers its threads from 0 again: it runs
+// on that tile's host thread, so no launch thread's rays reach the model
+// from two host threads at once (their order would then depend on timing).
+TEST(RtCoreBackend, ADispatchInsideATileRunsOnThatTilesHostThread) {
+    ecs::World world;
+    ecs::load::loadScene(world, "builtin:cornell");
+    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
+    tracer::AccelManager accel;
+    accel.update(scene);
+    RtCoreBackend backend{RtCoreConfig{}};
+    backend.update(scene);
+    backend.beginFrame();
+    ASSERT_FALSE(backend.orderDependent());
+    struct Payload {};
+    tracer::Pipeline<Payload>::Desc desc;
+    desc.missShaders.push_back([](const tracer::MissContext&, Payload&) {});
+    const tracer::Pipeline<Payload> pipeline(accel, std::move(desc), &backend);
+    const ThreadLimit limit(2);
+    std::atomic<int> inner{0}, foreign{0};
+    pipeline.dispatchRays(64, 32, [&](int x, int y) {
+        if (x % 16 != 0 || y % 16 != 0) return;  // once per tile
+        const std::thread::id outer = std::this_thread::get_id();
+        pipeline.dispatchRays(20, 20, [&](int, int) {
+            ++inner;
+            if (std::this_thread::get_id() != outer) ++foreign;
+        });
+    });
+    EXPECT_EQ(inner.load(), 8 * 400);
+    EXPECT_EQ(foreign.load(), 0);
 }
 
 TEST(RtCoreBackend, RecordingRayOrderNeedsABackEnd) {

@@ -276,8 +276,11 @@ private:
             scope = saved;
         };
         // An order-dependent back end (a simulated clock) sees the tiles in
-        // order, on this thread.
-        if (backend_ && backend_->orderDependent())
+        // order, on this thread; so does a dispatch made inside a tile (its
+        // threads are numbered from 0 again: in parallel, the same thread's
+        // rays would reach a back end from several host threads at once).
+        const bool insideTile = currentTraceScope().counters != nullptr;
+        if (backend_ && (backend_->orderDependent() || insideTile))
             for (std::size_t i = 0; i < tiles.size(); ++i) runTile(i);
         else parallelForEach(tiles.size(), runTile);
         TraceCounters total;
