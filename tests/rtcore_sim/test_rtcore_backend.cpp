@@ -210,19 +210,35 @@ TEST(RtCoreBackend, OnlyLaunchModeWithoutVerificationOrRecordingRunsConcurrently
     EXPECT_TRUE(RtCoreBackend(tileConfig).orderDependent());
 }
 
+namespace {
+
+// The Cornell box with Embree's acceleration structures, and the shader
+// table of a pipeline whose shaders do nothing (one miss shader).
+struct Cornell {
+    struct Payload {};
+    ecs::World world;
+    ecs::SceneSnapshot scene;
+    tracer::AccelManager accel;
+    Cornell() {
+        ecs::load::loadScene(world, "builtin:cornell");
+        scene = ecs::makeSnapshot(world, world.update(0.f));
+        accel.update(scene);
+    }
+    static tracer::Pipeline<Payload>::Desc emptyShaders() {
+        tracer::Pipeline<Payload>::Desc desc;
+        desc.missShaders.push_back([](const tracer::MissContext&, Payload&) {});
+        return desc;
+    }
+};
+
+}  // namespace
+
 // The primary-ray records are in a dispatch's thread order, and
 // tilePixelOrder names the pixel of each thread as the pipeline numbers
 // them (an image of odd size: edge tiles are smaller).
 TEST(RtCoreBackend, TilePixelOrderIsThePipelinesThreadNumbering) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:cornell");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
-    tracer::AccelManager accel;
-    accel.update(scene);
-    struct Payload {};
-    tracer::Pipeline<Payload>::Desc desc;
-    desc.missShaders.push_back([](const tracer::MissContext&, Payload&) {});
-    const tracer::Pipeline<Payload> pipeline(accel, std::move(desc));
+    const Cornell cornell;
+    const tracer::Pipeline<Cornell::Payload> pipeline(cornell.accel, Cornell::emptyShaders());
     const int w = 37, h = 21;
     std::vector<std::uint32_t> pixelOfThread(std::size_t(w) * h, ~0u);
     pipeline.dispatchRays(w, h, [&](int x, int y) {
@@ -235,19 +251,12 @@ TEST(RtCoreBackend, TilePixelOrderIsThePipelinesThreadNumbering) {
 // on that tile's host thread, so no launch thread's rays reach the model
 // from two host threads at once (their order would then depend on timing).
 TEST(RtCoreBackend, ADispatchInsideATileRunsOnThatTilesHostThread) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:cornell");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
-    tracer::AccelManager accel;
-    accel.update(scene);
+    const Cornell cornell;
     RtCoreBackend backend{RtCoreConfig{}};
-    backend.update(scene);
+    backend.update(cornell.scene);
     backend.beginFrame();
     ASSERT_FALSE(backend.orderDependent());
-    struct Payload {};
-    tracer::Pipeline<Payload>::Desc desc;
-    desc.missShaders.push_back([](const tracer::MissContext&, Payload&) {});
-    const tracer::Pipeline<Payload> pipeline(accel, std::move(desc), &backend);
+    const tracer::Pipeline<Cornell::Payload> pipeline(cornell.accel, Cornell::emptyShaders(), &backend);
     const ThreadLimit limit(2);
     std::atomic<int> inner{0}, foreign{0};
     pipeline.dispatchRays(64, 32, [&](int x, int y) {
@@ -263,13 +272,9 @@ TEST(RtCoreBackend, ADispatchInsideATileRunsOnThatTilesHostThread) {
 }
 
 TEST(RtCoreBackend, RecordingRayOrderNeedsABackEnd) {
-    ecs::World world;
-    ecs::load::loadScene(world, "builtin:cornell");
-    const ecs::SceneSnapshot scene = ecs::makeSnapshot(world, world.update(0.f));
-    tracer::AccelManager accel;
-    accel.update(scene);
+    const Cornell cornell;
     shaders::PreviewSettings settings{16, 16, nullptr, true};
-    EXPECT_THROW(shaders::renderPreview(accel, scene, settings), std::invalid_argument);
+    EXPECT_THROW(shaders::renderPreview(cornell.accel, cornell.scene, settings), std::invalid_argument);
 }
 
 namespace {
