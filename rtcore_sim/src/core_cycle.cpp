@@ -206,13 +206,16 @@ inline void Core::onStackTraffic(std::uint32_t slot, std::uint64_t c) {
 inline void Core::finish(std::uint32_t slot, std::uint64_t c) {
     Slot& s = slots[slot];
     s.finishCycle = c;
-    SimRayResult& r = batch.result(s.rayIndex);
-    r.hit = s.trav.hit();
-    r.work = s.trav.counters();
-    r.stackSpills = s.spills;
-    r.stackRefills = s.refills;
-    r.slotCycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(c - s.admitCycle, UINT32_MAX));
-    const TraversalCounters& w = r.work;
+    const TraversalCounters& w = s.trav.counters();
+    batch.raySteps[s.rayIndex] = w.steps;
+    if (!batch.results.empty()) {
+        SimRayResult& r = batch.result(s.rayIndex);
+        r.hit = s.trav.hit();
+        r.work = w;
+        r.stackSpills = s.spills;
+        r.stackRefills = s.refills;
+        r.slotCycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(c - s.admitCycle, UINT32_MAX));
+    }
     stats.steps.add(w.steps);
     stats.nodeVisits.add(w.nodeVisits);
     stats.leafVisits.add(w.leafVisits);
@@ -243,7 +246,8 @@ inline void Core::enterCompletion(std::uint32_t slot, std::uint64_t c) {
 inline void Core::deliver(const Delivery& d, std::uint64_t c) {
     const std::uint64_t latency = c - batch.groupSubmit[d.group];
     stats.completionQueue += c - d.enterCycle;
-    batch.result(d.rayIndex).cycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(latency, UINT32_MAX));
+    if (!batch.results.empty())
+        batch.result(d.rayIndex).cycles = static_cast<std::uint32_t>(std::min<std::uint64_t>(latency, UINT32_MAX));
     stats.latency.add(latency);
     ++stats.raysCompleted;
     const std::uint32_t rayType = batch.ray(d.rayIndex).rayType;
@@ -275,7 +279,7 @@ inline void Core::groupDone(std::uint32_t group, std::uint64_t c) {
     const std::uint32_t first = batch.groupFirst[group];
     std::array<std::uint32_t, 64> steps;
     const std::uint32_t m = batch.groupSize[group];
-    for (std::uint32_t i = 0; i < m; ++i) steps[i] = batch.result(first + i).work.steps;
+    for (std::uint32_t i = 0; i < m; ++i) steps[i] = batch.raySteps[first + i];
     std::sort(steps.begin(), steps.begin() + m);
     std::uint32_t previous = 0;
     for (std::uint32_t j = 0; j < m; ++j) {

@@ -32,7 +32,8 @@ namespace rtlab::rtcore_sim {
 struct BatchState {
     std::span<const SimRay> rays;
     ProgrammableSide* side = nullptr;
-    std::span<SimRayResult> results;
+    std::span<SimRayResult> results;            // per ray, or empty (a launch whose caller wants none)
+    std::vector<std::uint32_t> raySteps;        // per ray (batch order): its traversal steps, once finished
     std::vector<std::uint32_t> groupFirst;      // per group: its first ray
     std::vector<std::uint32_t> groupSize;       // per group: its rays
     std::vector<std::uint32_t> groupWarp;       // per group: its warp

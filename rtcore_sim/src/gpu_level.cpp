@@ -371,7 +371,7 @@ void RtCore::Impl::launchGroups(std::span<const std::uint32_t> threads, std::uin
 
 void RtCore::Impl::runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads,
                              std::uint32_t threadCount, ProgrammableSide& programmable, std::span<SimRayResult> out) {
-    checkRays(rays, out.size(), "RtCore::runLaunch");
+    checkRays(rays, out.empty() ? rays.size() : out.size(), "RtCore::runLaunch");
     if (threads.size() != rays.size())
         throw std::invalid_argument("RtCore::runLaunch: rays and threads differ in size");
     if (threadCount > kMaxLaunchThreads)
@@ -397,6 +397,7 @@ void RtCore::Impl::simulateBatch(std::span<const SimRay> rays, ProgrammableSide&
     makeGroups();
     batch.side = &programmable;
     batch.results = out;
+    batch.raySteps.assign(rays.size(), 0);
     batch.groupSubmit.assign(batch.groupFirst.size(), 0);
     batch.groupRemaining = batch.groupSize;
     std::uint32_t maxType = 0;

@@ -692,11 +692,16 @@ void RtCoreBackend::endLaunchLocked() {
             self->launchPrimary_.clear();
         }
     } clear{this};
-    results_.assign(launch_.rays.size(), SimRayResult{});
+    // Per-ray results only for primary-ray records (a launch of bounces and
+    // shadow rays needs none: millions of 92-byte results not written).
+    const bool perRay = std::any_of(launchPrimary_.begin(), launchPrimary_.end(),
+                                    [](const LaunchPrimary& p) { return p.ray != kNoRay; });
+    if (perRay) results_.assign(launch_.rays.size(), SimRayResult{});
+    else results_.clear();
     VerdictReplaySide side(launch_.verdicts.data(), launch_.verdictEnd, false);
     const std::uint64_t before = core_->cycle();
     const std::vector<ResourceUse> usedBefore = core_->resourceUse();
-    core_->runLaunch(launch_.rays, launch_.thread, launch_.threads, side, results_);
+    core_->runLaunch(launch_.rays, launch_.thread, launch_.threads, side, std::span<SimRayResult>(results_));
     side.checkConsumed();
     launches_.push_back(launchRecord(launch_, core_->cycle() - before, usedBefore, core_->resourceUse()));
     flushLaunchPrimary(true);

@@ -221,6 +221,11 @@ TEST(RtCoreLaunch, LawsHoldOnALaunchOfABuiltinScene) {
             ASSERT_EQ(h.t, results[i].hit.t) << i;
             ASSERT_EQ(work.steps, results[i].work.steps) << i;
         }
+        // The same launch without per-ray results: the same cycles and statistics.
+        RtCore without(config, *scene.model);
+        without.runLaunch(rays, threads, static_cast<std::uint32_t>(primary.size()), side, {});
+        EXPECT_EQ(without.cycle(), core.cycle());
+        EXPECT_EQ(without.statsJson(), stats);
     }
 }
 

@@ -85,6 +85,9 @@ public:
     // rays together, shader.nextTraceLatency cycles after its (k-1)-th rays'
     // last result. Side callbacks receive the index into `rays`. Continues
     // the clock like run(); gpu.launch is not read (the caller chose).
+    // `results` is one per ray, or empty when the caller needs no per-ray
+    // results (a launch of millions of rays then writes none; the
+    // statistics are the same).
     // InputError when gpu.rayOrder is not submission or threadCount > kMaxLaunchThreads.
     void runLaunch(std::span<const SimRay> rays, std::span<const std::uint32_t> threads, std::uint32_t threadCount,
                    ProgrammableSide& side, std::span<SimRayResult> results);
