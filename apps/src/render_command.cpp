@@ -16,7 +16,6 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
-#include <exception>
 #include <filesystem>
 #include <functional>
 #include <iostream>
@@ -287,16 +286,7 @@ int runRender(const session::FrameOptions& o) {
             writes.emplace_back([&] {
                 heatmap = writeHeatmaps(base, o.width, o.height, out.primaryRayPixels, s.rtcore()->primaryRays());
             });
-        std::vector<std::exception_ptr> writeErrors(writes.size());
-        parallelForEach(writes.size(), [&](std::size_t i) {
-            try {
-                writes[i]();
-            } catch (...) {
-                writeErrors[i] = std::current_exception();
-            }
-        });
-        for (const std::exception_ptr& e : writeErrors)
-            if (e) std::rethrow_exception(e);
+        runAllInParallel(writes);
         if (f == 0 && !preview.empty())
             std::cerr << "rtlab: " << name << ".png shows " << preview
                       << (preview == "ao.V" ? " (the AO visibility)" : " (the surfaces' albedo)")

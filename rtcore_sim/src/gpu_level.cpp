@@ -6,9 +6,7 @@
 
 #include <rtlab/core/parallel.hpp>
 
-#include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -147,12 +145,8 @@ void RtCore::Impl::simulate(bool parallel) {
             // One task per core (the cores of an epoch share nothing): the
             // host threads take them as they come, so unequal cores balance,
             // each core preferably on the thread that ran it last.
-            tbb::parallel_for(
-                tbb::blocked_range<std::size_t>(0, n, 1),
-                [&](const tbb::blocked_range<std::size_t>& r) {
-                    for (std::size_t k = r.begin(); k != r.end(); ++k) runCore(*cores[k], end);
-                },
-                coreAffinity);
+            parallelForEach(
+                n, [&](std::size_t k) { runCore(*cores[k], end); }, coreAffinity);
         }
         if (deferring) answerL2Reads(groups);
         // The next epoch starts at the earliest cycle any core may act in:
@@ -221,13 +215,7 @@ void RtCore::Impl::answerL2Reads(std::size_t threads) {
         }
     };
     if (groups == 1) answer(0);
-    else  // each group's classes (their L2 sets) preferably on the thread that answered them last
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, groups, 1),
-            [&](const tbb::blocked_range<std::size_t>& r) {
-                for (std::size_t g = r.begin(); g != r.end(); ++g) answer(g);
-            },
-            l2Affinity);
+    else parallelForEach(groups, answer, l2Affinity);  // a group's L2 sets stay in its thread's cache
     std::uint64_t stamp = l2->stamp();
     for (std::size_t g = 0; g < groups; ++g) {
         const L2Group& group = l2Groups[g];

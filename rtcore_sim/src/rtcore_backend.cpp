@@ -215,6 +215,25 @@ private:
     std::vector<std::vector<std::uint32_t>>& perRay_;
 };
 
+// The rays the model sees (valid, active lanes) and their lanes, in lane
+// order; returns the invalid active lanes (misses, as on Embree).
+std::uint64_t collectRays(const tracer::TraceArgs& args, const tracer::RayDesc* rays, const bool* active,
+                          std::size_t count, std::vector<SimRay>& simRays, std::vector<std::uint32_t>& laneOf) {
+    simRays.clear();
+    laneOf.clear();
+    std::uint64_t invalid = 0;
+    for (std::uint32_t lane = 0; lane < count; ++lane) {
+        if (!active[lane]) continue;
+        if (!tracer::isValidRay(rays[lane])) {
+            ++invalid;
+            continue;
+        }
+        simRays.push_back(simRayOf(rays[lane], args));
+        laneOf.push_back(lane);
+    }
+    return invalid;
+}
+
 // A hit found with recorded verdicts: no shader ran to say HitKind and record (0); t, ids and barycentrics.
 void finishReplayed(const tracer::CandidateFilter& filter, std::uint32_t lane, const ModelHit& h,
                     tracer::CommittedHit& out) {
@@ -314,19 +333,7 @@ void RtCoreBackend::trace(const tracer::TraceEngine& engine, const tracer::Trace
         return;
     }
 
-    // Step: the rays the model sees (valid, active lanes), in lane order.
-    simRays_.clear();
-    laneOf_.clear();
-    for (std::uint32_t lane = 0; lane < count; ++lane) {
-        if (!active[lane]) continue;
-        const tracer::RayDesc& r = rays[lane];
-        if (!tracer::isValidRay(r)) {
-            ++invalidRays_;
-            continue;
-        }
-        simRays_.push_back(simRayOf(r, args));
-        laneOf_.push_back(lane);
-    }
+    invalidRays_ += collectRays(args, rays, active, count, simRays_, laneOf_);
 
     if (launchMode()) {
         traceFunctional(engine, args, rays, payloads, active, count, depth, out, counters);
@@ -540,7 +547,6 @@ void RtCoreBackend::traceConcurrently(const tracer::TraceEngine& engine, const t
                                       const tracer::RayDesc* rays, void* const* payloads, const bool* active,
                                       std::size_t count, std::uint32_t depth, tracer::CommittedHit* out,
                                       tracer::TraceCounters& counters) {
-    // The host thread's buffers (a trace call does not nest: see tTracing).
     struct CallBuffers {
         std::vector<SimRay> simRays;
         std::vector<std::uint32_t> laneOf;
@@ -574,19 +580,7 @@ void RtCoreBackend::traceConcurrently(const tracer::TraceEngine& engine, const t
         }
     } abort{this};
 
-    // Step: the rays the model sees (valid, active lanes), in lane order.
-    b.simRays.clear();
-    b.laneOf.clear();
-    std::uint64_t invalid = 0;
-    for (std::uint32_t lane = 0; lane < count; ++lane) {
-        if (!active[lane]) continue;
-        if (!tracer::isValidRay(rays[lane])) {
-            ++invalid;
-            continue;
-        }
-        b.simRays.push_back(simRayOf(rays[lane], args));
-        b.laneOf.push_back(lane);
-    }
+    const std::uint64_t invalid = collectRays(args, rays, active, count, b.simRays, b.laneOf);
     // Step: their hits, every verdict logged.
     b.lanes.assign(count, tracer::LaneCommitState{});
     tracer::CandidateFilter filter(engine, args, depth, counters, rays, payloads, b.lanes.data());

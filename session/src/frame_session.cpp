@@ -10,7 +10,6 @@
 
 #include <chrono>
 #include <condition_variable>
-#include <exception>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -148,22 +147,16 @@ const FrameState& FrameSession::advance() {
     next.update = world_->update(frame_ ? world_->settings().frameSeconds : 0.f);
     next.scene = ecs::makeSnapshot(*world_, next.update);
     // Step: Embree's BVHs and the model's, built at the same time (they
-    // share nothing but the snapshot); the first error in that order is rethrown.
-    std::exception_ptr accelError, modelError;
-    parallelForEach(2, [&](std::size_t task) {
-        try {
-            if (task == 0 && accel_) next.accel = accel_->update(next.scene);
-            if (task == 1 && rtcore_) {
-                const Stopwatch clock;
-                next.model = rtcore_->update(next.scene);
-                next.modelUpdateMs = clock.elapsedMs();
-            }
-        } catch (...) {
-            (task == 0 ? accelError : modelError) = std::current_exception();
-        }
-    });
-    if (accelError) std::rethrow_exception(accelError);
-    if (modelError) std::rethrow_exception(modelError);
+    // share nothing but the snapshot); Embree's error first.
+    runAllInParallel({[&] {
+                          if (accel_) next.accel = accel_->update(next.scene);
+                      },
+                      [&] {
+                          if (!rtcore_) return;
+                          const Stopwatch clock;
+                          next.model = rtcore_->update(next.scene);
+                          next.modelUpdateMs = clock.elapsedMs();
+                      }});
     next.plan = shaders::planFrame(next.scene, planOptions_);
     if (next.index == 0 && stages_ == Stages::Render)
         for (const std::string& note : next.plan.notes) std::cerr << "rtlab: note: " << note << "\n";

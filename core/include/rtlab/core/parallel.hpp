@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <exception>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -48,6 +50,34 @@ void parallelForEach(std::size_t count, Body&& body) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
         },
         tbb::simple_partitioner{});
+}
+
+// The same, each index preferably on the host thread that ran it in the
+// last call with the same `affinity` (its data stays in that thread's cache).
+template <class Body>
+void parallelForEach(std::size_t count, Body&& body, tbb::affinity_partitioner& affinity) {
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, count, 1),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) body(i);
+        },
+        affinity);
+}
+
+// Runs every task, in parallel; then rethrows the error of the first task
+// (in the tasks' order) that failed, so the error reported does not depend
+// on timing.
+inline void runAllInParallel(const std::vector<std::function<void()>>& tasks) {
+    std::vector<std::exception_ptr> errors(tasks.size());
+    parallelForEach(tasks.size(), [&](std::size_t i) {
+        try {
+            tasks[i]();
+        } catch (...) {
+            errors[i] = std::current_exception();
+        }
+    });
+    for (const std::exception_ptr& e : errors)
+        if (e) std::rethrow_exception(e);
 }
 
 // Runs body(begin, end) over [0, count) in fixed chunks of `chunk` indices,

@@ -106,10 +106,9 @@ struct PathVertexRays {
 struct FrameOutput {
     Image image;  // beauty R,G,B + every pass's layers (docs/effects.md)
     std::array<PassReport, kPassCount> passes{};
-    tracer::TraceCounters counters;  // summed over passes (per ray type)
-    std::vector<std::uint32_t>
-        primaryRayPixels;                       // recordRayOrder: the G-buffer dispatch's thread order (tilePixelOrder)
-    std::uint64_t nonFiniteValuesRepaired = 0;  // NaN/Inf replaced by 0 before output (should stay 0)
+    tracer::TraceCounters counters;               // summed over passes (per ray type)
+    std::vector<std::uint32_t> primaryRayPixels;  // recordRayOrder: each primary thread's pixel (tilePixelOrder)
+    std::uint64_t nonFiniteValuesRepaired = 0;    // NaN/Inf replaced by 0 before output (should stay 0)
     Image ddgiAtlas;       // --gi ddgi: the probes' irradiance atlas (R,G,B; DdgiVolume::irradianceAtlasImage)
     DdgiUpdateStats ddgi;  // --gi ddgi: the probe update's counters (probe states, rays, back faces)
     std::vector<PathVertexRays> pathVertices;  // --effects pathtrace: RenderSettings::pathMaxDepth + 1 entries
