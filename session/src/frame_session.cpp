@@ -141,6 +141,13 @@ void FrameSession::load() {
 
 const FrameState& FrameSession::advance() {
     if (!loaded_) throw std::logic_error("FrameSession::advance before load");
+    if (failed_)
+        throw std::logic_error(
+            "FrameSession::advance after an advance failed (the world, Embree's and the model's structures may "
+            "disagree): start a new session");
+    // Until this frame is complete, the session counts as failed: an error
+    // below may leave the world updated and only one back end's BVHs built.
+    failed_ = true;
     // Step: systems -> what changed -> snapshot -> acceleration structures -> plan -> the model's BVHs.
     FrameState next;
     next.index = frame_ ? frame_->index + 1 : 0;
@@ -167,6 +174,7 @@ const FrameState& FrameSession::advance() {
                      "by more than 1e12\n";
     }
     frame_ = std::move(next);
+    failed_ = false;
     return *frame_;
 }
 
@@ -190,6 +198,7 @@ shaders::RenderSettings FrameSession::renderSettings() const {
 
 shaders::FrameOutput FrameSession::render(tracer::TraversalBackend* interpose) {
     if (!accel_) throw std::logic_error("FrameSession::render in a Stages::Plan session");
+    if (failed_) throw std::logic_error("FrameSession::render after an advance failed: start a new session");
     shaders::RenderSettings s = renderSettings();
     if (rtcore_) rtcore_->beginFrame();
     if (interpose) s.backend = interpose;
@@ -200,6 +209,7 @@ shaders::FrameOutput FrameSession::render(const shaders::RenderSettings& setting
                                           shaders::FrameHistory& history) const {
     if (!accel_ || !frame_)
         throw std::logic_error("FrameSession::render before advance (or in a Stages::Plan session)");
+    if (failed_) throw std::logic_error("FrameSession::render after an advance failed: start a new session");
     return shaders::renderFrame(*accel_, frame_->scene, frame_->plan, settings, history);
 }
 

@@ -64,6 +64,8 @@ public:
     // The next frame (the first at time 0, then one World::settings().frameSeconds
     // step each): world update, snapshot, Embree's structures, the plan
     // (whose notes go to stderr on the first frame), the model's BVHs.
+    // When it throws (Embree out of memory, say), the session is left
+    // inconsistent: every later advance() or render() throws std::logic_error.
     const FrameState& advance();
     const FrameState& frame() const { return *frame_; }
 
@@ -99,6 +101,7 @@ private:
     bool warnedUntraceable_ = false;  // the untraceable-instances warning, once per session
     shaders::FrameHistory history_;
     bool loaded_ = false;
+    bool failed_ = false;  // an advance() threw: the session cannot go on
 };
 
 // The scene's triangles, each mesh counted once however many instances use it.
