@@ -649,9 +649,9 @@ void RtCoreBackend::beginLaunchLocked(std::uint32_t threads, std::string_view la
     // of many threads may trace few rays). First: it may throw.
     launch_.clear();
     const std::size_t expected = std::min<std::size_t>(threads, std::size_t(1) << 23);
-    launch_.rays.reserve(expected);
-    launch_.thread.reserve(expected);
-    launch_.verdictEnd.reserve(expected);
+    reserveTouchedInParallel(launch_.rays, expected);
+    reserveTouchedInParallel(launch_.thread, expected);
+    reserveTouchedInParallel(launch_.verdictEnd, expected);
     launchDepth_ = 1;
     launchLabel_ = label;
     launchFailed_ = false;
@@ -690,8 +690,10 @@ void RtCoreBackend::endLaunchLocked() {
     // shadow rays needs none: millions of 92-byte results not written).
     const bool perRay = std::any_of(launchPrimary_.begin(), launchPrimary_.end(),
                                     [](const LaunchPrimary& p) { return p.ray != kNoRay; });
-    if (perRay) results_.assign(launch_.rays.size(), SimRayResult{});
-    else results_.clear();
+    if (perRay) {
+        reserveTouchedInParallel(results_, launch_.rays.size());
+        results_.assign(launch_.rays.size(), SimRayResult{});
+    } else results_.clear();
     VerdictReplaySide side(launch_.verdicts.data(), launch_.verdictEnd, false);
     const std::uint64_t before = core_->cycle();
     const std::vector<ResourceUse> usedBefore = core_->resourceUse();

@@ -38,18 +38,10 @@ void surfaceClosestHit(const RenderContext& ctx, const tracer::HitContext& hc, H
 
 }  // namespace
 
-GPixelBuffer::GPixelBuffer(std::size_t count)
-    : count_(count), pixels_(std::allocator<GPixel>().allocate(count), Release{count}) {
-    static_assert(std::is_trivially_destructible_v<GPixel>, "GPixelBuffer never runs destructors");
-    parallelForChunks(count, kPixelChunk, [&](std::size_t begin, std::size_t end) {
-        std::uninitialized_value_construct(pixels_.get() + begin, pixels_.get() + end);
-    });
-}
-
 RenderContext::RenderContext(const tracer::AccelManager& accel_, const ecs::SceneSnapshot& scene_,
                              const FramePlan& plan_, const RenderSettings& settings_)
     : accel(accel_), scene(scene_), plan(plan_), settings(settings_), width(settings_.width), height(settings_.height),
-      gbuffer(std::size_t(settings_.width) * std::size_t(settings_.height)) {
+      gbuffer(vectorTouchedInParallel<GPixel>(std::size_t(settings_.width) * std::size_t(settings_.height))) {
     if (plan.has(Pass::Volumes)) media = mediaOf(scene);
     // Step: the shader table — one record per (geometry slot, ray type).
     RtPipeline::Desc desc;

@@ -89,25 +89,6 @@ struct GPixel {
     float errorScale = 0.f;  // max |coordinate| of the camera and the hit (offsetRayOriginByError)
 };
 
-// The G-buffer's pixels, default-constructed in parallel: a frame's largest
-// buffer (about 17 MB at 480x270), which a std::vector constructed on one
-// thread in 2.5 ms of a 66 ms reflection frame.
-class GPixelBuffer {
-public:
-    explicit GPixelBuffer(std::size_t count);
-    GPixel& operator[](std::size_t i) { return pixels_[i]; }
-    const GPixel& operator[](std::size_t i) const { return pixels_[i]; }
-    std::size_t size() const { return count_; }
-
-private:
-    struct Release {
-        void operator()(GPixel* p) const { std::allocator<GPixel>().deallocate(p, count); }
-        std::size_t count = 0;
-    };
-    std::size_t count_ = 0;
-    std::unique_ptr<GPixel[], Release> pixels_;
-};
-
 class RenderContext {
 public:
     RenderContext(const tracer::AccelManager& accel, const ecs::SceneSnapshot& scene, const FramePlan& plan,
@@ -118,8 +99,8 @@ public:
     const FramePlan& plan;
     const RenderSettings& settings;
     int width, height;
-    GPixelBuffer gbuffer;
-    std::vector<Medium> media;  // filled only when the plan has the volumes pass
+    std::vector<GPixel> gbuffer;  // first written in parallel (a frame's largest buffer)
+    std::vector<Medium> media;    // filled only when the plan has the volumes pass
 
     // Transmittance of the media along (o, d) over [0, tMax] (1 without media);
     // streamId from stream::transmittance(...).

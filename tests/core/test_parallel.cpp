@@ -1,5 +1,6 @@
 // Deterministic parallel helpers (core/parallel.hpp): the pixel order of a
-// dispatch's threads, and which error a set of parallel tasks reports.
+// dispatch's threads, which error a set of parallel tasks reports, and
+// buffers whose pages are first written in parallel.
 #include <rtlab/core/parallel.hpp>
 
 #include <gtest/gtest.h>
@@ -51,4 +52,37 @@ TEST(Parallel, RunAllInParallelRethrowsTheFirstFailureInOrder) {
         EXPECT_EQ(ran.load(), 4);
     }
     runAllInParallel({});  // nothing to do
+}
+
+// Room touched in parallel: the elements already there are kept, the room
+// holds `count`, and a later assign sees no trace of the touching.
+TEST(Parallel, ReserveTouchedInParallelKeepsTheElementsAndMakesRoom) {
+    const ThreadLimit limit(2);
+    std::vector<std::uint64_t> v{7, 8, 9};
+    reserveTouchedInParallel(v, 3'000'000);  // ~23 MB: several tasks of 1024 pages
+    EXPECT_EQ(v, (std::vector<std::uint64_t>{7, 8, 9}));
+    EXPECT_GE(v.capacity(), 3'000'000u);
+    const std::uint64_t* room = v.data();
+    v.resize(3'000'000, 5);
+    EXPECT_EQ(v.data(), room);  // no reallocation: the room was there
+    EXPECT_EQ(v[2], 9u);
+    EXPECT_EQ(v[3], 5u);
+    EXPECT_EQ(v.back(), 5u);
+    reserveTouchedInParallel(v, 10);  // smaller than the size: nothing changes
+    EXPECT_EQ(v.size(), 3'000'000u);
+    EXPECT_EQ(v.data(), room);
+}
+
+TEST(Parallel, VectorTouchedInParallelHoldsCopiesOfTheValue) {
+    struct Defaulted {
+        float x = 1.5f;
+        int y = -3;
+    };
+    const std::vector<Defaulted> d = vectorTouchedInParallel<Defaulted>(100'000);
+    ASSERT_EQ(d.size(), 100'000u);
+    EXPECT_EQ(d.front().x, 1.5f);
+    EXPECT_EQ(d.back().y, -3);
+    const std::vector<int> v = vectorTouchedInParallel(5000, 42);
+    EXPECT_EQ(v, std::vector<int>(5000, 42));
+    EXPECT_TRUE(vectorTouchedInParallel<int>(0).empty());
 }

@@ -10,6 +10,7 @@ RayGrid imageGrid(const RenderContext& ctx) { return RayGrid{ctx.width, ctx.heig
 
 void traceSecondary(RenderContext& ctx, const RayGrid& grid, const std::vector<SecondaryRay>& rays, RayType rayType,
                     std::vector<HitPayload>& hits, tracer::TraceCounters& counters) {
+    reserveTouchedInParallel(hits, grid.size());
     hits.assign(grid.size(), HitPayload{});
     const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
     counters.add(ctx.pipeline().dispatchCoherent(
@@ -26,7 +27,7 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
                const std::vector<vec3>& incoming, const std::vector<vec3>& weight, std::uint32_t sample,
                std::uint32_t hitStream, std::vector<vec3>& radiance, tracer::TraceCounters& counters, bool everyLight) {
     const std::size_t n = hits.size();
-    std::vector<vec3> lightContribution(n, vec3(0.f));
+    std::vector<vec3> lightContribution = vectorTouchedInParallel(n, vec3(0.f));
     const auto index = [&](int x, int y) { return std::size_t(y) * std::size_t(grid.width) + std::size_t(x); };
     const auto args =
         ctx.args(kRayShadow, tracer::RayFlag::AcceptFirstHitAndEndSearch | tracer::RayFlag::SkipClosestHitShader);
@@ -65,7 +66,7 @@ void shadeHits(RenderContext& ctx, const RayGrid& grid, const std::vector<HitPay
     // heuristic) against the light's own strategy, whose pdf is
     // pickPdf(shading point) x the light's solid-angle pdf. Both weights use
     // specularLobePdf, so they are exact complements.
-    std::vector<BrdfSample> lobeSample(n);
+    std::vector<BrdfSample> lobeSample = vectorTouchedInParallel<BrdfSample>(n);
     const auto lobeMeetingLight = [&](const ecs::LightSnapshot& light, auto&& pickPdf) {
         traceFromHits([&](std::size_t i, const ShadingPoint& sp) -> std::optional<tracer::RayDesc> {
             const BrdfSample& b = lobeSample[i];

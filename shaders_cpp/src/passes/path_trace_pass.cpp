@@ -64,9 +64,11 @@ std::uint64_t runPathTracePass(PassFrame& passFrame, tracer::TraceCounters& coun
     const int maxDepth = ctx.settings.pathMaxDepth;  // >= 0: RenderSettings::validate
     const RayGrid grid = imageGrid(ctx);
     vertices.assign(std::size_t(maxDepth) + 1, PathVertexRays{});
-    std::vector<vec3> radiance(n, vec3(0.f)), throughput(n), incoming(n);
-    std::vector<HitPayload> hits(n);
-    std::vector<SecondaryRay> rays(n);
+    // Step: the path state, a few hundred MB at 1080p, first written on every host thread.
+    std::vector<vec3> radiance = vectorTouchedInParallel(n, vec3(0.f)), throughput = vectorTouchedInParallel<vec3>(n),
+                      incoming = vectorTouchedInParallel<vec3>(n);
+    std::vector<HitPayload> hits = vectorTouchedInParallel<HitPayload>(n);
+    std::vector<SecondaryRay> rays = vectorTouchedInParallel<SecondaryRay>(n);
     for (int s = 0; s < spp; ++s) {
         const auto sample = static_cast<std::uint32_t>(s);
         parallelForChunks(n, kPixelChunk, [&](std::size_t begin, std::size_t end) {

@@ -96,6 +96,37 @@ void parallelForChunks(std::size_t count, std::size_t chunk, Body&& body) {
 // 320x180 image over a few cores.
 inline constexpr std::size_t kPixelChunk = 4096;
 
+// Room for `count` elements in `v`, the pages of the room beyond v.size()
+// first written in parallel (one byte per page). First writes of new memory
+// fault in pages one at a time, and on a VM that costs seconds per GB on
+// one thread: a buffer constructed afterwards (assign, resize, push_back)
+// then writes to memory already mapped. The elements are unchanged.
+template <class T>
+void reserveTouchedInParallel(std::vector<T>& v, std::size_t count) {
+    if (count <= v.size()) return;
+    v.reserve(count);
+    // Step: the bytes past the elements are storage without objects; writing
+    // them is allowed, and the later construction overwrites them.
+    unsigned char* room = reinterpret_cast<unsigned char*>(v.data() + v.size());
+    const std::size_t bytes = (count - v.size()) * sizeof(T);
+    constexpr std::size_t kPage = 4096, kPagesPerTask = 1024;
+    const std::size_t pages = (bytes + kPage - 1) / kPage;
+    parallelForChunks(pages, kPagesPerTask, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t page = begin; page < end; ++page) room[page * kPage] = 0;
+    });
+}
+
+// `count` copies of `value`, the memory first written in parallel
+// (reserveTouchedInParallel): a frame-sized buffer without a second of page
+// faults on one thread.
+template <class T>
+std::vector<T> vectorTouchedInParallel(std::size_t count, const T& value = T{}) {
+    std::vector<T> v;
+    reserveTouchedInParallel(v, count);
+    v.assign(count, value);
+    return v;
+}
+
 // How many threads parallel work may use now: the ThreadLimit in force, or
 // all cores.
 inline int threadCount() {
