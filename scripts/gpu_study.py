@@ -3,12 +3,15 @@
 `rtlab sweep` (the front door users run), their reports, and the tables of
 the page regenerated from the results.
 
-    scripts/gpu_study.py RTLAB [--out DIR] [--jobs N] [--reuse]
+    scripts/gpu_study.py RTLAB [--out DIR] [--jobs N] [--reuse] [--check]
 
   RTLAB    the rtlab executable (make gpu-study passes build/release/apps/rtlab)
   --out    where the sweeps write (default out/gpu-study); each study in DIR/NAME
   --jobs   points run at once (default 2)
   --reuse  do not run the sweeps again (they resume anyway): tables from DIR only
+  --check  run the sweeps afresh in a temporary directory (with --reuse: use
+           the results in --out) and compare the tables with the page instead of rewriting it (exit 1
+           with a diff on a difference; ctest docs.gpuStudy); no reports, no plots
 
 Each table of docs/studies/gpu-study.md follows a line
     <!-- gpu-study: NAME -->
@@ -150,6 +153,72 @@ def policy_table(policies):
     return lines, summary
 
 
+# The latency breakdown of a ray, fifo against treeletPrefetch on seed 0
+# (rays.latencyBreakdown / rays): where treelet prefetching's time goes.
+BREAKDOWN = [("waiting for a ray slot (`inputQueue`)", ["inputQueue"]),
+             ("`fetch` (L1 hit latency, the port's queue and transfer)", ["fetch"]),
+             ("`l2` (bank queue and hit latency of a step's last line)", ["l2"]),
+             ("`dram`", ["dram"]),
+             ("box, triangle and transform units, with their queues",
+              ["boxUnit", "boxUnitWait", "triangleUnit", "triangleUnitWait", "transformUnit", "transformUnitWait"]),
+             ("the whole latency", None)]
+
+
+def breakdown_table(policies):
+    seed0 = [r for r in policies if r["workload"].endswith("&seed=0")]
+    scenes = list(dict.fromkeys(r["workload"] for r in seed0))
+    lines = ["| cycles per ray, fifo → treeletPrefetch | " + " | ".join(short(w.split("&")[0]) for w in scenes) + " |",
+             "|---|" + "---:|" * len(scenes)]
+
+    def per_ray(row, parts):
+        rays = row["stats"]["frames"][0]["rtcore"]["rays"]
+        b = rays["latencyBreakdown"]
+        total = sum(b.values()) if parts is None else sum(b[k] for k in parts)
+        return total / rays["latency"]["count"]
+
+    for label, parts in BREAKDOWN:
+        cells = []
+        for w in scenes:
+            by = {policy_of(r): r for r in seed0 if r["workload"] == w}
+            cells.append(f"{per_ray(by['fifo'], parts):,.0f} → {per_ray(by['treeletPrefetch'], parts):,.0f}")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def page_tables():
+    """Each marked table of the page: name -> its lines."""
+    with open(PAGE) as f:
+        lines = f.read().split("\n")
+    tables = {}
+    for i, line in enumerate(lines):
+        if line.startswith("<!-- gpu-study: "):
+            end = i + 1
+            while end < len(lines) and lines[end].strip():
+                end += 1
+            tables[line[len("<!-- gpu-study: "):-len(" -->")]] = lines[i + 1:end]
+    return tables
+
+
+def check(tables):
+    """Exit status 1 with a diff when a table of the page differs from `tables`."""
+    import difflib
+    on_page = page_tables()
+    differ = 0
+    for name, table in tables.items():
+        if on_page.get(name) != table:
+            differ += 1
+            print(f"gpu_study: table '{name}' of {PAGE} differs from the results "
+                  f"(make gpu-study rewrites it):")
+            print("\n".join(difflib.unified_diff(on_page.get(name, []), table, "page", "results", lineterm="")))
+    extra = sorted(set(on_page) - set(tables))
+    for name in extra:
+        print(f"gpu_study: {PAGE} has a marker '{name}' that no table fills")
+    if differ or extra:
+        return 1
+    print(f"gpu_study: {PAGE}: the {len(tables)} tables match the results")
+    return 0
+
+
 def rewrite(tables):
     with open(PAGE) as f:
         lines = f.read().split("\n")
@@ -172,6 +241,14 @@ def main(argv):
         sys.exit(__doc__)
     rtlab = argv[0]
     out = argv[argv.index("--out") + 1] if "--out" in argv else os.path.join(ROOT, "out", "gpu-study")
+    if "--check" in argv and "--reuse" not in argv:
+        import tempfile
+        with tempfile.TemporaryDirectory(prefix="gpu-study-check-") as fresh:
+            return study(rtlab, fresh, argv)
+    return study(rtlab, out, argv)
+
+
+def study(rtlab, out, argv):
     jobs = argv[argv.index("--jobs") + 1] if "--jobs" in argv else "2"
     results = {}
     for name in STUDIES:
@@ -179,14 +256,19 @@ def main(argv):
         if "--reuse" not in argv:
             run([rtlab, "sweep", os.path.join(ROOT, "docs", "studies", name + ".json"), "--out", directory,
                  "--jobs", jobs])
-            run([rtlab, "report", directory])
+            if "--check" not in argv:
+                run([rtlab, "report", directory])
         results[name] = rows(directory)
     policy, summary = policy_table(results["gpu-policies"])
-    rewrite({"utilization": utilization_table(results["gpu-scaling"]),
-             "scaling": scaling_table(results["gpu-scaling"]),
-             "memory": memory_table(results["gpu-memory"]),
-             "policies": policy,
-             "policy-summary": summary})
+    tables = {"utilization": utilization_table(results["gpu-scaling"]),
+              "scaling": scaling_table(results["gpu-scaling"]),
+              "memory": memory_table(results["gpu-memory"]),
+              "policies": policy,
+              "policy-summary": summary,
+              "prefetch-breakdown": breakdown_table(results["gpu-policies"])}
+    if "--check" in argv:
+        return check(tables)
+    rewrite(tables)
     for name, plot in (("gpu-scaling", "cycles-vs-gpu.cores.png"),):
         source = os.path.join(out, name, "plots", plot)
         if os.path.exists(source):

@@ -45,6 +45,19 @@ int runGpuCheckExport(const GpuCheckExportOptions& options) {
 
     // Step: the scene as it was at the recorded frame (the model's BVHs see the same history).
     session::FrameSession s(o);
+    // The prediction is always one launch, one thread per selected ray (the
+    // GPU check's kernel): what only tiles or shader-traced rays use is inert.
+    const rtcore_sim::RtCoreConfig& config = s.rtcore()->config();
+    for (const std::string& key : config.explicitKeys()) {
+        if (key == "shader.nextTraceLatency")
+            throw InputError("--rtcore-set", key +
+                                                 ": has no effect in gpucheck-export (each selected ray is a thread of "
+                                                 "its own: no ray waits on a shader)");
+        if (key == "gpu.launch" && config.gpu.launch == rtcore_sim::LaunchMode::Tile)
+            throw InputError("--rtcore-set", key +
+                                                 ": has no effect in gpucheck-export (the prediction is always of one "
+                                                 "launch, one thread per selected ray, as the GPU check runs them)");
+    }
     s.load();
     rtcore_sim::RtCoreBackend* rtcore = s.rtcore();
     const ecs::SceneSnapshot* scene = nullptr;

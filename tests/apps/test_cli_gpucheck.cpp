@@ -156,5 +156,18 @@ TEST(GpuCheck, ExportRefusesWhatItCannotCheck) {
                      (dir / "y").string())
                   .exitCode,
               2);  // no shadow rays in an AO render
+    // Parameters the export's one launch of one ray per thread never uses: named, not ignored.
+    for (const std::string inert : {"gpu.launch=tile", "shader.nextTraceLatency=999"}) {
+        const CliRun r = runCli("gpucheck-export --scene " + scene + " --rays " + rays + " --rtcore-set " + inert +
+                                " --out " + (dir / "y").string());
+        EXPECT_EQ(r.exitCode, 2) << r.out;
+        EXPECT_NE(r.out.find(inert.substr(0, inert.find('=')) + ": has no effect in gpucheck-export"),
+                  std::string::npos)
+            << r.out;
+    }
     EXPECT_FALSE(fs::exists(dir / "y" / "scene.bin"));
+    EXPECT_EQ(runCli("gpucheck-export --scene " + scene + " --rays " + rays + " --rtcore-set gpu.launch=launch --out " +
+                     (dir / "z").string())
+                  .exitCode,
+              0);  // what the export does anyway
 }

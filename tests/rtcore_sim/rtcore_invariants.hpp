@@ -62,8 +62,22 @@ inline void expectInvariants(const nlohmann::json& s, const RtCoreConfig& config
         EXPECT_LE(t["activeCycles"].get<double>(), cycles) << type;
     }
     EXPECT_EQ(typed, s["rays"]["completed"].get<std::uint64_t>());
-    // Little's law for the two queues of each core: the time-mean occupancy
+    // Little's law for the queues of each core: the time-mean occupancy
     // (over core-cycles) times the core-cycles is the sum of the rays' waits in the queue.
+    // (The L2 banks and DRAM channels are reservations computed when a step
+    // issues, not queues with an occupancy: their law is busy <= capacity x cycles.)
+    const nlohmann::json& breakdown = s["rays"]["latencyBreakdown"];
+    const double latencySum = s["rays"]["latency"]["mean"].get<double>() * s["rays"]["latency"]["count"].get<double>();
+    // A ray holds a slot from admission until it enters the completion queue.
+    const double slotResidence =
+        latencySum - breakdown["inputQueue"].get<double>() - breakdown["completionQueue"].get<double>();
+    EXPECT_NEAR(s["raySlots"]["occupancy"]["mean"].get<double>() * coreCycles, slotResidence,
+                1e-6 * coreCycles + 1e-9 * slotResidence)
+        << "ray slots";
+    // A step waits among the ready rays from ready to issue.
+    EXPECT_NEAR(s["scheduler"]["readyRays"]["mean"].get<double>() * coreCycles, breakdown["scheduler"].get<double>(),
+                1e-6 * coreCycles + 1e-9 * breakdown["scheduler"].get<double>())
+        << "ready rays";
     EXPECT_NEAR(s["submission"]["inputQueue"]["occupancy"]["mean"].get<double>() * coreCycles,
                 s["rays"]["latencyBreakdown"]["inputQueue"].get<double>(),
                 1e-6 * coreCycles + 1e-9 * s["rays"]["latencyBreakdown"]["inputQueue"].get<double>());
