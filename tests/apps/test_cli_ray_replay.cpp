@@ -141,12 +141,12 @@ TEST(CliRayReplay, ReplayOnTheModelGivesTheRendersCyclesAndStatsExactly) {
 }
 
 TEST(CliRayReplay, RenderAndReplayAgreeInBothFeedingsOnEveryRayType) {
-    // Showcase with every effect (its alpha-masked foliage runs any-hit
-    // shaders: their recorded verdicts are replayed), forest (instancing)
-    // and terrain, in launch and in tile mode: replay gives exactly the
-    // render's cycles and statistics.
+    // Showcase with every effect and the path tracer (its alpha-masked
+    // foliage runs any-hit shaders on every ray type: their recorded
+    // verdicts are replayed), forest (instancing) and terrain, in launch and
+    // in tile mode: replay gives exactly the render's cycles and statistics.
     const std::vector<std::pair<std::string, std::string>> scenes = {
-        {"builtin:showcase", ""},
+        {"builtin:showcase", " --effects alpha,shadows,reflections,translucency,ao,gi,volumes,pathtrace --max-depth 2"},
         {"'builtin:forest?instances=40'", " --effects shadows,ao,pathtrace --max-depth 2"},
         {kScene, " --effects shadows,reflections,ao,gi,pathtrace --max-depth 2"}};
     for (const char* mode : {"launch", "tile"})
@@ -170,8 +170,30 @@ TEST(CliRayReplay, RenderAndReplayAgreeInBothFeedingsOnEveryRayType) {
             EXPECT_GT(a["frame"]["rays"].get<long long>(), 0);
             if (scene == "builtin:showcase") {
                 EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
+                EXPECT_GT(r["rays"]["pathBounce"]["traced"].get<long long>(), 0);
             }
         }
+    // The default preset (rtx2060-like: 30 cores, a modelled L2 and DRAM) in
+    // launch mode, showcase with every effect: the same agreement.
+    const fs::path dir = freshDir("modes_default_preset");
+    const std::string showcase =
+        "builtin:showcase --effects alpha,shadows,reflections,translucency,ao,gi,volumes,"
+        "pathtrace --max-depth 2 --width 32 --height 24 --backend rtcore";
+    ASSERT_EQ(
+        runCli("render --scene " + showcase + " --record-rays " + (dir / "rays").string() + " --out " + dir.string())
+            .exitCode,
+        0);
+    const CliRun replay = runCli("replay --scene builtin:showcase --backend rtcore --rays " + (dir / "rays").string() +
+                                 " --out " + (dir / "replay").string());
+    ASSERT_EQ(replay.exitCode, 0) << replay.out;
+    nlohmann::json a = statsOf(dir)["frames"][0]["rtcore"];
+    const nlohmann::json r = statsOf(dir / "replay")["frames"][0];
+    for (const char* renderOnly : {"bvhUpdate", "heatmap", "verify"}) a.erase(renderOnly);
+    EXPECT_EQ(a, r["rtcore"]);
+    EXPECT_EQ(a["gpu"]["cores"], 30);
+    EXPECT_EQ(a["backend"]["launch"], "launch");
+    EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
+    EXPECT_GT(r["rays"]["pathBounce"]["traced"].get<long long>(), 0);
 }
 
 TEST(CliRayReplay, RecordedVerdictsThatDoNotMatchExitTwo) {
