@@ -185,6 +185,26 @@ def breakdown_table(policies):
     return lines
 
 
+def traffic_table(policies):
+    """Seed 0: what fifo, treelet prefetching and ray reordering move through the memory path."""
+    lines = ["| workload, seed 0 | policy | cycles | L1 hit rate | prefetched lines (share used) | port reads | "
+             "L2 accesses | DRAM reads | mean ray latency |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in policies:
+        policy = policy_of(row)
+        if not row["workload"].endswith("&seed=0") or policy not in ("fifo", "treeletPrefetch",
+                                                                       "rayOrder=directionOrigin"):
+            continue
+        r = row["stats"]["frames"][0]["rtcore"]
+        prefetch = r["cache"].get("prefetch")
+        prefetched = (f"{thousands(prefetch['lines'])} ({prefetch['accuracy']:.2f})" if prefetch else "—")
+        lines.append(f"| {short(row['workload'].split('&')[0])} | {policy} | {thousands(row['metrics']['cycles'])} | "
+                     f"{r['cache']['hitRate']:.3f} | {prefetched} | {r['memory']['readBytes'] / 1e6:.1f} MB | "
+                     f"{thousands(r['l2']['accesses'])} | {r['dram']['readBytes'] / 1e6:.1f} MB | "
+                     f"{thousands(round(r['rays']['latency']['mean']))} |")
+    return lines
+
+
 def page_tables():
     """Each marked table of the page: name -> its lines."""
     with open(PAGE) as f:
@@ -265,7 +285,8 @@ def study(rtlab, out, argv):
               "memory": memory_table(results["gpu-memory"]),
               "policies": policy,
               "policy-summary": summary,
-              "prefetch-breakdown": breakdown_table(results["gpu-policies"])}
+              "prefetch-breakdown": breakdown_table(results["gpu-policies"]),
+              "traffic": traffic_table(results["gpu-policies"])}
     if "--check" in argv:
         return check(tables)
     rewrite(tables)
