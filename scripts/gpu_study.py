@@ -19,6 +19,7 @@ and runs to the next blank line; this script rewrites it. The plots are the
 reports' own PNGs, copied to docs/studies/gpu-*.png.
 """
 import json
+import re
 import os
 import shutil
 import subprocess
@@ -42,6 +43,8 @@ def run(argv):
 
 
 def rows(directory):
+    if not os.path.exists(os.path.join(directory, "results.jsonl")):
+        sys.exit(f"gpu_study: no results in {directory} (run without --reuse first)")
     out = []
     with open(os.path.join(directory, "results.jsonl")) as f:
         for line in f:
@@ -211,11 +214,12 @@ def page_tables():
         lines = f.read().split("\n")
     tables = {}
     for i, line in enumerate(lines):
-        if line.startswith("<!-- gpu-study: "):
+        match = re.fullmatch(r"<!-- gpu-study: (\S+) -->", line)
+        if match:
             end = i + 1
             while end < len(lines) and lines[end].strip():
                 end += 1
-            tables[line[len("<!-- gpu-study: "):-len(" -->")]] = lines[i + 1:end]
+            tables[match.group(1)] = lines[i + 1:end]
     return tables
 
 
@@ -225,11 +229,14 @@ def check(tables):
     on_page = page_tables()
     differ = 0
     for name, table in tables.items():
-        if on_page.get(name) != table:
+        if name not in on_page:
+            differ += 1
+            print(f"gpu_study: {PAGE} has no marker '<!-- gpu-study: {name} -->'")
+        elif on_page[name] != table:
             differ += 1
             print(f"gpu_study: table '{name}' of {PAGE} differs from the results "
                   f"(make gpu-study rewrites it):")
-            print("\n".join(difflib.unified_diff(on_page.get(name, []), table, "page", "results", lineterm="")))
+            print("\n".join(difflib.unified_diff(on_page[name], table, "page", "results", lineterm="")))
     extra = sorted(set(on_page) - set(tables))
     for name in extra:
         print(f"gpu_study: {PAGE} has a marker '{name}' that no table fills")

@@ -46,13 +46,15 @@ int runGpuCheckExport(const GpuCheckExportOptions& options) {
     // Step: the scene as it was at the recorded frame (the model's BVHs see the same history).
     session::FrameSession s(o);
     // The prediction is always one launch, one thread per selected ray (the
-    // GPU check's kernel): what only tiles or shader-traced rays use is inert.
+    // GPU check's kernel), with the recorded verdicts taken as commit-all or
+    // first-hit (no shader runs): what only tiles or shaders use is inert.
     const rtcore_sim::RtCoreConfig& config = s.rtcore()->config();
     for (const std::string& key : config.explicitKeys()) {
-        if (key == "shader.nextTraceLatency")
+        if (key.starts_with("shader."))
             throw InputError("--rtcore-set", key +
-                                                 ": has no effect in gpucheck-export (each selected ray is a thread of "
-                                                 "its own: no ray waits on a shader)");
+                                                 ": has no effect in gpucheck-export (the exported rays run no any-hit "
+                                                 "or intersection shader, and each is a thread of its own: no ray "
+                                                 "waits on a shader)");
         if (key == "gpu.launch" && config.gpu.launch == rtcore_sim::LaunchMode::Tile)
             throw InputError("--rtcore-set", key +
                                                  ": has no effect in gpucheck-export (the prediction is always of one "

@@ -1,6 +1,7 @@
 #include <rtlab/rtcore_sim/rtcore_backend.hpp>
 
 #include <rtlab/core/error.hpp>
+#include <rtlab/core/parallel.hpp>
 
 #include <algorithm>
 #include <bit>
@@ -691,6 +692,7 @@ void RtCoreBackend::endLaunchLocked() {
     const bool perRay = std::any_of(launchPrimary_.begin(), launchPrimary_.end(),
                                     [](const LaunchPrimary& p) { return p.ray != kNoRay; });
     if (perRay) {
+        results_.clear();  // the last launch's: not copied into new room
         reserveTouchedInParallel(results_, launch_.rays.size());
         results_.assign(launch_.rays.size(), SimRayResult{});
     } else results_.clear();

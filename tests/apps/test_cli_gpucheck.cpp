@@ -157,7 +157,8 @@ TEST(GpuCheck, ExportRefusesWhatItCannotCheck) {
                   .exitCode,
               2);  // no shadow rays in an AO render
     // Parameters the export's one launch of one ray per thread never uses: named, not ignored.
-    for (const std::string inert : {"gpu.launch=tile", "shader.nextTraceLatency=999"}) {
+    for (const std::string inert :
+         {"gpu.launch=tile", "shader.nextTraceLatency=999", "shader.anyHitLatency=5", "shader.intersectionLatency=5"}) {
         const CliRun r = runCli("gpucheck-export --scene " + scene + " --rays " + rays + " --rtcore-set " + inert +
                                 " --out " + (dir / "y").string());
         EXPECT_EQ(r.exitCode, 2) << r.out;

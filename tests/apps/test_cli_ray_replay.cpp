@@ -190,6 +190,7 @@ TEST(CliRayReplay, RenderAndReplayAgreeInBothFeedingsOnEveryRayType) {
     const nlohmann::json r = statsOf(dir / "replay")["frames"][0];
     for (const char* renderOnly : {"bvhUpdate", "heatmap", "verify"}) a.erase(renderOnly);
     EXPECT_EQ(a, r["rtcore"]);
+    EXPECT_EQ(r["differingHits"], 0);
     EXPECT_EQ(a["gpu"]["cores"], 30);
     EXPECT_EQ(a["backend"]["launch"], "launch");
     EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
