@@ -144,57 +144,47 @@ TEST(CliRayReplay, RenderAndReplayAgreeInBothFeedingsOnEveryRayType) {
     // Showcase with every effect and the path tracer (its alpha-masked
     // foliage runs any-hit shaders on every ray type: their recorded
     // verdicts are replayed), forest (instancing) and terrain, in launch and
-    // in tile mode: replay gives exactly the render's cycles and statistics.
+    // in tile mode on two cores, and showcase on the default preset
+    // (rtx2060-like: 30 cores, a modelled L2 and DRAM): replay gives exactly
+    // the render's cycles and statistics.
+    const std::string everyEffect =
+        " --effects alpha,shadows,reflections,translucency,ao,gi,volumes,pathtrace --max-depth 2";
     const std::vector<std::pair<std::string, std::string>> scenes = {
-        {"builtin:showcase", " --effects alpha,shadows,reflections,translucency,ao,gi,volumes,pathtrace --max-depth 2"},
+        {"builtin:showcase", everyEffect},
         {"'builtin:forest?instances=40'", " --effects shadows,ao,pathtrace --max-depth 2"},
         {kScene, " --effects shadows,reflections,ao,gi,pathtrace --max-depth 2"}};
+    struct Case {
+        std::string mode, scene, effects, config;
+    };
+    std::vector<Case> cases;
     for (const char* mode : {"launch", "tile"})
-        for (const auto& [scene, effects] : scenes) {
-            SCOPED_TRACE(std::string(mode) + " " + scene);
-            const fs::path dir = freshDir(std::string("modes_") + mode + "_" + std::to_string(scene.size()));
-            const std::string config = std::string(" --backend rtcore --rtcore-set gpu.launch=") + mode +
-                                       " --rtcore-set gpu.cores=2 --rtcore-set l2.mode=cache";
-            const CliRun render = runCli("render --scene " + scene + effects + " --width 24 --height 16" + config +
-                                         " --record-rays " + (dir / "rays").string() + " --out " + dir.string());
-            ASSERT_EQ(render.exitCode, 0) << render.out;
-            const CliRun replay = runCli("replay --scene " + scene + " --rays " + (dir / "rays").string() + config +
-                                         " --out " + (dir / "replay").string());
-            ASSERT_EQ(replay.exitCode, 0) << replay.out;
-            nlohmann::json a = statsOf(dir)["frames"][0]["rtcore"];
-            const nlohmann::json r = statsOf(dir / "replay")["frames"][0];
-            for (const char* renderOnly : {"bvhUpdate", "heatmap", "verify"}) a.erase(renderOnly);
-            EXPECT_EQ(a, r["rtcore"]);
-            EXPECT_EQ(r["differingHits"], 0);
-            EXPECT_EQ(a["backend"]["launch"], mode);
-            EXPECT_GT(a["frame"]["rays"].get<long long>(), 0);
-            if (scene == "builtin:showcase") {
-                EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
-                EXPECT_GT(r["rays"]["pathBounce"]["traced"].get<long long>(), 0);
-            }
+        for (const auto& [scene, effects] : scenes)
+            cases.push_back({mode, scene, effects,
+                             std::string(" --backend rtcore --rtcore-set gpu.launch=") + mode +
+                                 " --rtcore-set gpu.cores=2 --rtcore-set l2.mode=cache"});
+    cases.push_back({"default", "builtin:showcase", everyEffect, " --backend rtcore"});
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.mode + " " + c.scene);
+        const fs::path dir = freshDir("modes_" + c.mode + "_" + std::to_string(c.scene.size()));
+        const CliRun render = runCli("render --scene " + c.scene + c.effects + " --width 24 --height 16" + c.config +
+                                     " --record-rays " + (dir / "rays").string() + " --out " + dir.string());
+        ASSERT_EQ(render.exitCode, 0) << render.out;
+        const CliRun replay = runCli("replay --scene " + c.scene + " --rays " + (dir / "rays").string() + c.config +
+                                     " --out " + (dir / "replay").string());
+        ASSERT_EQ(replay.exitCode, 0) << replay.out;
+        nlohmann::json a = statsOf(dir)["frames"][0]["rtcore"];
+        const nlohmann::json r = statsOf(dir / "replay")["frames"][0];
+        for (const char* renderOnly : {"bvhUpdate", "heatmap", "verify"}) a.erase(renderOnly);
+        EXPECT_EQ(a, r["rtcore"]);
+        EXPECT_EQ(r["differingHits"], 0);
+        EXPECT_EQ(a["backend"]["launch"], c.mode == "tile" ? "tile" : "launch");
+        EXPECT_EQ(a["gpu"]["cores"], c.mode == "default" ? 30 : 2);
+        EXPECT_GT(a["frame"]["rays"].get<long long>(), 0);
+        if (c.scene == "builtin:showcase") {
+            EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
+            EXPECT_GT(r["rays"]["pathBounce"]["traced"].get<long long>(), 0);
         }
-    // The default preset (rtx2060-like: 30 cores, a modelled L2 and DRAM) in
-    // launch mode, showcase with every effect: the same agreement.
-    const fs::path dir = freshDir("modes_default_preset");
-    const std::string showcase =
-        "builtin:showcase --effects alpha,shadows,reflections,translucency,ao,gi,volumes,"
-        "pathtrace --max-depth 2 --width 32 --height 24 --backend rtcore";
-    ASSERT_EQ(
-        runCli("render --scene " + showcase + " --record-rays " + (dir / "rays").string() + " --out " + dir.string())
-            .exitCode,
-        0);
-    const CliRun replay = runCli("replay --scene builtin:showcase --backend rtcore --rays " + (dir / "rays").string() +
-                                 " --out " + (dir / "replay").string());
-    ASSERT_EQ(replay.exitCode, 0) << replay.out;
-    nlohmann::json a = statsOf(dir)["frames"][0]["rtcore"];
-    const nlohmann::json r = statsOf(dir / "replay")["frames"][0];
-    for (const char* renderOnly : {"bvhUpdate", "heatmap", "verify"}) a.erase(renderOnly);
-    EXPECT_EQ(a, r["rtcore"]);
-    EXPECT_EQ(r["differingHits"], 0);
-    EXPECT_EQ(a["gpu"]["cores"], 30);
-    EXPECT_EQ(a["backend"]["launch"], "launch");
-    EXPECT_GT(a["shader"]["anyHitCalls"].get<long long>(), 0);
-    EXPECT_GT(r["rays"]["pathBounce"]["traced"].get<long long>(), 0);
+    }
 }
 
 TEST(CliRayReplay, RecordedVerdictsThatDoNotMatchExitTwo) {
