@@ -53,7 +53,7 @@ study: build
 doc-figures: build
 	@python3 scripts/check_doc_figures.py build/release/apps/rtlab --write
 
-# The GPU study (docs/studies/gpu-study.md): three study files through rtlab
+# The GPU study (docs/studies/gpu-study.md): four study files through rtlab
 # sweep, their reports, and the page's tables rewritten (a few minutes).
 gpu-study: build
 	@python3 scripts/gpu_study.py build/release/apps/rtlab --jobs 2

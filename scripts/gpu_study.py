@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The GPU study of docs/studies/gpu-study.md: three study files run by
+"""The GPU study of docs/studies/gpu-study.md: four study files run by
 `rtlab sweep` (the front door users run), their reports, and the tables of
 the page regenerated from the results.
 
@@ -27,7 +27,7 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PAGE = os.path.join(ROOT, "docs", "studies", "gpu-study.md")
-STUDIES = ["gpu-scaling", "gpu-memory", "gpu-policies"]
+STUDIES = ["gpu-scaling", "gpu-memory", "gpu-policies", "gpu-service-order"]
 POLICIES = ["fifo", "oldestFirst", "treelet", "treeletPrefetch", "rayOrder=directionOrigin"]
 
 
@@ -208,6 +208,38 @@ def traffic_table(policies):
     return lines
 
 
+def service_order_table(rows_):
+    """Cycles and the L2 banks' queueing under l2.serviceOrder made and arrival, fifo and treeletPrefetch."""
+    lines = ["| workload | policy | cycles, order made | cycles, order of arrival | arrival vs made | "
+             "vs fifo, made | vs fifo, arrival | L2 bank wait per access | accesses finding their bank busy | "
+             "`l2` cycles per ray |",
+             "|---|---|---:|---:|---:|---:|---:|---|---|---|"]
+    by = {(r["workload"], r["overrides"]["scheduler.policy"], r["overrides"]["l2.serviceOrder"]): r for r in rows_}
+
+    def l2(row):
+        return row["stats"]["frames"][0]["rtcore"]["l2"]
+
+    def per_ray_l2(row):
+        rays = row["stats"]["frames"][0]["rtcore"]["rays"]
+        return rays["latencyBreakdown"]["l2"] / rays["latency"]["count"]
+
+    for workload in dict.fromkeys(r["workload"] for r in rows_):
+        for policy in ("fifo", "treeletPrefetch"):
+            made, arrival = by[(workload, policy, "made")], by[(workload, policy, "arrival")]
+            cm, ca = made["metrics"]["cycles"], arrival["metrics"]["cycles"]
+            fm = by[(workload, "fifo", "made")]["metrics"]["cycles"]
+            fa = by[(workload, "fifo", "arrival")]["metrics"]["cycles"]
+            vs_fifo = ("—", "—") if policy == "fifo" else (f"{(cm / fm - 1) * 100:+.1f} %", f"{(ca / fa - 1) * 100:+.1f} %")
+            lm, la = l2(made), l2(arrival)
+            lines.append(
+                f"| {short(workload)} | {policy} | {thousands(cm)} | {thousands(ca)} | {(ca / cm - 1) * 100:+.1f} % | "
+                f"{vs_fifo[0]} | {vs_fifo[1]} | "
+                f"{lm['bankWaitCycles'] / lm['accesses']:.1f} → {la['bankWaitCycles'] / la['accesses']:.1f} | "
+                f"{lm['bankConflicts'] / lm['accesses']:.2f} → {la['bankConflicts'] / la['accesses']:.2f} | "
+                f"{per_ray_l2(made):,.0f} → {per_ray_l2(arrival):,.0f} |")
+    return lines
+
+
 def page_tables():
     """Each marked table of the page: name -> its lines."""
     with open(PAGE) as f:
@@ -293,7 +325,8 @@ def study(rtlab, out, argv):
               "policies": policy,
               "policy-summary": summary,
               "prefetch-breakdown": breakdown_table(results["gpu-policies"]),
-              "traffic": traffic_table(results["gpu-policies"])}
+              "traffic": traffic_table(results["gpu-policies"]),
+              "service-order": service_order_table(results["gpu-service-order"])}
     if "--check" in argv:
         return check(tables)
     rewrite(tables)

@@ -190,24 +190,54 @@ void SharedL2::resetStats() {
 }
 
 void SharedL2::resetTime() {
-    for (Port& p : banks_) p.free = 0;
-    for (Port& p : channels_) p.free = 0;
+    for (Port& p : banks_) {
+        p.free = 0;
+        p.reserved.clear();
+    }
+    for (Port& p : channels_) {
+        p.free = 0;
+        p.reserved.clear();
+    }
 }
 
-LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp) {
+std::uint64_t SharedL2::reserve(Port& port, std::uint64_t made, std::uint64_t ready, std::uint32_t cycles) const {
+    port.busy += cycles;
+    if (l2_.serviceOrder == ServiceOrder::Made) {
+        const std::uint64_t start = std::max(ready, port.free);
+        port.free = start + cycles;
+        return start;
+    }
+    // Step: reservations over by the time this request was made cannot delay
+    // it or any later-made one (every request arrives after it is made).
+    std::vector<Interval>& r = port.reserved;
+    std::size_t over = 0;
+    while (over < r.size() && r[over].end <= made) ++over;
+    r.erase(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(over));
+    // Step: the first gap of `cycles` at or after `ready` between the reservations.
+    std::uint64_t start = ready;
+    std::size_t i = 0;
+    for (; i < r.size(); ++i) {
+        if (r[i].end <= start) continue;
+        if (r[i].start >= start + cycles) break;
+        start = r[i].end;
+    }
+    r.insert(r.begin() + static_cast<std::ptrdiff_t>(i), Interval{start, start + cycles});
+    port.free = std::max(port.free, start + cycles);
+    return start;
+}
+
+LineFill SharedL2::access(std::uint64_t address, std::uint64_t made, std::uint64_t arrive, L2Counters& counts,
+                          std::uint64_t& stamp) {
     L2Counters& c = counts;
     ++c.accesses;
     const std::uint64_t line = address >> lineShift_;
     const std::uint32_t bank = static_cast<std::uint32_t>(line % l2_.banks);
-    // Step: the bank, first come first served in request order.
-    Port& b = banks_[bank];
-    const std::uint64_t start = std::max(arrive, b.free);
+    // Step: the bank, in l2.serviceOrder.
+    const std::uint64_t start = reserve(banks_[bank], made, arrive, l2_.bankCycles);
     if (start > arrive) {
         ++c.bankConflicts;
         c.bankWaitCycles += start - arrive;
     }
-    b.free = start + l2_.bankCycles;
-    b.busy += l2_.bankCycles;
     const std::uint64_t tagDone = start + l2_.hitLatency;
 
     // Step: the tag lookup in the line's set of its bank.
@@ -233,10 +263,7 @@ LineFill SharedL2::access(std::uint64_t address, std::uint64_t arrive, L2Counter
     ++c.misses;
     if (tags_[victim] != kInvalid) ++c.evictions;
     const std::uint32_t channel = static_cast<std::uint32_t>(line % dram_.channels);
-    Port& ch = channels_[channel];
-    const std::uint64_t dramStart = std::max(tagDone, ch.free);
-    ch.free = dramStart + dramTransfer_;
-    ch.busy += dramTransfer_;
+    const std::uint64_t dramStart = reserve(channels_[channel], made, tagDone, dramTransfer_);
     c.dramQueueCycles += dramStart - tagDone;
     ++c.dramReads;
     c.dramReadBytes += l2_.lineBytes;

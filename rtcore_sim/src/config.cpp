@@ -310,6 +310,7 @@ std::string toString(WarpDispatch dispatch) {
 }
 
 std::string toString(L2Mode mode) { return mode == L2Mode::Ideal ? "ideal" : "cache"; }
+std::string toString(ServiceOrder order) { return order == ServiceOrder::Made ? "made" : "arrival"; }
 
 std::string toString(RayOrder order) { return order == RayOrder::Submission ? "submission" : "directionOrigin"; }
 std::string toString(LaunchMode mode) { return mode == LaunchMode::Launch ? "launch" : "tile"; }
@@ -354,6 +355,13 @@ const ParamTable<L2Params>& l2ParamTable() {
                     "ideal = every access hits at the cost of the core's port alone (the single-core model); cache = "
                     "banked set-associative LRU cache in front of dram",
                     std::vector<std::pair<std::string, L2Mode>>{{"ideal", L2Mode::Ideal}, {"cache", L2Mode::Cache}});
+        t.addChoice("serviceOrder", &L2Params::serviceOrder,
+                    "how each L2 bank and DRAM channel orders its requests: made = in the order they are made (a "
+                    "request waits behind every earlier-made one, even one still in another core's port queue); "
+                    "arrival = the first idle interval at or after the request's arrival (earlier-made requests "
+                    "keep their reservations)",
+                    std::vector<std::pair<std::string, ServiceOrder>>{{"made", ServiceOrder::Made},
+                                                                      {"arrival", ServiceOrder::Arrival}});
         t.addUnsigned("sizeBytes", &L2Params::sizeBytes,
                       "L2 capacity over all banks (a power-of-two number of sets of `ways` lines per bank)", 1024,
                       1u << 30);

@@ -208,7 +208,7 @@ void RtCore::Impl::answerL2Reads(std::size_t threads) {
                 const std::uint32_t index = d.byClass[c][key.position];
                 const DeferredReads::Read& r = d.reads[index];
                 const LineFill f =
-                    cores[key.core]->port.atCore(l2->access(r.address, r.arrive, group.counters, group.stamp));
+                    cores[key.core]->port.atCore(l2->access(r.address, r.cycle, r.arrive, group.counters, group.stamp));
                 d.fills[index] = f;
                 group.ready[key.core] = std::min(group.ready[key.core], f.ready);
             }

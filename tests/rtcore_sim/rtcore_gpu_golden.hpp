@@ -112,8 +112,9 @@ inline GoldenRun gpuGoldenRun(RtCore& core, const std::vector<SimRay>& rays, Pro
     }
     g.rayDigest = h;
     // The whole tree: per core, l2, dram, config (less the launch parameters,
-    // added after the goldens and unread by RtCore::run, and cache.sectorBytes,
-    // added after them and 0 here: unsectored, as the goldens' model).
+    // added after the goldens and unread by RtCore::run; cache.sectorBytes,
+    // added after them and 0 here: unsectored, as the goldens' model; and
+    // l2.serviceOrder, added after them and made here, the goldens' order).
     nlohmann::json tree = core.statsJson();
     for (nlohmann::json* config : {&tree["config"]}) {
         if (!config->is_object()) continue;
@@ -121,6 +122,7 @@ inline GoldenRun gpuGoldenRun(RtCore& core, const std::vector<SimRay>& rays, Pro
         (*config)["gpu"].erase("residentWarps");
         (*config)["shader"].erase("nextTraceLatency");
         if ((*config)["cache"]["sectorBytes"] == 0) (*config)["cache"].erase("sectorBytes");
+        if ((*config)["l2"]["serviceOrder"] == "made") (*config)["l2"].erase("serviceOrder");  // added after them
     }
     const std::string dump = tree.dump();
     g.statsDigest = fnv1a(14695981039346656037ull, dump.data(), dump.size());

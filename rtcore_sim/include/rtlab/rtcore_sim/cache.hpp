@@ -144,14 +144,20 @@ class SharedL2 {
 public:
     SharedL2(const L2Params& l2, const DramParams& dram);
 
-    LineFill access(std::uint64_t address, std::uint64_t arrive) { return access(address, arrive, counters, stamp_); }
+    // A read of `address` made at cycle `made` that reaches the L2 at `arrive` (>= made).
+    LineFill access(std::uint64_t address, std::uint64_t made, std::uint64_t arrive) {
+        return access(address, made, arrive, counters, stamp_);
+    }
     // Lines of different classes (line mod classes(), classes = gcd(banks,
     // channels)) share no bank, no set and no DRAM channel, so the accesses
     // of different classes may be made on different host threads, each with
     // its own counters (added to `counters` afterwards) and LRU stamp (started
     // at stamp(), the largest given back with setStamp: only the order of the
     // stamps within a set matters).
-    LineFill access(std::uint64_t address, std::uint64_t arrive, L2Counters& counts, std::uint64_t& stamp);
+    // Reads must come in the order made (non-decreasing `made`) since the
+    // last resetTime().
+    LineFill access(std::uint64_t address, std::uint64_t made, std::uint64_t arrive, L2Counters& counts,
+                    std::uint64_t& stamp);
     std::uint32_t classes() const { return classes_; }
     std::uint32_t classOf(std::uint64_t address) const {
         return static_cast<std::uint32_t>((address >> lineShift_) % classes_);
@@ -180,10 +186,18 @@ private:
     std::vector<std::uint64_t> tags_, ready_, used_;  // per way, [bank][set][way]
     // A bank's or DRAM channel's state, one host cache line each: the
     // classes' accesses on different host threads share no line.
-    struct alignas(64) Port {
-        std::uint64_t free = 0;  // the first cycle it takes a new request
-        std::uint64_t busy = 0;  // cycles busy since resetStats
+    struct Interval {
+        std::uint64_t start, end;
     };
+    struct alignas(64) Port {
+        std::uint64_t free = 0;  // the first cycle it takes a new request (order made)
+        std::uint64_t busy = 0;  // cycles busy since resetStats
+        // Order arrival: the reservations that may still delay a request, by start.
+        std::vector<Interval> reserved;
+    };
+    // The start of a request ready at `ready` (made at `made`) that occupies
+    // `port` for `cycles`, under l2.serviceOrder; the port is reserved.
+    std::uint64_t reserve(Port& port, std::uint64_t made, std::uint64_t ready, std::uint32_t cycles) const;
     std::vector<Port> banks_, channels_;
     std::uint64_t stamp_ = 0;
 };
@@ -207,7 +221,7 @@ public:
             deferred_->byClass[l2_->classOf(address)].push_back(static_cast<std::uint32_t>(index));
             return LineFill{kDeferred | index, 0, 0};
         }
-        return atCore(l2_->access(address, arrive));
+        return atCore(l2_->access(address, now, arrive));
     }
     // The L2's answer to a read, as the time its data is at the core.
     LineFill atCore(LineFill fromL2) const {

@@ -262,9 +262,16 @@ const ParamTable<GpuParams>& gpuParamTable();
 // the core's port (memory.*), exactly the single-core model; mode cache: a
 // banked set-associative LRU cache in front of DRAM.
 enum class L2Mode : std::uint8_t { Ideal, Cache };
+// The order in which an L2 bank and a DRAM channel serve requests
+// (docs/rtcore-model.md, "GPU level"): `Made` in the order the requests are
+// made (a request waits behind every earlier-made one, even one still in
+// another core's port queue); `Arrival` the first idle interval at or after
+// the request's arrival (earlier-made requests keep their reservations).
+enum class ServiceOrder : std::uint8_t { Made, Arrival };
 struct L2Params {
     L2Mode mode = L2Mode::Ideal;
-    std::uint32_t sizeBytes = 4u << 20;  // capacity over all banks
+    ServiceOrder serviceOrder = ServiceOrder::Made;  // how banks and DRAM channels order their requests
+    std::uint32_t sizeBytes = 4u << 20;              // capacity over all banks
     std::uint32_t lineBytes = 128;   // line size (>= the node cache's fill unit, CacheParams::fillBytes, in mode cache)
     std::uint32_t ways = 16;         // associativity
     std::uint32_t banks = 16;        // independent banks, line-interleaved
@@ -363,6 +370,7 @@ const char* rtcorePresetText(const std::string& name);
 std::string toString(BuildQuality quality);
 std::string toString(WarpDispatch dispatch);
 std::string toString(L2Mode mode);
+std::string toString(ServiceOrder order);
 std::string toString(RayOrder order);
 std::string toString(LaunchMode mode);
 
