@@ -209,19 +209,15 @@ std::uint64_t SharedL2::reserve(Port& port, std::uint64_t made, std::uint64_t re
     }
     // Step: reservations over by the time this request was made cannot delay
     // it or any later-made one (every request arrives after it is made).
+    // (The reservations never overlap, so sorted by start they are sorted by end.)
     std::vector<Interval>& r = port.reserved;
-    std::size_t over = 0;
-    while (over < r.size() && r[over].end <= made) ++over;
-    r.erase(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(over));
+    const auto endsAfter = [](std::uint64_t t) { return [t](const Interval& v) { return v.end <= t; }; };
+    r.erase(r.begin(), std::partition_point(r.begin(), r.end(), endsAfter(made)));
     // Step: the first gap of `cycles` at or after `ready` between the reservations.
     std::uint64_t start = ready;
-    std::size_t i = 0;
-    for (; i < r.size(); ++i) {
-        if (r[i].end <= start) continue;
-        if (r[i].start >= start + cycles) break;
-        start = r[i].end;
-    }
-    r.insert(r.begin() + static_cast<std::ptrdiff_t>(i), Interval{start, start + cycles});
+    auto i = std::partition_point(r.begin(), r.end(), endsAfter(start));
+    for (; i != r.end() && i->start < start + cycles; ++i) start = std::max(start, i->end);
+    r.insert(i, Interval{start, start + cycles});
     port.free = std::max(port.free, start + cycles);
     return start;
 }

@@ -294,8 +294,8 @@ TEST(RtCoreGpu, L2ServiceOrderByHand) {
     dram.channels = 1;
     dram.bytesPerCycle = 16;
     dram.latency = 100;
-    struct Expected {
-        std::uint64_t ready, conflicts, waitCycles;
+    struct Waits {
+        std::uint64_t conflicts, waitCycles;
     };
     const auto run = [&](ServiceOrder order) {
         l2.serviceOrder = order;
@@ -308,7 +308,7 @@ TEST(RtCoreGpu, L2ServiceOrderByHand) {
         EXPECT_EQ(cache.counters.misses, 4u);
         EXPECT_EQ(cache.bankBusyCycles(0), 4u * 4u);
         EXPECT_EQ(cache.channelBusyCycles(0), 4u * 8u);
-        return std::make_pair(ready, Expected{0, cache.counters.bankConflicts, cache.counters.bankWaitCycles});
+        return std::make_pair(ready, Waits{cache.counters.bankConflicts, cache.counters.bankWaitCycles});
     };
     // Order made: A holds the bank 100-104 and the channel 110-118 (filled
     // 218); B waits for the bank until 104 (tag 114), the channel until 118

@@ -3,8 +3,10 @@
 // memory" and "GPU level"): per core a set-associative LRU node cache (L1)
 // in front of the core's memory port; in l2 mode cache the port leads to a
 // banked L2 shared by all cores, backed by DRAM channels. Every resource
-// serves its requests in the order they are made (cycle, then core index),
-// each starting when both the request and the resource are there.
+// takes its requests in the order they are made (cycle, then core index)
+// and reserves each an interval of its time: from when both the request
+// and the resource are there (l2.serviceOrder made), or in the first idle
+// interval after the request arrives (arrival).
 #include <rtlab/rtcore_sim/config.hpp>
 #include <rtlab/rtcore_sim/layout.hpp>
 
@@ -115,10 +117,12 @@ struct DeferredReads {
 // The L2 shared by all cores (l2 mode cache) with the DRAM channels behind it.
 // Banks: line l (address / l2.lineBytes) is in bank l mod banks, set
 // (l / banks) mod setsPerBank; an access occupies its bank l2.bankCycles
-// cycles from start = max(arrival, bank free); a hit's data leaves at
+// cycles from start = max(arrival, bank free) (l2.serviceOrder arrival:
+// the first idle l2.bankCycles at or after arrival); a hit's data leaves at
 // start + hitLatency (a line still being filled: at its fill cycle). A miss
 // allocates the line (LRU victim) and reads it from DRAM channel l mod channels
-// from max(start + hitLatency, channel free), for ceil(l2.lineBytes /
+// from max(start + hitLatency, channel free) (arrival: the first idle
+// interval from start + hitLatency), for ceil(l2.lineBytes /
 // dram.bytesPerCycle) cycles; the line is there dram.latency cycles later.
 // Counters of the L2 and the DRAM behind it.
 struct L2Counters {
