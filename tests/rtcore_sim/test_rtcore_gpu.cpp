@@ -282,18 +282,14 @@ TEST(RtCoreGpu, L2ServiceOrderByHand) {
     // misses to different lines, given in the order made:
     //   A made 0, arriving 100;  B made 1, arriving 10;  C made 2, arriving 98;
     //   D made 200, arriving 200.
-    L2Params l2;
-    l2.mode = L2Mode::Cache;
-    l2.sizeBytes = 4096;
-    l2.lineBytes = 128;
-    l2.ways = 4;
-    l2.banks = 1;
-    l2.bankCycles = 4;
-    l2.hitLatency = 10;
-    DramParams dram;
-    dram.channels = 1;
-    dram.bytesPerCycle = 16;
-    dram.latency = 100;
+    L2Params l2{.mode = L2Mode::Cache,
+                .sizeBytes = 4096,
+                .lineBytes = 128,
+                .ways = 4,
+                .banks = 1,
+                .bankCycles = 4,
+                .hitLatency = 10};
+    const DramParams dram{.channels = 1, .bytesPerCycle = 16, .latency = 100};
     struct Waits {
         std::uint64_t conflicts, waitCycles;
     };
