@@ -514,6 +514,9 @@ std::string RtCoreConfig::inertReason(const std::string& key) const {
     if (gpu.launch == LaunchMode::Tile && (key == "gpu.residentWarps" || key == "shader.nextTraceLatency"))
         return "gpu.launch is tile (every trace call is its own batch; launches are gpu.launch=launch)";
     if (gpu.cores == 1 && key == "gpu.dispatch") return "gpu.cores is 1 (every warp goes to the one core)";
+    if (gpu.cores == 1 && key == "l2.serviceOrder")
+        return "gpu.cores is 1 (the one core's port delivers its requests in the order it makes them, so both orders "
+               "serve them alike)";
     if (key == "scheduler.treeletBytes" && builtinWithoutTreelets)
         return "scheduler.policy is " + scheduler.policy + " (only treelet and treeletPrefetch use treelets)";
     if (key == "scheduler.prefetchBytes" && (builtinWithoutTreelets || scheduler.policy == "treelet"))

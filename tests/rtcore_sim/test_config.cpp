@@ -218,6 +218,23 @@ TEST(RtCoreConfig, ExplicitlySetParametersWithoutEffectAreRefused) {
         c.set(inert);
         EXPECT_THROW(c.checkExplicitKeys("x"), InputError) << setting << " " << inert;
     }
+    // The L2's service order on one core (its port delivers in the order made).
+    {
+        RtCoreConfig c;
+        c.set("l2.mode=cache");
+        c.set("l2.serviceOrder=arrival");
+        c.set("gpu.cores=2");
+        EXPECT_NO_THROW(c.checkExplicitKeys("x"));
+        c.set("gpu.cores=1");
+        try {
+            c.checkExplicitKeys("x");
+            ADD_FAILURE() << "l2.serviceOrder accepted on one core";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find("l2.serviceOrder: has no effect here: gpu.cores is 1"),
+                      std::string::npos)
+                << e.what();
+        }
+    }
     // Inherited values are never checked: a preset's or file's l2 fields with l2 ideal are fine.
     const RtCoreConfig file = RtCoreConfig::fromJson(nlohmann::json::parse(R"({"l2": {"sizeBytes": 65536}})"), "f");
     EXPECT_TRUE(file.explicitKeys().empty());
