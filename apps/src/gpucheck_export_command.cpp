@@ -45,21 +45,8 @@ int runGpuCheckExport(const GpuCheckExportOptions& options) {
 
     // Step: the scene as it was at the recorded frame (the model's BVHs see the same history).
     session::FrameSession s(o);
-    // The prediction is always one launch, one thread per selected ray (the
-    // GPU check's kernel), with the recorded verdicts taken as commit-all or
-    // first-hit (no shader runs): what only tiles or shaders use is inert.
-    const rtcore_sim::RtCoreConfig& config = s.rtcore()->config();
-    for (const std::string& key : config.explicitKeys()) {
-        if (key.starts_with("shader."))
-            throw InputError("--rtcore-set", key +
-                                                 ": has no effect in gpucheck-export (the exported rays run no any-hit "
-                                                 "or intersection shader, and each is a thread of its own: no ray "
-                                                 "waits on a shader)");
-        if (key == "gpu.launch" && config.gpu.launch == rtcore_sim::LaunchMode::Tile)
-            throw InputError("--rtcore-set", key +
-                                                 ": has no effect in gpucheck-export (the prediction is always of one "
-                                                 "launch, one thread per selected ray, as the GPU check runs them)");
-    }
+    // Parameters its one launch without shaders never uses are refused too.
+    s.rtcore()->config().checkExplicitKeys("--rtcore-set", rtcore_sim::ConfigUse::GpuCheckExport);
     s.load();
     rtcore_sim::RtCoreBackend* rtcore = s.rtcore();
     const ecs::SceneSnapshot* scene = nullptr;

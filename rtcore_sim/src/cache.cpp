@@ -218,7 +218,6 @@ std::uint64_t SharedL2::reserve(Port& port, std::uint64_t made, std::uint64_t re
     auto i = std::partition_point(r.begin(), r.end(), endsAfter(start));
     for (; i != r.end() && i->start < start + cycles; ++i) start = std::max(start, i->end);
     r.insert(i, Interval{start, start + cycles});
-    port.free = std::max(port.free, start + cycles);
     return start;
 }
 

@@ -505,7 +505,7 @@ void RtCoreConfig::set(const std::string& assignment, const std::string& where) 
     if (std::find(explicitKeys_.begin(), explicitKeys_.end(), key) == explicitKeys_.end()) explicitKeys_.push_back(key);
 }
 
-std::string RtCoreConfig::inertReason(const std::string& key) const {
+std::string RtCoreConfig::inertReason(const std::string& key, ConfigUse use) const {
     const std::string section = key.substr(0, key.find('.'));
     const bool builtinWithoutTreelets = scheduler.policy == "fifo" || scheduler.policy == "oldestFirst";
     if (l2.mode == L2Mode::Ideal && ((section == "l2" && key != "l2.mode") || section == "dram"))
@@ -513,6 +513,13 @@ std::string RtCoreConfig::inertReason(const std::string& key) const {
                "model the L2 and DRAM)";
     if (gpu.launch == LaunchMode::Tile && (key == "gpu.residentWarps" || key == "shader.nextTraceLatency"))
         return "gpu.launch is tile (every trace call is its own batch; launches are gpu.launch=launch)";
+    if (use == ConfigUse::GpuCheckExport) {
+        if (section == "shader")
+            return "gpucheck-export runs no any-hit or intersection shader, and each selected ray is a thread of "
+                   "its own: no ray waits on a shader";
+        if (key == "gpu.launch" && gpu.launch == LaunchMode::Tile)
+            return "gpucheck-export predicts one launch, one thread per selected ray, as the GPU check runs them";
+    }
     if (gpu.cores == 1 && key == "gpu.dispatch") return "gpu.cores is 1 (every warp goes to the one core)";
     if (gpu.cores == 1 && key == "l2.serviceOrder")
         return "gpu.cores is 1 (the one core's port delivers its requests in the order it makes them, so both orders "
@@ -524,9 +531,9 @@ std::string RtCoreConfig::inertReason(const std::string& key) const {
     return "";
 }
 
-void RtCoreConfig::checkExplicitKeys(const std::string& where) const {
+void RtCoreConfig::checkExplicitKeys(const std::string& where, ConfigUse use) const {
     for (const std::string& key : explicitKeys_) {
-        const std::string reason = inertReason(key);
+        const std::string reason = inertReason(key, use);
         if (!reason.empty()) fail(where, key, "has no effect here: " + reason);
     }
 }

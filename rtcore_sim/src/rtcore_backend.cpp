@@ -691,11 +691,11 @@ void RtCoreBackend::endLaunchLocked() {
     // shadow rays needs none: millions of 92-byte results not written).
     const bool perRay = std::any_of(launchPrimary_.begin(), launchPrimary_.end(),
                                     [](const LaunchPrimary& p) { return p.ray != kNoRay; });
+    results_.clear();  // the last launch's: not copied into new room
     if (perRay) {
-        results_.clear();  // the last launch's: not copied into new room
         reserveTouchedInParallel(results_, launch_.rays.size());
         results_.assign(launch_.rays.size(), SimRayResult{});
-    } else results_.clear();
+    }
     VerdictReplaySide side(launch_.verdicts.data(), launch_.verdictEnd, false);
     const std::uint64_t before = core_->cycle();
     const std::vector<ResourceUse> usedBefore = core_->resourceUse();

@@ -162,7 +162,7 @@ TEST(GpuCheck, ExportRefusesWhatItCannotCheck) {
         const CliRun r = runCli("gpucheck-export --scene " + scene + " --rays " + rays + " --rtcore-set " + inert +
                                 " --out " + (dir / "y").string());
         EXPECT_EQ(r.exitCode, 2) << r.out;
-        EXPECT_NE(r.out.find(inert.substr(0, inert.find('=')) + ": has no effect in gpucheck-export"),
+        EXPECT_NE(r.out.find(inert.substr(0, inert.find('=')) + ": has no effect here: gpucheck-export"),
                   std::string::npos)
             << r.out;
     }

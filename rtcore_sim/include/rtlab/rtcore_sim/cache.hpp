@@ -194,7 +194,7 @@ private:
         std::uint64_t start, end;
     };
     struct alignas(64) Port {
-        std::uint64_t free = 0;  // the first cycle it takes a new request (order made)
+        std::uint64_t free = 0;  // order made: the first cycle it takes a new request
         std::uint64_t busy = 0;  // cycles busy since resetStats
         // Order arrival: the reservations that may still delay a request, by start.
         std::vector<Interval> reserved;

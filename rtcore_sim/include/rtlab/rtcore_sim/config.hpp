@@ -292,6 +292,12 @@ const ParamTable<DramParams>& dramParamTable();
 // ---------------------------------------------------------------------------
 // The whole configuration.
 
+// What a configuration drives: rendered or replayed frames (render, replay,
+// sweep), or gpucheck-export's prediction: one launch, one thread per
+// selected ray, no any-hit or intersection shader (docs/validation.md).
+// Some parameters are inert in the second (RtCoreConfig::inertReason).
+enum class ConfigUse : std::uint8_t { Frames, GpuCheckExport };
+
 struct RtCoreConfig {
     BvhParams bvh;
     CoreParams core;
@@ -334,9 +340,9 @@ struct RtCoreConfig {
     // InputError naming the first explicitly set key that has no effect in
     // this configuration, and what makes it inert (e.g. l2.sizeBytes while
     // l2.mode is ideal). Nothing set is silently ignored.
-    void checkExplicitKeys(const std::string& where) const;
+    void checkExplicitKeys(const std::string& where, ConfigUse use = ConfigUse::Frames) const;
     // Why `key` ("section.field") has no effect in this configuration; "" when it may have one.
-    std::string inertReason(const std::string& key) const;
+    std::string inertReason(const std::string& key, ConfigUse use = ConfigUse::Frames) const;
 
     // Rules across fields (checked when an RtCore is built, and by the CLI
     // once all overrides are applied): core.inputQueueRays >= core.warpWidth,
